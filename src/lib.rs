@@ -1,0 +1,37 @@
+//! hilcam — a hardware-in-the-loop camera simulator for spacecraft navigation.
+//!
+//! A dynamics simulator sends the target's relative pose (and the sun direction) over
+//! serial or CAN; hilcam renders the frame a real camera would see with a low-sample
+//! Monte Carlo path tracer and streams it to the navigation computer under test.
+//!
+//! Layout (synchronous, pure core first; the tokio shell last):
+//!
+//! - [`pose`]: the `Pose` type (f64), validation, and the wire codecs (pure, over bytes).
+//! - [`camera`]: pinhole camera at the real pixel geometry; pose → render frame.
+//! - [`scene`]: TOML scene files, OBJ/MTL loading, material mapping.
+//! - [`geometry`]: triangles and the obvhs BVH (the only module that imports obvhs).
+//! - [`bsdf`]: BRDF models (Lambert, Blinn-Phong, improved Blinn-Phong, Cook-Torrance).
+//! - [`sampling`]: deterministic random numbers keyed by (seed, frame, pixel, sample).
+//! - [`integrator`]: the path-tracing estimator for one camera sample, no threading.
+//! - [`render`]: the rayon pixel loop: (scene, camera, pose, settings, seed) → image.
+//! - [`film`]: radiance images and writing them to files.
+//! - [`sensor`]: entrance-pupil radiance → electrons → digital numbers.
+//! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
+//! - [`sink`]: frame sinks (TCP stream, recorder, null).
+//! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
+//! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
+
+pub mod bsdf;
+pub mod camera;
+pub mod cli;
+pub mod film;
+pub mod frame;
+pub mod geometry;
+pub mod integrator;
+pub mod pose;
+pub mod render;
+pub mod sampling;
+pub mod scene;
+pub mod sensor;
+pub mod sink;
+pub mod transport;

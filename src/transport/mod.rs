@@ -1,0 +1,1 @@
+//! Async I/O feeding the pose codecs (placeholder).
