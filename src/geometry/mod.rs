@@ -1,1 +1,4 @@
-//! (placeholder)
+//! Geometry: triangle meshes and (later) the obvhs BVH.
+
+pub mod mesh;
+pub use mesh::TriMesh;
