@@ -5,7 +5,10 @@
 //! `((col + 0.5) − W/2 − cx, (row + 0.5) − H/2 − cy) × pitch` on the focal plane, where
 //! `(cx, cy)` is the principal point's offset from the array centre, in pixels.
 
+pub mod view;
+
 use serde::Deserialize;
+pub use view::{PixelRect, TargetBounds, View};
 
 /// Intrinsics of a pinhole camera, as read from `[camera]` in a scene or config file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

@@ -1,5 +1,7 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
+pub mod render;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -19,6 +21,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Render one frame of a scene file to an image file.
+    Render(render::RenderArgs),
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
 }
@@ -30,6 +34,7 @@ pub fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let result: anyhow::Result<()> = match cli.command {
+        Command::Render(a) => render::run(a),
         Command::Version => {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())

@@ -1,4 +1,7 @@
-//! Geometry: triangle meshes and (later) the obvhs BVH.
+//! Geometry: triangle meshes, bounds and the obvhs BVH.
 
+pub mod bvh;
 pub mod mesh;
+
+pub use bvh::{Accel, BvhLayout, Hit, Ray};
 pub use mesh::TriMesh;

@@ -1,0 +1,202 @@
+//! A camera placed by a pose: primary rays in the render frame.
+//!
+//! The render frame is the target body frame shifted so that its origin sits at the
+//! centre of the target's bounds. Pose maths and ray set-up are f64; each primary ray's
+//! origin is then moved (in f64) to where the ray enters the target's bounding sphere, so
+//! the f32 ray that is traced has small coordinates whatever the range (0.5 m … 10⁶ m).
+
+use super::CameraModel;
+use crate::geometry::Ray;
+use crate::pose::Pose;
+use glam::{DMat3, DVec3, Vec3};
+
+/// Pixels `[col0, col1) × [row0, row1)` whose area can see the target's bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    pub col0: u32,
+    pub col1: u32,
+    pub row0: u32,
+    pub row1: u32,
+}
+
+impl PixelRect {
+    pub fn area(&self) -> u64 {
+        u64::from(self.col1 - self.col0) * u64::from(self.row1 - self.row0)
+    }
+}
+
+/// Bounds of the target in the render frame: a sphere (centre near 0) and an AABB.
+#[derive(Clone, Copy, Debug)]
+pub struct TargetBounds {
+    pub centre: DVec3,
+    pub radius: f64,
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+/// One camera, one pose: everything needed to make primary rays.
+#[derive(Clone, Debug)]
+pub struct View {
+    width: u32,
+    height: u32,
+    /// Pixel coordinate of the principal point (continuous, 0 at the array's corner).
+    pp: [f64; 2],
+    inv_focal_px: f64,
+    /// Camera centre in the render frame, metres.
+    origin: DVec3,
+    /// Camera frame → render frame.
+    cam_to_render: DMat3,
+    bounds: TargetBounds,
+    /// Unit vector toward the sun, render frame.
+    pub sun: Vec3,
+}
+
+impl View {
+    /// `frame_origin_body` is where the render frame's origin sits in the body frame.
+    pub fn new(
+        cam: &CameraModel,
+        pose: &Pose,
+        frame_origin_body: DVec3,
+        bounds: TargetBounds,
+    ) -> View {
+        let body_to_cam = DMat3::from_quat(pose.attitude.normalize());
+        let cam_to_body = body_to_cam.transpose();
+        // Camera centre: x_c = R x_b + p = 0  ⇒  x_b = −Rᵀ p.
+        let origin = -(cam_to_body * pose.position) - frame_origin_body;
+        let sun = (cam_to_body * pose.sun_dir.normalize()).as_vec3();
+        View {
+            width: cam.width,
+            height: cam.height,
+            pp: [
+                f64::from(cam.width) * 0.5 + cam.principal_point_px[0],
+                f64::from(cam.height) * 0.5 + cam.principal_point_px[1],
+            ],
+            inv_focal_px: 1.0 / cam.focal_px(),
+            origin,
+            cam_to_render: cam_to_body,
+            bounds,
+            sun,
+        }
+    }
+
+    /// Direction (camera frame, not normalised: z = 1) through continuous pixel coordinate
+    /// `(x, y)` (`x = col + u`, `y = row + v`).
+    #[inline]
+    pub fn camera_dir(&self, x: f64, y: f64) -> DVec3 {
+        DVec3::new(
+            (x - self.pp[0]) * self.inv_focal_px,
+            (y - self.pp[1]) * self.inv_focal_px,
+            1.0,
+        )
+    }
+
+    /// Continuous pixel coordinate where a camera-frame point projects (pinhole).
+    pub fn project_camera_point(cam: &CameraModel, p: DVec3) -> Option<[f64; 2]> {
+        (p.z > 0.0).then(|| {
+            let f = cam.focal_px();
+            [
+                p.x / p.z * f + f64::from(cam.width) * 0.5 + cam.principal_point_px[0],
+                p.y / p.z * f + f64::from(cam.height) * 0.5 + cam.principal_point_px[1],
+            ]
+        })
+    }
+
+    /// The f32 primary ray through `(x, y)`, starting where it enters the target's
+    /// bounding sphere; `None` if it misses the sphere (background).
+    #[inline]
+    pub fn primary_ray(&self, x: f64, y: f64) -> Option<Ray> {
+        let d = (self.cam_to_render * self.camera_dir(x, y)).normalize();
+        let oc = self.origin - self.bounds.centre;
+        let b = oc.dot(d);
+        let perp = oc - b * d;
+        let r2 = self.bounds.radius * self.bounds.radius;
+        let h2 = r2 - perp.length_squared();
+        if h2 < 0.0 {
+            return None;
+        }
+        let t_exit = -b + h2.sqrt();
+        if t_exit <= 0.0 {
+            return None;
+        }
+        let start = (-b - h2.sqrt()).max(0.0);
+        Some(Ray {
+            origin: (self.origin + d * start).as_vec3(),
+            dir: d.as_vec3(),
+            tmax: f32::INFINITY,
+        })
+    }
+
+    /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
+    /// the bounds are entirely outside the image or behind the camera.
+    pub fn pixel_rect(&self) -> Option<PixelRect> {
+        let full = PixelRect {
+            col0: 0,
+            col1: self.width,
+            row0: 0,
+            row1: self.height,
+        };
+        let render_to_cam = self.cam_to_render.transpose();
+        let c = render_to_cam * (self.bounds.centre - self.origin);
+        let r = self.bounds.radius;
+        if c.length() <= r * 1.000001 {
+            return Some(full); // camera inside the bounds
+        }
+        // Exact extent of x/z (and y/z) over the sphere: tangent lines in the XZ (YZ) plane.
+        let extent = |a: f64| -> Option<(f64, f64)> {
+            let rho = (a * a + c.z * c.z).sqrt();
+            if rho <= r {
+                return Some((f64::NEG_INFINITY, f64::INFINITY));
+            }
+            let mid = a.atan2(c.z);
+            let half = (r / rho).asin();
+            let (lo, hi) = (mid - half, mid + half);
+            let q = std::f64::consts::FRAC_PI_2;
+            if hi <= -q || lo >= q {
+                return None; // entirely behind the camera plane in this projection
+            }
+            Some((
+                if lo <= -q {
+                    f64::NEG_INFINITY
+                } else {
+                    lo.tan()
+                },
+                if hi >= q { f64::INFINITY } else { hi.tan() },
+            ))
+        };
+        let (mut x0, mut x1) = extent(c.x)?;
+        let (mut y0, mut y1) = extent(c.y)?;
+        // The AABB's corners give a tighter box for elongated targets when all are in front.
+        let corners: Vec<DVec3> = (0..8)
+            .map(|i| {
+                let b = &self.bounds;
+                let p = DVec3::new(
+                    if i & 1 == 0 { b.min.x } else { b.max.x },
+                    if i & 2 == 0 { b.min.y } else { b.max.y },
+                    if i & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                render_to_cam * (p - self.origin)
+            })
+            .collect();
+        if corners.iter().all(|p| p.z > 0.0) {
+            let xs = corners.iter().map(|p| p.x / p.z);
+            let ys = corners.iter().map(|p| p.y / p.z);
+            x0 = x0.max(xs.clone().fold(f64::INFINITY, f64::min));
+            x1 = x1.min(xs.fold(f64::NEG_INFINITY, f64::max));
+            y0 = y0.max(ys.clone().fold(f64::INFINITY, f64::min));
+            y1 = y1.min(ys.fold(f64::NEG_INFINITY, f64::max));
+        }
+        let f = 1.0 / self.inv_focal_px;
+        let to_px = |v: f64, pp: f64, n: u32, up: bool| -> u32 {
+            let p = v * f + pp;
+            let p = if up { p.ceil() + 1.0 } else { p.floor() - 1.0 };
+            p.clamp(0.0, f64::from(n)) as u32
+        };
+        let rect = PixelRect {
+            col0: to_px(x0, self.pp[0], self.width, false),
+            col1: to_px(x1, self.pp[0], self.width, true),
+            row0: to_px(y0, self.pp[1], self.height, false),
+            row1: to_px(y1, self.pp[1], self.height, true),
+        };
+        (rect.col0 < rect.col1 && rect.row0 < rect.row1).then_some(rect)
+    }
+}

@@ -1,0 +1,159 @@
+//! `hilcam render`: one frame of a scene file to an image file.
+
+use crate::camera::CameraModel;
+use crate::film::write_radiance;
+use crate::integrator::SamplerKind;
+use crate::pose::Pose;
+use crate::render::render;
+use anyhow::{Context, bail};
+use glam::{DQuat, DVec3};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Output image: .exr/.pfm hold float radiance (W·sr⁻¹·m⁻²); .png/.tif a scaled preview.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Surface interactions per path (1 = direct sunlight only).
+    #[arg(long)]
+    pub depth: Option<u32>,
+    #[arg(long, value_enum)]
+    pub sampler: Option<SamplerKind>,
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Frame index (part of every random number's key).
+    #[arg(long, default_value_t = 0)]
+    pub frame: u64,
+    /// Render a scaled preview this many columns wide (same field of view).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Rows of the scaled preview (default: keeps the aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Pose override: `px,py,pz` or `px,py,pz,qw,qx,qy,qz` or those plus `,sx,sy,sz`
+    /// (camera frame; metres; quaternion body→camera, scalar first; sun direction).
+    #[arg(long, allow_hyphen_values = true)]
+    pub pose: Option<String>,
+    /// Write 16-bit PNG previews instead of 8-bit.
+    #[arg(long)]
+    pub png16: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+pub fn run(a: RenderArgs) -> anyhow::Result<()> {
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .ok();
+    }
+    let scene = crate::scene::load(&a.scene)?;
+    let mut settings = scene.render;
+    if let Some(v) = a.spp {
+        settings.spp = v.max(1);
+    }
+    if let Some(v) = a.depth {
+        settings.depth = v.max(1);
+    }
+    if let Some(v) = a.sampler {
+        settings.sampler = v;
+    }
+    if let Some(v) = a.seed {
+        settings.seed = v;
+    }
+    let camera = scaled_camera(&scene.camera, a.width, a.height);
+    let pose = match &a.pose {
+        Some(s) => parse_pose(s, &scene.pose).context("--pose")?,
+        None => scene.pose,
+    };
+    let (img, stats) = render(&scene, &camera, &pose, &settings, a.frame);
+    let info = write_radiance(&a.out, &img, None, a.png16)?;
+    let covered =
+        stats.traced_pixels as f64 / (f64::from(camera.width) * f64::from(camera.height)) * 100.0;
+    print!(
+        "{}: {}x{} spp {} depth {} {:?}: {:.3} s, {} rays ({:.2} Mrays/s), traced {:.1} % of pixels, BVH {} triangles built in {:.0} ms",
+        a.out.display(),
+        camera.width,
+        camera.height,
+        settings.spp,
+        settings.depth,
+        settings.sampler,
+        stats.time.as_secs_f64(),
+        stats.rays.total(),
+        stats.mrays_per_s(),
+        covered,
+        scene.mesh.indices.len(),
+        scene.accel.build_time.as_secs_f64() * 1e3,
+    );
+    match info.preview_scale {
+        Some(s) => println!(", preview white = {s:.4e} W·sr⁻¹·m⁻²"),
+        None => println!(),
+    }
+    if stats.rays.nonfinite > 0 {
+        println!(
+            "warning: {} non-finite samples dropped",
+            stats.rays.nonfinite
+        );
+    }
+    Ok(())
+}
+
+/// The same camera at another resolution, with the same field of view.
+pub fn scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -> CameraModel {
+    let Some(w) = width
+        .or(height
+            .map(|h| (f64::from(h) * f64::from(c.width) / f64::from(c.height)).round() as u32))
+    else {
+        return c.clone();
+    };
+    let k = f64::from(c.width) / f64::from(w);
+    let h = height.unwrap_or_else(|| ((f64::from(c.height) / k).round() as u32).max(1));
+    CameraModel {
+        width: w.max(1),
+        height: h,
+        pitch_um: c.pitch_um * k,
+        focal_mm: c.focal_mm,
+        principal_point_px: c.principal_point_px.map(|v| v / k),
+    }
+}
+
+/// `px,py,pz[,qw,qx,qy,qz[,sx,sy,sz]]`; missing parts come from `base`.
+pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .with_context(|| format!("`{t}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    if !matches!(v.len(), 3 | 7 | 10) {
+        bail!(
+            "expected 3, 7 or 10 comma-separated numbers, got {}",
+            v.len()
+        );
+    }
+    let mut p = *base;
+    p.position = DVec3::new(v[0], v[1], v[2]);
+    if v.len() >= 7 {
+        let q = DQuat::from_xyzw(v[4], v[5], v[6], v[3]);
+        if (q.length() - 1.0).abs() > 1e-3 {
+            bail!("quaternion norm is {}, expected 1", q.length());
+        }
+        p.attitude = q.normalize();
+    }
+    if v.len() == 10 {
+        let sun = DVec3::new(v[7], v[8], v[9]);
+        if sun.length() < 1e-9 {
+            bail!("sun direction is zero");
+        }
+        p.sun_dir = sun.normalize();
+    }
+    Ok(p)
+}

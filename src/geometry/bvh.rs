@@ -1,0 +1,173 @@
+//! The acceleration structure: obvhs BVHs over the scene's triangles. This is the only
+//! module that imports obvhs.
+//!
+//! Both obvhs layouts are kept: the binary BVH2 is the faster of the two for the
+//! coherent rays that dominate our frames (primary and parallel-sun shadow rays), the
+//! 8-wide compressed CWBVH for incoherent rays (see `../shared/CRATES.md` and
+//! `docs/performance.md`); `hilcam bench render` measures both on the same rays.
+
+use super::TriMesh;
+use glam::{Vec3, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    bvh2::{Bvh2, builder::build_bvh2_from_tris},
+    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    ray::{Ray as ObRay, RayHit},
+    rt_triangle::RtTriangle,
+    triangle::Triangle,
+};
+use std::time::Duration;
+
+/// Which obvhs tree layout to build.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum BvhLayout {
+    /// Binary BVH (obvhs `Bvh2`).
+    #[default]
+    Bvh2,
+    /// Compressed 8-wide BVH (obvhs `CwBvh`).
+    Cwbvh,
+}
+
+/// A ray in the render frame (f32). `dir` need not be normalised; `t` is in its units.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmax: f32,
+}
+
+/// The closest hit: `tri` indexes the mesh's triangles (original order).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub tri: u32,
+    pub t: f32,
+}
+
+enum Tree {
+    Bvh2(Bvh2),
+    Cw(CwBvh),
+}
+
+/// BVH plus the triangles laid out in the BVH's primitive order (no indirection while
+/// intersecting; one lookup of the original index per hit).
+pub struct Accel {
+    tree: Tree,
+    tris: Vec<RtTriangle>,
+    original: Vec<u32>,
+    pub build_time: Duration,
+}
+
+impl Accel {
+    pub fn build(mesh: &TriMesh, layout: BvhLayout) -> Self {
+        let t0 = std::time::Instant::now();
+        let tris: Vec<Triangle> = (0..mesh.indices.len())
+            .map(|i| {
+                let [a, b, c] = mesh.triangle(i);
+                Triangle {
+                    v0: a.into(),
+                    v1: b.into(),
+                    v2: c.into(),
+                }
+            })
+            .collect();
+        let params = BvhBuildParams::medium_build();
+        let mut core = Duration::ZERO;
+        let (tree, original) = if tris.is_empty() {
+            (Tree::Bvh2(Bvh2::default()), Vec::new())
+        } else {
+            match layout {
+                BvhLayout::Bvh2 => {
+                    let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Bvh2(b), idx)
+                }
+                BvhLayout::Cwbvh => {
+                    let b = build_cwbvh_from_tris(&tris, params, &mut core);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Cw(b), idx)
+                }
+            }
+        };
+        let rt = original
+            .iter()
+            .map(|&i| RtTriangle::from(&tris[i as usize]))
+            .collect();
+        Accel {
+            tree,
+            tris: rt,
+            original,
+            build_time: t0.elapsed(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    #[inline(always)]
+    fn ob_ray(r: &Ray) -> ObRay {
+        ObRay::new(Vec3A::from(r.origin), Vec3A::from(r.dir), 0.0, r.tmax)
+    }
+
+    /// Closest hit along the ray within `(0, tmax]`.
+    #[inline]
+    pub fn intersect(&self, r: &Ray) -> Option<Hit> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let ray = Self::ob_ray(r);
+        let mut hit = RayHit::none();
+        let tris = &self.tris;
+        let found = match &self.tree {
+            Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
+            Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
+        };
+        found.then(|| Hit {
+            tri: self.original[hit.primitive_id as usize],
+            t: hit.t,
+        })
+    }
+
+    /// True when anything blocks the ray within `(0, tmax]` (stops at the first hit).
+    #[inline]
+    pub fn occluded(&self, r: &Ray) -> bool {
+        if self.tris.is_empty() {
+            return false;
+        }
+        let ray = Self::ob_ray(r);
+        let tris = &self.tris;
+        let miss = match &self.tree {
+            Tree::Bvh2(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
+            Tree::Cw(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
+        };
+        !miss
+    }
+}
+
+/// Reference answers for tests and validation: the same triangle test over every triangle.
+pub mod brute_force {
+    use super::*;
+
+    fn rt(mesh: &TriMesh, i: usize) -> RtTriangle {
+        let [a, b, c] = mesh.triangle(i);
+        RtTriangle::new(a.into(), b.into(), c.into())
+    }
+
+    pub fn intersect(mesh: &TriMesh, r: &Ray) -> Option<Hit> {
+        let ray = Accel::ob_ray(r);
+        let mut best: Option<Hit> = None;
+        for i in 0..mesh.indices.len() {
+            let t = rt(mesh, i).intersect(&ray);
+            if t < best.map_or(ray.tmax, |h| h.t) && t <= ray.tmax {
+                best = Some(Hit { tri: i as u32, t });
+            }
+        }
+        best
+    }
+
+    pub fn occluded(mesh: &TriMesh, r: &Ray) -> bool {
+        let ray = Accel::ob_ray(r);
+        (0..mesh.indices.len()).any(|i| rt(mesh, i).intersect(&ray) <= ray.tmax)
+    }
+}

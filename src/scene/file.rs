@@ -1,0 +1,455 @@
+//! The TOML scene file. Every error names the file, and where it can the line and field.
+//!
+//! ```toml
+//! [[mesh]]
+//! obj = "plate.obj"            # relative to this file
+//! translate = [0.0, 0.0, 0.0]  # body frame, metres
+//! rotate_deg = [0.0, 0.0, 0.0] # about body X, then Y, then Z (fixed axes)
+//! scale = 1.0
+//!
+//! [materials.white_paint]      # MTL material name → BRDF
+//! model = "lambert"
+//! rho = 0.522
+//!
+//! [sun]
+//! irradiance = 593.1           # W/m² in the band
+//! [background]
+//! radiance = 0.0               # W·sr⁻¹·m⁻²
+//!
+//! camera_file = "../config/cameras/nav1024.toml"   # or an inline [camera] table
+//!
+//! [pose]                       # default pose (camera frame)
+//! position = [0.0, 0.0, 10.0]
+//! attitude = [1.0, 0.0, 0.0, 0.0]   # w, x, y, z: body → camera
+//! sun = [0.0, 0.0, -1.0]            # toward the sun
+//!
+//! [render]
+//! spp = 4
+//! depth = 2
+//! sampler = "cosine"
+//! seed = 0
+//! bvh = "bvh2"
+//! ```
+
+use super::obj::load_obj;
+use super::{Material, Scene, SceneParts};
+use crate::bsdf::BsdfSpec;
+use crate::camera::CameraModel;
+use crate::geometry::{BvhLayout, TriMesh};
+use crate::integrator::{RenderSettings, SamplerKind};
+use crate::pose::Pose;
+use glam::{DQuat, DVec3, EulerRot};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// toml's message already says "at line L, column C".
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}:{line}: {field}: {message}")]
+    Field {
+        path: PathBuf,
+        line: usize,
+        field: String,
+        message: String,
+    },
+    #[error("{path}: {field}: {message}")]
+    Missing {
+        path: PathBuf,
+        field: String,
+        message: String,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    mesh: Vec<MeshEntry>,
+    #[serde(default)]
+    materials: BTreeMap<String, Spanned<BsdfSpec>>,
+    #[serde(default)]
+    sun: SunSection,
+    #[serde(default)]
+    background: BackgroundSection,
+    camera: Option<Spanned<CameraModel>>,
+    camera_file: Option<Spanned<PathBuf>>,
+    #[serde(default)]
+    pose: PoseSection,
+    #[serde(default)]
+    render: RenderSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshEntry {
+    obj: Spanned<PathBuf>,
+    #[serde(default)]
+    translate: [f64; 3],
+    #[serde(default)]
+    rotate_deg: [f64; 3],
+    #[serde(default = "one")]
+    scale: Spanned<f64>,
+    /// Use this scene material for every face, whatever the MTL says.
+    material: Option<Spanned<String>>,
+}
+
+fn one() -> Spanned<f64> {
+    Spanned::new(0..0, 1.0)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SunSection {
+    #[serde(default = "default_irradiance")]
+    irradiance: Spanned<f64>,
+}
+
+impl Default for SunSection {
+    fn default() -> Self {
+        SunSection {
+            irradiance: default_irradiance(),
+        }
+    }
+}
+
+fn default_irradiance() -> Spanned<f64> {
+    Spanned::new(0..0, super::SOLAR_BAND_IRRADIANCE)
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct BackgroundSection {
+    #[serde(default)]
+    radiance: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PoseSection {
+    position: Spanned<[f64; 3]>,
+    #[serde(default = "identity")]
+    attitude: Spanned<[f64; 4]>,
+    sun: Spanned<[f64; 3]>,
+}
+
+fn identity() -> Spanned<[f64; 4]> {
+    Spanned::new(0..0, [1.0, 0.0, 0.0, 0.0])
+}
+
+impl Default for PoseSection {
+    fn default() -> Self {
+        PoseSection {
+            position: Spanned::new(0..0, [0.0, 0.0, 10.0]),
+            attitude: identity(),
+            sun: Spanned::new(0..0, [0.0, 0.0, -1.0]),
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderSection {
+    #[serde(default = "default_spp")]
+    spp: Spanned<u32>,
+    #[serde(default = "default_depth")]
+    depth: Spanned<u32>,
+    #[serde(default)]
+    sampler: SamplerKind,
+    #[serde(default)]
+    seed: u64,
+    #[serde(default)]
+    bvh: BvhLayout,
+}
+
+fn default_spp() -> Spanned<u32> {
+    Spanned::new(0..0, RenderSettings::default().spp)
+}
+fn default_depth() -> Spanned<u32> {
+    Spanned::new(0..0, RenderSettings::default().depth)
+}
+
+impl Default for RenderSection {
+    fn default() -> Self {
+        RenderSection {
+            spp: default_spp(),
+            depth: default_depth(),
+            sampler: SamplerKind::default(),
+            seed: 0,
+            bvh: BvhLayout::default(),
+        }
+    }
+}
+
+/// 1-based line of a byte offset.
+fn line_of(src: &str, offset: usize) -> usize {
+    src[..offset.min(src.len())]
+        .bytes()
+        .filter(|b| *b == b'\n')
+        .count()
+        + 1
+}
+
+/// Load and build a scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let parts = parse(path, &src)?;
+    Ok(Scene::build(parts))
+}
+
+/// Parse a scene file's text (`path` names it in errors and anchors relative paths).
+pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
+    let file: SceneFile = toml::from_str(src).map_err(|e| SceneError::Parse {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let field = |span: std::ops::Range<usize>, field: &str, message: String| SceneError::Field {
+        path: path.to_path_buf(),
+        line: line_of(src, span.start),
+        field: field.to_string(),
+        message,
+    };
+
+    // Materials, in name order (BTreeMap) so indices are stable.
+    let mut materials = Vec::new();
+    for (name, spec) in &file.materials {
+        let bsdf = spec
+            .get_ref()
+            .build()
+            .map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
+        materials.push(Material {
+            name: name.clone(),
+            bsdf,
+        });
+    }
+    let index_of = |name: &str| {
+        materials
+            .iter()
+            .position(|m| m.name == name)
+            .map(|i| i as u32)
+    };
+
+    // Meshes, transformed into the body frame.
+    if file.mesh.is_empty() {
+        return Err(SceneError::Missing {
+            path: path.to_path_buf(),
+            field: "mesh".into(),
+            message: "a scene needs at least one [[mesh]]".into(),
+        });
+    }
+    let mut mesh = TriMesh::default();
+    for (k, entry) in file.mesh.iter().enumerate() {
+        let fname = format!("mesh[{k}].obj");
+        let obj_path = dir.join(entry.obj.get_ref());
+        let loaded = load_obj(&obj_path).map_err(|m| {
+            field(
+                entry.obj.span(),
+                &fname,
+                format!("{}: {m}", obj_path.display()),
+            )
+        })?;
+        let scale = *entry.scale.get_ref();
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(field(
+                entry.scale.span(),
+                &format!("mesh[{k}].scale"),
+                format!("must be positive, got {scale}"),
+            ));
+        }
+        // Map each MTL name to a scene material.
+        let mut map = Vec::new();
+        for name in &loaded.material_names {
+            let target = entry
+                .material
+                .as_ref()
+                .map(|m| m.get_ref().as_str())
+                .unwrap_or(name);
+            match index_of(target) {
+                Some(i) => map.push(i),
+                None => {
+                    let (span, what) = match &entry.material {
+                        Some(m) => (m.span(), format!("mesh[{k}].material")),
+                        None => (entry.obj.span(), fname.clone()),
+                    };
+                    let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+                    return Err(field(
+                        span,
+                        &what,
+                        format!(
+                            "material `{target}` used by {} has no [materials.{target}] entry (scene has: {})",
+                            obj_path.display(),
+                            known.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        let [rx, ry, rz] = entry.rotate_deg.map(f64::to_radians);
+        let rot = DQuat::from_euler(EulerRot::ZYX, rz, ry, rx);
+        let t = DVec3::from_array(entry.translate);
+        let mut m = loaded.mesh;
+        for p in &mut m.positions {
+            *p = (rot * (p.as_dvec3() * scale) + t).as_vec3();
+        }
+        for mat in &mut m.material {
+            *mat = map[*mat as usize];
+        }
+        mesh.append(&m);
+    }
+
+    // Camera: inline table or a camera file's [camera] table.
+    let camera = match (&file.camera, &file.camera_file) {
+        (Some(c), None) => c.get_ref().clone(),
+        (None, Some(f)) => load_camera_file(&dir.join(f.get_ref()))
+            .map_err(|m| field(f.span(), "camera_file", m))?,
+        (Some(c), Some(_)) => {
+            return Err(field(
+                c.span(),
+                "camera",
+                "give either [camera] or camera_file, not both".into(),
+            ));
+        }
+        (None, None) => {
+            return Err(SceneError::Missing {
+                path: path.to_path_buf(),
+                field: "camera".into(),
+                message: "give a [camera] table or camera_file".into(),
+            });
+        }
+    };
+    validate_camera(&camera).map_err(|(f, m)| match &file.camera {
+        Some(c) => field(c.span(), &format!("camera.{f}"), m),
+        None => SceneError::Missing {
+            path: path.to_path_buf(),
+            field: format!("camera.{f}"),
+            message: m,
+        },
+    })?;
+
+    let pose = pose_from(&file.pose).map_err(|(span, f, m)| field(span, &f, m))?;
+    let irradiance = *file.sun.irradiance.get_ref();
+    if !(irradiance.is_finite() && irradiance >= 0.0) {
+        return Err(field(
+            file.sun.irradiance.span(),
+            "sun.irradiance",
+            format!("must be ≥ 0 W/m², got {irradiance}"),
+        ));
+    }
+    let r = &file.render;
+    let render = RenderSettings {
+        spp: *r.spp.get_ref(),
+        depth: *r.depth.get_ref(),
+        sampler: r.sampler,
+        seed: r.seed,
+    };
+    if render.spp == 0 {
+        return Err(field(
+            r.spp.span(),
+            "render.spp",
+            "must be at least 1".into(),
+        ));
+    }
+    if render.depth == 0 {
+        return Err(field(
+            r.depth.span(),
+            "render.depth",
+            "must be at least 1 (1 = direct sunlight only)".into(),
+        ));
+    }
+    Ok(SceneParts {
+        mesh,
+        materials,
+        sun_irradiance: irradiance,
+        background: file.background.radiance,
+        camera,
+        pose,
+        render,
+        layout: r.bvh,
+    })
+}
+
+/// Read the `[camera]` table of a camera file (which may hold other tables too).
+pub fn load_camera_file(path: &Path) -> Result<CameraModel, String> {
+    let src = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let table: toml::Table =
+        toml::from_str(&src).map_err(|e| format!("{}: {e}", path.display()))?;
+    let cam = table
+        .get("camera")
+        .ok_or_else(|| format!("{}: no [camera] table", path.display()))?;
+    let cam: CameraModel = cam
+        .clone()
+        .try_into()
+        .map_err(|e| format!("{}: [camera]: {e}", path.display()))?;
+    validate_camera(&cam).map_err(|(f, m)| format!("{}: camera.{f}: {m}", path.display()))?;
+    Ok(cam)
+}
+
+fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
+    if c.width == 0 || c.height == 0 {
+        return Err((
+            "width",
+            format!("image must be at least 1×1, got {}×{}", c.width, c.height),
+        ));
+    }
+    if !(c.pitch_um.is_finite() && c.pitch_um > 0.0) {
+        return Err(("pitch_um", format!("must be positive, got {}", c.pitch_um)));
+    }
+    if !(c.focal_mm.is_finite() && c.focal_mm > 0.0) {
+        return Err(("focal_mm", format!("must be positive, got {}", c.focal_mm)));
+    }
+    if !c.principal_point_px.iter().all(|v| v.is_finite()) {
+        return Err(("principal_point_px", "must be finite".into()));
+    }
+    Ok(())
+}
+
+type FieldErr = (std::ops::Range<usize>, String, String);
+
+fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
+    let pos = DVec3::from_array(*p.position.get_ref());
+    if !pos.is_finite() {
+        return Err((
+            p.position.span(),
+            "pose.position".into(),
+            "must be finite".into(),
+        ));
+    }
+    let [w, x, y, z] = *p.attitude.get_ref();
+    let q = DQuat::from_xyzw(x, y, z, w);
+    if !q.is_finite() || (q.length() - 1.0).abs() > 1e-3 {
+        return Err((
+            p.attitude.span(),
+            "pose.attitude".into(),
+            format!(
+                "must be a unit quaternion [w, x, y, z], norm is {}",
+                q.length()
+            ),
+        ));
+    }
+    let sun = DVec3::from_array(*p.sun.get_ref());
+    if !sun.is_finite() || sun.length() < 1e-9 {
+        return Err((
+            p.sun.span(),
+            "pose.sun".into(),
+            "must be a non-zero direction toward the sun".into(),
+        ));
+    }
+    Ok(Pose {
+        position: pos,
+        attitude: q.normalize(),
+        sun_dir: sun.normalize(),
+        ..Pose::ahead(0.0)
+    })
+}
