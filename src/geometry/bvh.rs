@@ -145,7 +145,8 @@ impl Accel {
     }
 }
 
-/// Reference answers for tests and validation: the same triangle test over every triangle.
+/// Reference answers for tests and validation: the same triangle test over every
+/// triangle, with obvhs's convention that a hit counts when `t < tmax`.
 pub mod brute_force {
     use super::*;
 
@@ -159,7 +160,7 @@ pub mod brute_force {
         let mut best: Option<Hit> = None;
         for i in 0..mesh.indices.len() {
             let t = rt(mesh, i).intersect(&ray);
-            if t < best.map_or(ray.tmax, |h| h.t) && t <= ray.tmax {
+            if t < best.map_or(ray.tmax, |h| h.t) {
                 best = Some(Hit { tri: i as u32, t });
             }
         }
@@ -168,6 +169,6 @@ pub mod brute_force {
 
     pub fn occluded(mesh: &TriMesh, r: &Ray) -> bool {
         let ray = Accel::ob_ray(r);
-        (0..mesh.indices.len()).any(|i| rt(mesh, i).intersect(&ray) <= ray.tmax)
+        (0..mesh.indices.len()).any(|i| rt(mesh, i).intersect(&ray) < ray.tmax)
     }
 }

@@ -1,0 +1,111 @@
+//! Scene files: the shipped scenes load; errors name the file, line and field.
+
+use hilcam::scene::{SceneError, load};
+use std::path::{Path, PathBuf};
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+const PLATE_OBJ: &str = "mtllib p.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl paint\nf 1 2 3\n";
+const PLATE_MTL: &str = "newmtl paint\nKd 0.5 0.5 0.5\n";
+
+fn fixture() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "p.obj", PLATE_OBJ);
+    write(dir.path(), "p.mtl", PLATE_MTL);
+    dir
+}
+
+const GOOD: &str = r#"
+[[mesh]]
+obj = "p.obj"
+
+[materials.paint]
+model = "lambert"
+rho = 0.5
+
+[camera]
+width = 64
+height = 48
+pitch_um = 10.0
+focal_mm = 20.0
+"#;
+
+#[test]
+fn shipped_scenes_load() {
+    for s in ["scenes/plate.toml", "scenes/sphere.toml"] {
+        let scene = load(Path::new(s)).unwrap_or_else(|e| panic!("{e}"));
+        assert!(!scene.mesh.indices.is_empty());
+    }
+}
+
+#[test]
+fn a_minimal_scene_loads_with_defaults() {
+    let dir = fixture();
+    let scene = load(&write(dir.path(), "s.toml", GOOD)).unwrap();
+    assert_eq!(scene.mesh.indices.len(), 1);
+    assert_eq!(scene.sun_irradiance, 593.1);
+    assert_eq!(scene.background, 0.0);
+    assert_eq!(scene.camera.width, 64);
+}
+
+fn error_of(text: &str) -> String {
+    let dir = fixture();
+    let p = write(dir.path(), "s.toml", text);
+    match load(&p) {
+        Ok(_) => panic!("expected an error"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn bad_material_value_names_file_line_and_field() {
+    let e = error_of(&GOOD.replace("rho = 0.5", "rho = 1.5"));
+    assert!(
+        e.contains("s.toml:5:") && e.contains("materials.paint") && e.contains("rho"),
+        "{e}"
+    );
+}
+
+#[test]
+fn unmapped_mtl_material_is_named() {
+    let e = error_of(&GOOD.replace("[materials.paint]", "[materials.other]"));
+    assert!(
+        e.contains("s.toml:3:") && e.contains("`paint`") && e.contains("[materials.paint]"),
+        "{e}"
+    );
+}
+
+#[test]
+fn missing_obj_and_unknown_key_and_bad_camera_are_named() {
+    let e = error_of(&GOOD.replace("p.obj", "nope.obj"));
+    assert!(
+        e.contains("s.toml:3:") && e.contains("mesh[0].obj") && e.contains("nope.obj"),
+        "{e}"
+    );
+    let e = error_of(&GOOD.replace("rho = 0.5", "rho = 0.5\ncolour = 1"));
+    // Unknown keys inside a material are reported at the material table's line.
+    assert!(e.contains("line 5") && e.contains("colour"), "{e}");
+    let e = error_of(&GOOD.replace("pitch_um = 10.0", "pitch_um = -1.0"));
+    assert!(
+        e.contains("s.toml:") && e.contains("camera.pitch_um"),
+        "{e}"
+    );
+    let e = error_of(&format!("{GOOD}\n[render]\nspp = 0\n"));
+    assert!(e.contains("render.spp"), "{e}");
+    let e = error_of(&format!(
+        "{GOOD}\n[pose]\nposition = [0, 0, 5]\nattitude = [2, 0, 0, 0]\nsun = [0, 0, -1]\n"
+    ));
+    assert!(e.contains("pose.attitude") && e.contains(":17:"), "{e}");
+}
+
+#[test]
+fn io_errors_name_the_file() {
+    let e = load(Path::new("/nonexistent/scene.toml")).err().unwrap();
+    assert!(
+        matches!(e, SceneError::Io { .. }) && e.to_string().contains("/nonexistent/scene.toml")
+    );
+}
