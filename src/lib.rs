@@ -19,8 +19,10 @@
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
+//! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
 
+pub mod bench;
 pub mod bsdf;
 pub mod camera;
 pub mod cli;

@@ -8,7 +8,7 @@
 
 use crate::camera::{CameraModel, PixelRect, View};
 use crate::film::RadianceImage;
-use crate::integrator::{PathContext, RayCounts, RenderSettings};
+use crate::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::pose::Pose;
 use crate::sampling::Rng;
 use crate::scene::Scene;
@@ -39,6 +39,18 @@ pub fn render(
     settings: &RenderSettings,
     frame: u64,
 ) -> (RadianceImage, RenderStats) {
+    let (img, stats, _) = render_logged::<()>(scene, camera, pose, settings, frame);
+    (img, stats)
+}
+
+/// Render one frame and hand every traced ray to a per-row `L` (benchmarks).
+pub fn render_logged<L: RayLog + Default + Send>(
+    scene: &Scene,
+    camera: &CameraModel,
+    pose: &Pose,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats, Vec<L>) {
     let t0 = Instant::now();
     let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
     let mut img = RadianceImage::new(camera.width, camera.height, scene.background);
@@ -48,12 +60,13 @@ pub fn render(
         view.pixel_rect()
     };
     let mut rays = RayCounts::default();
+    let mut logs = Vec::new();
     if let Some(rect) = rect {
         let ctx = PathContext::new(scene, view.sun, settings);
         let w = camera.width as usize;
         let spp = settings.spp.max(1);
         let inv_spp = 1.0 / spp as f32;
-        rays = img
+        let per_row: Vec<(RayCounts, L)> = img
             .data
             .par_chunks_mut(w)
             .enumerate()
@@ -61,6 +74,7 @@ pub fn render(
             .take((rect.row1 - rect.row0) as usize)
             .map(|(row, line)| {
                 let mut counts = RayCounts::default();
+                let mut log = L::default();
                 for col in rect.col0..rect.col1 {
                     let pixel = (row * w + col as usize) as u64;
                     let mut sum = 0.0f32;
@@ -70,7 +84,7 @@ pub fn render(
                         let x = f64::from(col) + f64::from(j.x);
                         let y = row as f64 + f64::from(j.y);
                         let v = match view.primary_ray(x, y) {
-                            Some(ray) => ctx.radiance(ray, &mut rng, &mut counts),
+                            Some(ray) => ctx.radiance(ray, &mut rng, &mut counts, &mut log),
                             None => scene.background,
                         };
                         if v.is_finite() {
@@ -81,12 +95,13 @@ pub fn render(
                     }
                     line[col as usize] = sum * inv_spp;
                 }
-                counts
+                (counts, log)
             })
-            .reduce(RayCounts::default, |mut a, b| {
-                a.add(&b);
-                a
-            });
+            .collect();
+        for (c, l) in per_row {
+            rays.add(&c);
+            logs.push(l);
+        }
         if rays.nonfinite > 0 {
             tracing::warn!(
                 samples = rays.nonfinite,
@@ -100,5 +115,5 @@ pub fn render(
         traced_pixels: rect.map_or(0, |r| r.area()),
         rect,
     };
-    (img, stats)
+    (img, stats, logs)
 }

@@ -1,5 +1,6 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
+pub mod bench;
 pub mod render;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +24,8 @@ pub struct Cli {
 pub enum Command {
     /// Render one frame of a scene file to an image file.
     Render(render::RenderArgs),
+    /// Benchmarks: ratios measured side by side in one run.
+    Bench(bench::BenchArgs),
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
 }
@@ -35,6 +38,7 @@ pub fn main() -> ExitCode {
         .init();
     let result: anyhow::Result<()> = match cli.command {
         Command::Render(a) => render::run(a),
+        Command::Bench(a) => bench::run(a),
         Command::Version => {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())

@@ -72,6 +72,31 @@ impl RayCounts {
     }
 }
 
+/// Sees every ray the estimator traces (benchmarks record them to re-trace the same rays
+/// through the bare BVH). `()` sees nothing and compiles away.
+pub trait RayLog {
+    fn closest(&mut self, _ray: &Ray) {}
+    fn shadow(&mut self, _ray: &Ray) {}
+}
+
+impl RayLog for () {}
+
+/// Records rays for [`RayLog`].
+#[derive(Default)]
+pub struct RecordedRays {
+    pub closest: Vec<Ray>,
+    pub shadow: Vec<Ray>,
+}
+
+impl RayLog for RecordedRays {
+    fn closest(&mut self, ray: &Ray) {
+        self.closest.push(*ray);
+    }
+    fn shadow(&mut self, ray: &Ray) {
+        self.shadow.push(*ray);
+    }
+}
+
 /// Per-frame constants of the estimator.
 pub struct PathContext<'a> {
     pub scene: &'a Scene,
@@ -104,7 +129,13 @@ impl<'a> PathContext<'a> {
 
     /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻².
     #[inline]
-    pub fn radiance(&self, mut ray: Ray, rng: &mut Rng, counts: &mut RayCounts) -> f32 {
+    pub fn radiance<L: RayLog>(
+        &self,
+        mut ray: Ray,
+        rng: &mut Rng,
+        counts: &mut RayCounts,
+        log: &mut L,
+    ) -> f32 {
         let scene = self.scene;
         let e_sun = scene.sun_irradiance;
         let mut l = 0.0f32;
@@ -115,6 +146,7 @@ impl<'a> PathContext<'a> {
             } else {
                 counts.bounce += 1;
             }
+            log.closest(&ray);
             let Some(hit) = scene.accel.intersect(&ray) else {
                 l += beta * scene.background;
                 break;

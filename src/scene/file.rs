@@ -200,11 +200,19 @@ fn line_of(src: &str, offset: usize) -> usize {
 
 /// Load and build a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with_layout(path, None)
+}
+
+/// Load a scene file, overriding its BVH layout.
+pub fn load_with_layout(path: &Path, layout: Option<BvhLayout>) -> Result<Scene, SceneError> {
     let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let parts = parse(path, &src)?;
+    let mut parts = parse(path, &src)?;
+    if let Some(l) = layout {
+        parts.layout = l;
+    }
     Ok(Scene::build(parts))
 }
 

@@ -1,0 +1,158 @@
+//! `hilcam bench render`: renderer throughput against obvhs's raw traversal rate on the
+//! same rays, and how frame cost follows the pixels the target covers.
+//!
+//! The renderer runs with a ray recorder once; the recorded rays (closest-hit: primary and
+//! bounce; any-hit: shadow) are then re-traced through the bare BVH with the same rayon
+//! split. Renderer and raw runs alternate, and medians are compared, so both see the same
+//! machine load.
+
+use super::median;
+use crate::camera::CameraModel;
+use crate::geometry::Ray;
+use crate::integrator::{RecordedRays, RenderSettings};
+use crate::pose::Pose;
+use crate::render::{render, render_logged};
+use crate::scene::Scene;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// One measured configuration.
+#[derive(Clone, Debug)]
+pub struct RenderBenchRow {
+    pub label: String,
+    pub range_m: f64,
+    /// Fraction of pixels whose centre ray hits the target.
+    pub coverage: f64,
+    pub traced_pixels: u64,
+    pub frame_s: f64,
+    pub rays: u64,
+    pub render_mrays: f64,
+    pub raw_mrays: f64,
+}
+
+impl RenderBenchRow {
+    pub fn ratio(&self) -> f64 {
+        self.render_mrays / self.raw_mrays
+    }
+}
+
+/// Fraction of pixels (centre rays, on a coarse grid) whose ray hits the target.
+pub fn coverage(scene: &Scene, camera: &CameraModel, pose: &Pose) -> f64 {
+    let view = crate::camera::View::new(camera, pose, scene.frame_origin_body, scene.bounds);
+    let step = (camera.width.max(camera.height) / 256).max(1);
+    let (mut n, mut hit) = (0u64, 0u64);
+    for row in (0..camera.height).step_by(step as usize) {
+        for col in (0..camera.width).step_by(step as usize) {
+            n += 1;
+            if let Some(r) = view.primary_ray(f64::from(col) + 0.5, f64::from(row) + 0.5) {
+                hit += scene.accel.intersect(&r).is_some() as u64;
+            }
+        }
+    }
+    hit as f64 / n as f64
+}
+
+/// The pose moved along its line of sight so the target covers `fraction` of the frame
+/// (coverage scales as 1/range² for a target well inside the field of view).
+pub fn pose_for_coverage(scene: &Scene, camera: &CameraModel, pose: &Pose, fraction: f64) -> Pose {
+    let mut p = *pose;
+    for _ in 0..6 {
+        let c = coverage(scene, camera, &p);
+        if c <= 0.0 {
+            p.position *= 0.5;
+            continue;
+        }
+        let k = (c / fraction).sqrt().clamp(0.25, 4.0);
+        p.position = DVec3::from(p.position * k);
+        if (c / fraction - 1.0).abs() < 0.03 {
+            break;
+        }
+    }
+    p
+}
+
+fn trace_raw(scene: &Scene, logs: &[RecordedRays]) -> f64 {
+    let closest: Vec<&Ray> = logs.iter().flat_map(|l| l.closest.iter()).collect();
+    let shadow: Vec<&Ray> = logs.iter().flat_map(|l| l.shadow.iter()).collect();
+    let t0 = Instant::now();
+    let hits: usize = closest
+        .par_chunks(4096)
+        .map(|c| {
+            c.iter()
+                .filter(|r| scene.accel.intersect(r).is_some())
+                .count()
+        })
+        .sum();
+    let occluded: usize = shadow
+        .par_chunks(4096)
+        .map(|c| c.iter().filter(|r| scene.accel.occluded(r)).count())
+        .sum();
+    std::hint::black_box((hits, occluded));
+    t0.elapsed().as_secs_f64()
+}
+
+/// Measure one configuration: `rounds` alternating renderer / raw-traversal runs.
+pub fn measure(
+    scene: &Scene,
+    camera: &CameraModel,
+    pose: &Pose,
+    settings: &RenderSettings,
+    rounds: usize,
+    label: &str,
+) -> RenderBenchRow {
+    let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
+    let recorded: u64 = logs
+        .iter()
+        .map(|l| (l.closest.len() + l.shadow.len()) as u64)
+        .sum();
+    debug_assert_eq!(recorded, stats.rays.total());
+    let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
+    for _ in 0..rounds.max(1) {
+        let (_, s) = render(scene, camera, pose, settings, 0);
+        t_render.push(s.time.as_secs_f64());
+        t_raw.push(trace_raw(scene, &logs));
+    }
+    let (tr, tw) = (median(t_render), median(t_raw));
+    RenderBenchRow {
+        label: label.to_string(),
+        range_m: pose.position.length(),
+        coverage: coverage(scene, camera, pose),
+        traced_pixels: stats.traced_pixels,
+        frame_s: tr,
+        rays: recorded,
+        render_mrays: recorded as f64 / tr / 1e6,
+        raw_mrays: recorded as f64 / tw / 1e6,
+    }
+}
+
+pub fn print_table(rows: &[RenderBenchRow]) {
+    println!(
+        "{:<28} {:>9} {:>8} {:>9} {:>9} {:>7} {:>10} {:>10} {:>10} {:>7}",
+        "case",
+        "range m",
+        "cover %",
+        "traced px",
+        "frame ms",
+        "fps",
+        "rays",
+        "hilcam Mr/s",
+        "obvhs Mr/s",
+        "ratio"
+    );
+    for r in rows {
+        println!(
+            "{:<28} {:>9.1} {:>8.2} {:>9} {:>9.1} {:>7.1} {:>10} {:>10.2} {:>10.2} {:>6.0}%",
+            r.label,
+            r.range_m,
+            r.coverage * 100.0,
+            r.traced_pixels,
+            r.frame_s * 1e3,
+            1.0 / r.frame_s,
+            r.rays,
+            r.render_mrays,
+            r.raw_mrays,
+            r.ratio() * 100.0
+        );
+    }
+}
