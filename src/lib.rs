@@ -20,6 +20,7 @@
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
 //! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
+//! - [`serve`]: the real-time scheduler, quality governor and `hilcam serve`.
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
 
 pub mod bench;
@@ -35,5 +36,6 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod sensor;
+pub mod serve;
 pub mod sink;
 pub mod transport;
