@@ -205,4 +205,66 @@ mod tests {
         assert!((c / n as f64 - 2.0 / 3.0).abs() < 0.003);
         assert!((u / n as f64 - 0.5).abs() < 0.003);
     }
+
+    /// Bin sampled directions by (cosθ, φ) and compare each bin's count with the pdf
+    /// integrated over the bin by quadrature (chi-square, as pbrt's bsdfs_test does).
+    fn chi_square(sample: impl Fn(Vec2) -> Vec3, pdf: impl Fn(Vec3) -> f32) -> (f64, usize, f64) {
+        const NT: usize = 16;
+        const NP: usize = 32;
+        let n = 400_000usize;
+        let mut counts = [[0u32; NP]; NT];
+        let mut r = Rng::from_state(99);
+        for _ in 0..n {
+            let w = sample(r.next_2d());
+            let it = ((w.z.clamp(0.0, 0.999_999)) * NT as f32) as usize;
+            let phi = w.y.atan2(w.x).rem_euclid(2.0 * PI);
+            let ip = ((phi / (2.0 * PI)) * NP as f32).min(NP as f32 - 1.0) as usize;
+            counts[it][ip] += 1;
+        }
+        // Expected counts: ∫ pdf dω over each bin, dω = d(cosθ) dφ; 8×8 midpoint quadrature.
+        let (mut chi2, mut dof, mut total_p) = (0.0f64, 0usize, 0.0f64);
+        for it in 0..NT {
+            for ip in 0..NP {
+                let mut p = 0.0f64;
+                for a in 0..8 {
+                    for b in 0..8 {
+                        let z = (it as f32 + (a as f32 + 0.5) / 8.0) / NT as f32;
+                        let phi = (ip as f32 + (b as f32 + 0.5) / 8.0) / NP as f32 * 2.0 * PI;
+                        let s = (1.0 - z * z).max(0.0).sqrt();
+                        p += pdf(Vec3::new(s * phi.cos(), s * phi.sin(), z)) as f64;
+                    }
+                }
+                let p = p / 64.0 * (1.0 / NT as f64) * (2.0 * std::f64::consts::PI / NP as f64);
+                total_p += p;
+                let e = p * n as f64;
+                let o = counts[it][ip] as f64;
+                chi2 += (o - e) * (o - e) / e;
+                dof += 1;
+            }
+        }
+        (chi2, dof - 1, total_p)
+    }
+
+    #[test]
+    fn hemisphere_samplers_match_their_pdfs() {
+        for (name, (chi2, dof, total)) in [
+            (
+                "uniform",
+                chi_square(uniform_hemisphere, |_| UNIFORM_HEMISPHERE_PDF),
+            ),
+            (
+                "cosine",
+                chi_square(cosine_hemisphere, |w| cosine_hemisphere_pdf(w.z)),
+            ),
+        ] {
+            // The pdf integrates to 1 over the hemisphere.
+            assert!((total - 1.0).abs() < 1e-3, "{name}: ∫pdf = {total}");
+            // For 511 degrees of freedom, χ² above dof + 5·sqrt(2·dof) ≈ 671 has p < 1e-6.
+            let limit = dof as f64 + 5.0 * (2.0 * dof as f64).sqrt();
+            assert!(
+                chi2 < limit,
+                "{name}: chi2 {chi2:.1} for {dof} dof (limit {limit:.0})"
+            );
+        }
+    }
 }
