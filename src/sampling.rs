@@ -206,6 +206,7 @@ mod tests {
         assert!((u / n as f64 - 0.5).abs() < 0.003);
     }
 
+    #[allow(clippy::needless_range_loop)]
     /// Bin sampled directions by (cosθ, φ) and compare each bin's count with the pdf
     /// integrated over the bin by quadrature (chi-square, as pbrt's bsdfs_test does).
     fn chi_square(sample: impl Fn(Vec2) -> Vec3, pdf: impl Fn(Vec3) -> f32) -> (f64, usize, f64) {

@@ -13,7 +13,6 @@ use crate::integrator::{RecordedRays, RenderSettings};
 use crate::pose::Pose;
 use crate::render::{render, render_logged};
 use crate::scene::Scene;
-use glam::DVec3;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -64,7 +63,7 @@ pub fn pose_for_coverage(scene: &Scene, camera: &CameraModel, pose: &Pose, fract
             continue;
         }
         let k = (c / fraction).sqrt().clamp(0.25, 4.0);
-        p.position = DVec3::from(p.position * k);
+        p.position *= k;
         if (c / fraction - 1.0).abs() < 0.03 {
             break;
         }
