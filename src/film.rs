@@ -18,11 +18,7 @@ pub struct RadianceImage {
 
 impl RadianceImage {
     pub fn new(width: u32, height: u32, fill: f32) -> Self {
-        RadianceImage {
-            width,
-            height,
-            data: vec![fill; width as usize * height as usize],
-        }
+        RadianceImage { width, height, data: vec![fill; width as usize * height as usize] }
     }
 
     pub fn get(&self, col: u32, row: u32) -> f32 {
@@ -32,12 +28,7 @@ impl RadianceImage {
     /// The value a preview maps to full white: the 99.9th percentile of the non-zero
     /// pixels, so that a few glints do not turn the rest of the image black.
     pub fn preview_scale(&self) -> f32 {
-        let mut v: Vec<f32> = self
-            .data
-            .iter()
-            .copied()
-            .filter(|x| *x > 0.0 && x.is_finite())
-            .collect();
+        let mut v: Vec<f32> = self.data.iter().copied().filter(|x| *x > 0.0 && x.is_finite()).collect();
         if v.is_empty() {
             return 1.0;
         }
@@ -96,21 +87,11 @@ pub enum ImageWriteError {
     #[error("{path}: unsupported extension (use .exr, .pfm, .png, .tif or .tiff)")]
     UnsupportedExtension { path: PathBuf },
     #[error("{path}: {what} cannot hold {format:?} pixels")]
-    FormatMismatch {
-        path: PathBuf,
-        what: &'static str,
-        format: PixelFormat,
-    },
+    FormatMismatch { path: PathBuf, what: &'static str, format: PixelFormat },
     #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     #[error("{path}: {source}")]
-    Image {
-        path: PathBuf,
-        source: image::ImageError,
-    },
+    Image { path: PathBuf, source: image::ImageError },
     #[error("{path}: {message}")]
     Exr { path: PathBuf, message: String },
 }
@@ -131,92 +112,59 @@ pub fn write_radiance(
 ) -> Result<WriteInfo, ImageWriteError> {
     match ext(path).as_str() {
         "exr" | "pfm" => {
-            write_pixels(
-                path,
-                img.width,
-                img.height,
-                &Pixels::Float32(img.data.clone()),
-            )?;
-            Ok(WriteInfo {
-                preview_scale: None,
-            })
+            write_pixels(path, img.width, img.height, &Pixels::Float32(img.data.clone()))?;
+            Ok(WriteInfo { preview_scale: None })
         }
         e @ ("png" | "tif" | "tiff") => {
             let s = scale.unwrap_or_else(|| img.preview_scale());
             let sixteen = png16 || e != "png";
             let px = if sixteen {
-                let data = img
-                    .data
-                    .iter()
-                    .map(|v| ((v / s).clamp(0.0, 1.0) * 65535.0).round() as u16)
-                    .collect();
+                let data = img.data.iter().map(|v| ((v / s).clamp(0.0, 1.0) * 65535.0).round() as u16).collect();
                 Pixels::Mono16 { data, bits: 16 }
             } else {
-                Pixels::Mono8(
-                    img.data
-                        .iter()
-                        .map(|v| ((v / s).clamp(0.0, 1.0) * 255.0).round() as u8)
-                        .collect(),
-                )
+                Pixels::Mono8(img.data.iter().map(|v| ((v / s).clamp(0.0, 1.0) * 255.0).round() as u8).collect())
             };
             write_pixels(path, img.width, img.height, &px)?;
-            Ok(WriteInfo {
-                preview_scale: Some(s),
-            })
+            Ok(WriteInfo { preview_scale: Some(s) })
         }
-        _ => Err(ImageWriteError::UnsupportedExtension {
-            path: path.to_path_buf(),
-        }),
+        _ => Err(ImageWriteError::UnsupportedExtension { path: path.to_path_buf() }),
     }
 }
 
 /// Write pixels in the format the extension names. Mono16 values are written as stored
 /// (a 12-bit sensor's DN stay 0..4095 in the 16-bit file).
-pub fn write_pixels(
-    path: &Path,
-    width: u32,
-    height: u32,
-    px: &Pixels,
-) -> Result<(), ImageWriteError> {
+pub fn write_pixels(path: &Path, width: u32, height: u32, px: &Pixels) -> Result<(), ImageWriteError> {
     let p = || path.to_path_buf();
     let img_err = |source| ImageWriteError::Image { path: p(), source };
     match (ext(path).as_str(), px) {
-        ("png", Pixels::Mono8(d)) => image::GrayImage::from_raw(width, height, d.clone())
-            .expect("buffer size")
-            .save(path)
-            .map_err(img_err),
+        ("png", Pixels::Mono8(d)) => {
+            image::GrayImage::from_raw(width, height, d.clone()).expect("buffer size").save(path).map_err(img_err)
+        }
         ("png" | "tif" | "tiff", Pixels::Mono16 { data, .. }) => {
             image::ImageBuffer::<image::Luma<u16>, _>::from_raw(width, height, data.clone())
                 .expect("buffer size")
                 .save(path)
                 .map_err(img_err)
         }
-        ("tif" | "tiff", Pixels::Mono8(d)) => image::GrayImage::from_raw(width, height, d.clone())
-            .expect("buffer size")
-            .save(path)
-            .map_err(img_err),
-        ("pfm", Pixels::Float32(d)) => write_pfm(path, width, height, d)
-            .map_err(|source| ImageWriteError::Io { path: p(), source }),
+        ("tif" | "tiff", Pixels::Mono8(d)) => {
+            image::GrayImage::from_raw(width, height, d.clone()).expect("buffer size").save(path).map_err(img_err)
+        }
+        ("pfm", Pixels::Float32(d)) => {
+            write_pfm(path, width, height, d).map_err(|source| ImageWriteError::Io { path: p(), source })
+        }
         ("exr", Pixels::Float32(d)) => write_exr(path, width, height, d),
-        ("exr" | "pfm", other) => Err(ImageWriteError::FormatMismatch {
-            path: p(),
-            what: "a float image file",
-            format: other.format(),
-        }),
-        ("png" | "tif" | "tiff", other) => Err(ImageWriteError::FormatMismatch {
-            path: p(),
-            what: "an integer image file",
-            format: other.format(),
-        }),
+        ("exr" | "pfm", other) => {
+            Err(ImageWriteError::FormatMismatch { path: p(), what: "a float image file", format: other.format() })
+        }
+        ("png" | "tif" | "tiff", other) => {
+            Err(ImageWriteError::FormatMismatch { path: p(), what: "an integer image file", format: other.format() })
+        }
         _ => Err(ImageWriteError::UnsupportedExtension { path: p() }),
     }
 }
 
 fn ext(path: &Path) -> String {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase()
+    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
 }
 
 /// Portable float map, greyscale (`Pf`), little-endian (negative scale), rows bottom-to-top.
@@ -234,12 +182,7 @@ fn write_pfm(path: &Path, width: u32, height: u32, data: &[f32]) -> std::io::Res
 /// Read a greyscale PFM written by [`write_pfm`] (either endianness) back into a radiance image.
 pub fn read_pfm(path: &Path) -> std::io::Result<RadianceImage> {
     let bytes = std::fs::read(path)?;
-    let bad = |m: &str| {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("{}: {m}", path.display()),
-        )
-    };
+    let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, format!("{}: {m}", path.display()));
     let mut fields = Vec::new();
     let mut pos = 0;
     while fields.len() < 4 {
@@ -269,11 +212,7 @@ pub fn read_pfm(path: &Path) -> std::io::Result<RadianceImage> {
     let mut img = RadianceImage::new(w, h, 0.0);
     for (i, c) in bytes[pos..pos + 4 * n].chunks_exact(4).enumerate() {
         let b = [c[0], c[1], c[2], c[3]];
-        let v = if little {
-            f32::from_le_bytes(b)
-        } else {
-            f32::from_be_bytes(b)
-        };
+        let v = if little { f32::from_le_bytes(b) } else { f32::from_be_bytes(b) };
         let (row, col) = (h as usize - 1 - i / w as usize, i % w as usize);
         img.data[row * w as usize + col] = v;
     }
@@ -284,9 +223,8 @@ pub fn read_pfm(path: &Path) -> std::io::Result<RadianceImage> {
 fn write_exr(path: &Path, width: u32, height: u32, data: &[f32]) -> Result<(), ImageWriteError> {
     use exr::prelude::*;
     let w = width as usize;
-    let channels = SpecificChannels::build()
-        .with_channel("Y")
-        .with_pixel_fn(|pos: Vec2<usize>| (data[pos.y() * w + pos.x()],));
+    let channels =
+        SpecificChannels::build().with_channel("Y").with_pixel_fn(|pos: Vec2<usize>| (data[pos.y() * w + pos.x()],));
     let layer = Layer::new(
         (width as usize, height as usize),
         LayerAttributes::named("radiance"),
@@ -296,10 +234,7 @@ fn write_exr(path: &Path, width: u32, height: u32, data: &[f32]) -> Result<(), I
     Image::from_layer(layer)
         .write()
         .to_file(path)
-        .map_err(|e| ImageWriteError::Exr {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })
+        .map_err(|e| ImageWriteError::Exr { path: path.to_path_buf(), message: e.to_string() })
 }
 
 #[cfg(test)]

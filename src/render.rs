@@ -10,7 +10,7 @@ use crate::camera::{CameraModel, PixelRect, View};
 use crate::film::RadianceImage;
 use crate::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::pose::Pose;
-use crate::sampling::Rng;
+use crate::sampling::{Rng, SampleSource, Sequence, SobolStream};
 use crate::scene::Scene;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -54,11 +54,7 @@ pub fn render_logged<L: RayLog + Default + Send>(
     let t0 = Instant::now();
     let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
     let mut img = RadianceImage::new(camera.width, camera.height, scene.background);
-    let rect = if scene.accel.is_empty() {
-        None
-    } else {
-        view.pixel_rect()
-    };
+    let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
     let mut logs = Vec::new();
     if let Some(rect) = rect {
@@ -79,13 +75,15 @@ pub fn render_logged<L: RayLog + Default + Send>(
                     let pixel = (row * w + col as usize) as u64;
                     let mut sum = 0.0f32;
                     for s in 0..spp {
-                        let mut rng = Rng::for_sample(settings.seed, frame, pixel, s);
-                        let j = rng.next_2d();
-                        let x = f64::from(col) + f64::from(j.x);
-                        let y = row as f64 + f64::from(j.y);
-                        let v = match view.primary_ray(x, y) {
-                            Some(ray) => ctx.radiance(ray, &mut rng, &mut counts, &mut log),
-                            None => scene.background,
+                        let v = match settings.sequence {
+                            Sequence::Independent => {
+                                let mut rng = Rng::for_sample(settings.seed, frame, pixel, s);
+                                sample(&view, &ctx, col, row, &mut rng, &mut counts, &mut log)
+                            }
+                            Sequence::Sobol => {
+                                let mut rng = SobolStream::new(settings.seed, frame, pixel, s);
+                                sample(&view, &ctx, col, row, &mut rng, &mut counts, &mut log)
+                            }
                         };
                         if v.is_finite() {
                             sum += v;
@@ -103,17 +101,29 @@ pub fn render_logged<L: RayLog + Default + Send>(
             logs.push(l);
         }
         if rays.nonfinite > 0 {
-            tracing::warn!(
-                samples = rays.nonfinite,
-                "non-finite radiance samples dropped"
-            );
+            tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
-    let stats = RenderStats {
-        time: t0.elapsed(),
-        rays,
-        traced_pixels: rect.map_or(0, |r| r.area()),
-        rect,
-    };
+    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: rect.map_or(0, |r| r.area()), rect };
     (img, stats, logs)
+}
+
+/// One camera sample: a random position inside pixel (col, row), traced.
+#[inline(always)]
+fn sample<S: SampleSource, L: RayLog>(
+    view: &View,
+    ctx: &PathContext,
+    col: u32,
+    row: usize,
+    rng: &mut S,
+    counts: &mut RayCounts,
+    log: &mut L,
+) -> f32 {
+    let j = rng.next_2d();
+    let x = f64::from(col) + f64::from(j.x);
+    let y = row as f64 + f64::from(j.y);
+    match view.primary_ray(x, y) {
+        Some(ray) => ctx.radiance(ray, rng, counts, log),
+        None => ctx.scene.background,
+    }
 }

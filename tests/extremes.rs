@@ -41,11 +41,7 @@ fn cube(s: f32) -> TriMesh {
         [0, 4, 7],
         [0, 7, 3],
     ];
-    TriMesh {
-        positions,
-        material: vec![0; indices.len()],
-        indices,
-    }
+    TriMesh { positions, material: vec![0; indices.len()], indices }
 }
 
 #[test]
@@ -53,25 +49,11 @@ fn ranges_from_half_a_metre_to_a_million_metres_image_the_same() {
     // Fronto-parallel pattern, focal length scaled with range: identical images.
     let mut flat = square(0.0, 0.0, 0.0, 0.2, 0);
     flat.append(&square(0.03, -0.02, 0.0, 0.05, 1));
-    let settings = RenderSettings {
-        spp: 2,
-        depth: 2,
-        sampler: SamplerKind::Cosine,
-        seed: 1,
-    };
+    let settings = RenderSettings { spp: 2, depth: 2, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let base = 0.5;
     let cam0 = camera(64, 64, 20.0, 20.0);
-    let s = scene(
-        flat,
-        vec![lambert("a", 0.7), lambert("b", 0.2)],
-        cam0.clone(),
-        Pose::ahead(base),
-        settings,
-    );
-    let pose = |r: f64| Pose {
-        sun_dir: sun_at_incidence(25.0),
-        ..Pose::ahead(r)
-    };
+    let s = scene(flat, vec![lambert("a", 0.7), lambert("b", 0.2)], cam0.clone(), Pose::ahead(base), settings);
+    let pose = |r: f64| Pose { sun_dir: sun_at_incidence(25.0), ..Pose::ahead(r) };
     let (reference, _) = render(&s, &cam0, &pose(base), &settings, 0);
     let total: f64 = reference.data.iter().map(|&v| v as f64).sum();
     assert!(total > 0.0);
@@ -79,13 +61,8 @@ fn ranges_from_half_a_metre_to_a_million_metres_image_the_same() {
         let cam = camera(64, 64, 20.0, 20.0 * range / base);
         let (img, _) = render(&s, &cam, &pose(range), &settings, 0);
         assert!(finite(&img));
-        let d: f64 = img
-            .data
-            .iter()
-            .zip(&reference.data)
-            .map(|(a, b)| (*a as f64 - *b as f64).abs())
-            .sum::<f64>()
-            / total;
+        let d: f64 =
+            img.data.iter().zip(&reference.data).map(|(a, b)| (*a as f64 - *b as f64).abs()).sum::<f64>() / total;
         assert!(d < 1e-3, "range {range} m: relative L1 difference {d}");
     }
 }
@@ -95,38 +72,22 @@ fn camera_inside_the_targets_bounding_box() {
     // Inside a closed cube lit from outside: no sunlight reaches the inside faces (they
     // are shadowed by the cube itself), so every pixel is exactly 0 — and finite.
     let cam = camera(64, 64, 20.0, 10.0);
-    let settings = RenderSettings {
-        spp: 2,
-        depth: 4,
-        sampler: SamplerKind::Cosine,
-        seed: 1,
-    };
+    let settings = RenderSettings { spp: 2, depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let pose = Pose {
         position: DVec3::new(0.1, -0.2, 0.3),
         sun_dir: DVec3::new(0.3, 0.4, -0.866).normalize(),
         ..Pose::ahead(0.0)
     };
-    let s = scene(
-        cube(2.0),
-        vec![lambert("a", 0.9)],
-        cam.clone(),
-        pose,
-        settings,
-    );
+    let s = scene(cube(2.0), vec![lambert("a", 0.9)], cam.clone(), pose, settings);
     let (img, stats) = render(&s, &cam, &pose, &settings, 0);
     assert!(finite(&img));
-    assert_eq!(
-        stats.traced_pixels,
-        64 * 64,
-        "inside the bounds every pixel is traced"
-    );
+    assert_eq!(stats.traced_pixels, 64 * 64, "inside the bounds every pixel is traced");
     assert!(img.data.iter().all(|&v| v == 0.0));
     // Remove the faces that face the sun: sunlight now enters and lights the inside.
     let mut open = cube(2.0);
     let sun_body = pose.sun_dir.as_vec3();
-    let keep: Vec<usize> = (0..open.indices.len())
-        .filter(|&i| open.face_normal_area2(i).normalize().dot(sun_body) < 0.5)
-        .collect();
+    let keep: Vec<usize> =
+        (0..open.indices.len()).filter(|&i| open.face_normal_area2(i).normalize().dot(sun_body) < 0.5).collect();
     open.indices = keep.iter().map(|&i| open.indices[i]).collect();
     open.material = vec![0; open.indices.len()];
     let s = scene(open, vec![lambert("a", 0.9)], cam.clone(), pose, settings);
@@ -137,51 +98,26 @@ fn camera_inside_the_targets_bounding_box() {
 #[test]
 fn target_on_the_image_edge_and_off_it() {
     let cam = camera(100, 80, 20.0, 40.0);
-    let settings = RenderSettings {
-        spp: 4,
-        depth: 1,
-        sampler: SamplerKind::Cosine,
-        seed: 1,
-    };
+    let settings = RenderSettings { spp: 4, depth: 1, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let f = cam.focal_px();
     // Put the plate's centre exactly on the left image edge (x = 0 px) at 10 m.
     let x_edge = (0.0 - 50.0) / f * 10.0;
-    let pose = Pose {
-        position: DVec3::new(x_edge, 0.0, 10.0),
-        sun_dir: -DVec3::Z,
-        ..Pose::ahead(10.0)
-    };
-    let s = scene(
-        square(0.0, 0.0, 0.0, 1.0, 0),
-        vec![lambert("a", 0.5)],
-        cam.clone(),
-        pose,
-        settings,
-    );
+    let pose = Pose { position: DVec3::new(x_edge, 0.0, 10.0), sun_dir: -DVec3::Z, ..Pose::ahead(10.0) };
+    let s = scene(square(0.0, 0.0, 0.0, 1.0, 0), vec![lambert("a", 0.5)], cam.clone(), pose, settings);
     let (img, _) = render(&s, &cam, &pose, &settings, 0);
     assert!(finite(&img));
     // The plate spans ±100 px around x = 0: columns 0..99 see it (rows within ±100 px: all).
     let expected = 0.5 * 593.1 / std::f64::consts::PI;
     for row in 0..80 {
         for col in 0..99 {
-            assert!(
-                ((img.get(col, row) as f64 - expected) / expected).abs() < 1e-4,
-                "({col}, {row})"
-            );
+            assert!(((img.get(col, row) as f64 - expected) / expected).abs() < 1e-4, "({col}, {row})");
         }
     }
     // Entirely off the image: exactly one plate width beyond the edge.
-    let off = Pose {
-        position: DVec3::new(x_edge - 0.6 - 1e-3, 0.0, 10.0),
-        ..pose
-    };
+    let off = Pose { position: DVec3::new(x_edge - 0.6 - 1e-3, 0.0, 10.0), ..pose };
     let (img, stats) = render(&s, &cam, &off, &settings, 0);
     assert!(img.data.iter().all(|&v| v == 0.0));
-    assert!(
-        stats.rays.total() < 1000,
-        "{} rays for an off-image target",
-        stats.rays.total()
-    );
+    assert!(stats.rays.total() < 1000, "{} rays for an off-image target", stats.rays.total());
 }
 
 #[test]
@@ -189,30 +125,13 @@ fn near_degenerate_triangles_stay_finite() {
     // Slivers (one vertex 1e-7 m off the opposite edge) and a zero-area triangle.
     let mut m = square(0.0, 0.0, 0.0, 1.0, 0);
     let base = m.positions.len() as u32;
-    m.positions.extend([
-        Vec3::new(-0.5, 0.0, -0.1),
-        Vec3::new(0.5, 0.0, -0.1),
-        Vec3::new(0.0, 1e-7, -0.1),
-    ]);
-    m.positions.extend([
-        Vec3::new(0.0, 0.2, -0.2),
-        Vec3::new(0.0, 0.2, -0.2),
-        Vec3::new(0.1, 0.2, -0.2),
-    ]);
-    m.indices
-        .extend([[base, base + 1, base + 2], [base + 3, base + 4, base + 5]]);
+    m.positions.extend([Vec3::new(-0.5, 0.0, -0.1), Vec3::new(0.5, 0.0, -0.1), Vec3::new(0.0, 1e-7, -0.1)]);
+    m.positions.extend([Vec3::new(0.0, 0.2, -0.2), Vec3::new(0.0, 0.2, -0.2), Vec3::new(0.1, 0.2, -0.2)]);
+    m.indices.extend([[base, base + 1, base + 2], [base + 3, base + 4, base + 5]]);
     m.material.extend([0, 0]);
     let cam = camera(64, 64, 20.0, 30.0);
-    let settings = RenderSettings {
-        spp: 4,
-        depth: 4,
-        sampler: SamplerKind::Cosine,
-        seed: 1,
-    };
-    let pose = Pose {
-        sun_dir: sun_at_incidence(40.0),
-        ..Pose::ahead(3.0)
-    };
+    let settings = RenderSettings { spp: 4, depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
+    let pose = Pose { sun_dir: sun_at_incidence(40.0), ..Pose::ahead(3.0) };
     let s = scene(m, vec![lambert("a", 0.9)], cam.clone(), pose, settings);
     let (img, stats) = render(&s, &cam, &pose, &settings, 0);
     assert!(finite(&img) && stats.rays.nonfinite == 0);
@@ -221,39 +140,19 @@ fn near_degenerate_triangles_stay_finite() {
 #[test]
 fn quaternions_at_plus_and_minus_180_degrees_are_the_same_attitude() {
     let cam = camera(48, 48, 20.0, 30.0);
-    let settings = RenderSettings {
-        spp: 2,
-        depth: 2,
-        sampler: SamplerKind::Cosine,
-        seed: 4,
-    };
+    let settings = RenderSettings { spp: 2, depth: 2, sampler: SamplerKind::Cosine, seed: 4, ..Default::default() };
     let mut m = square(0.0, 0.0, 0.0, 1.0, 0);
     m.append(&square(0.2, 0.1, -0.2, 0.3, 0));
     let axis = DVec3::new(1.0, 1.0, 0.2).normalize();
     let q_plus = DQuat::from_axis_angle(axis, std::f64::consts::PI);
     let q_minus = DQuat::from_axis_angle(axis, -std::f64::consts::PI);
     let q_neg = -q_plus; // the same rotation with the opposite sign
-    let pose = |q: DQuat| Pose {
-        attitude: q,
-        sun_dir: DVec3::new(0.2, 0.1, -1.0).normalize(),
-        ..Pose::ahead(4.0)
-    };
-    let s = scene(
-        m,
-        vec![lambert("a", 0.6)],
-        cam.clone(),
-        pose(q_plus),
-        settings,
-    );
+    let pose = |q: DQuat| Pose { attitude: q, sun_dir: DVec3::new(0.2, 0.1, -1.0).normalize(), ..Pose::ahead(4.0) };
+    let s = scene(m, vec![lambert("a", 0.6)], cam.clone(), pose(q_plus), settings);
     let (a, _) = render(&s, &cam, &pose(q_plus), &settings, 0);
     for q in [q_minus, q_neg] {
         let (b, _) = render(&s, &cam, &pose(q), &settings, 0);
-        let d: f64 = a
-            .data
-            .iter()
-            .zip(&b.data)
-            .map(|(x, y)| (*x - *y).abs() as f64)
-            .sum();
+        let d: f64 = a.data.iter().zip(&b.data).map(|(x, y)| (*x - *y).abs() as f64).sum();
         let t: f64 = a.data.iter().map(|&x| x as f64).sum();
         assert!(t > 0.0 && d / t < 1e-4, "relative difference {}", d / t);
     }

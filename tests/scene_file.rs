@@ -64,48 +64,32 @@ fn error_of(text: &str) -> String {
 #[test]
 fn bad_material_value_names_file_line_and_field() {
     let e = error_of(&GOOD.replace("rho = 0.5", "rho = 1.5"));
-    assert!(
-        e.contains("s.toml:5:") && e.contains("materials.paint") && e.contains("rho"),
-        "{e}"
-    );
+    assert!(e.contains("s.toml:5:") && e.contains("materials.paint") && e.contains("rho"), "{e}");
 }
 
 #[test]
 fn unmapped_mtl_material_is_named() {
     let e = error_of(&GOOD.replace("[materials.paint]", "[materials.other]"));
-    assert!(
-        e.contains("s.toml:3:") && e.contains("`paint`") && e.contains("[materials.paint]"),
-        "{e}"
-    );
+    assert!(e.contains("s.toml:3:") && e.contains("`paint`") && e.contains("[materials.paint]"), "{e}");
 }
 
 #[test]
 fn missing_obj_and_unknown_key_and_bad_camera_are_named() {
     let e = error_of(&GOOD.replace("p.obj", "nope.obj"));
-    assert!(
-        e.contains("s.toml:3:") && e.contains("mesh[0].obj") && e.contains("nope.obj"),
-        "{e}"
-    );
+    assert!(e.contains("s.toml:3:") && e.contains("mesh[0].obj") && e.contains("nope.obj"), "{e}");
     let e = error_of(&GOOD.replace("rho = 0.5", "rho = 0.5\ncolour = 1"));
     // Unknown keys inside a material are reported at the material table's line.
     assert!(e.contains("line 5") && e.contains("colour"), "{e}");
     let e = error_of(&GOOD.replace("pitch_um = 10.0", "pitch_um = -1.0"));
-    assert!(
-        e.contains("s.toml:") && e.contains("camera.pitch_um"),
-        "{e}"
-    );
+    assert!(e.contains("s.toml:") && e.contains("camera.pitch_um"), "{e}");
     let e = error_of(&format!("{GOOD}\n[render]\nspp = 0\n"));
     assert!(e.contains("render.spp"), "{e}");
-    let e = error_of(&format!(
-        "{GOOD}\n[pose]\nposition = [0, 0, 5]\nattitude = [2, 0, 0, 0]\nsun = [0, 0, -1]\n"
-    ));
+    let e = error_of(&format!("{GOOD}\n[pose]\nposition = [0, 0, 5]\nattitude = [2, 0, 0, 0]\nsun = [0, 0, -1]\n"));
     assert!(e.contains("pose.attitude") && e.contains(":17:"), "{e}");
 }
 
 #[test]
 fn io_errors_name_the_file() {
     let e = load(Path::new("/nonexistent/scene.toml")).err().unwrap();
-    assert!(
-        matches!(e, SceneError::Io { .. }) && e.to_string().contains("/nonexistent/scene.toml")
-    );
+    assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("/nonexistent/scene.toml"));
 }

@@ -75,18 +75,9 @@ fn trace_raw(scene: &Scene, logs: &[RecordedRays]) -> f64 {
     let closest: Vec<&Ray> = logs.iter().flat_map(|l| l.closest.iter()).collect();
     let shadow: Vec<&Ray> = logs.iter().flat_map(|l| l.shadow.iter()).collect();
     let t0 = Instant::now();
-    let hits: usize = closest
-        .par_chunks(4096)
-        .map(|c| {
-            c.iter()
-                .filter(|r| scene.accel.intersect(r).is_some())
-                .count()
-        })
-        .sum();
-    let occluded: usize = shadow
-        .par_chunks(4096)
-        .map(|c| c.iter().filter(|r| scene.accel.occluded(r)).count())
-        .sum();
+    let hits: usize =
+        closest.par_chunks(4096).map(|c| c.iter().filter(|r| scene.accel.intersect(r).is_some()).count()).sum();
+    let occluded: usize = shadow.par_chunks(4096).map(|c| c.iter().filter(|r| scene.accel.occluded(r)).count()).sum();
     std::hint::black_box((hits, occluded));
     t0.elapsed().as_secs_f64()
 }
@@ -101,10 +92,7 @@ pub fn measure(
     label: &str,
 ) -> RenderBenchRow {
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
-    let recorded: u64 = logs
-        .iter()
-        .map(|l| (l.closest.len() + l.shadow.len()) as u64)
-        .sum();
+    let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();
     debug_assert_eq!(recorded, stats.rays.total());
     let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
@@ -128,16 +116,7 @@ pub fn measure(
 pub fn print_table(rows: &[RenderBenchRow]) {
     println!(
         "{:<28} {:>9} {:>8} {:>9} {:>9} {:>7} {:>10} {:>10} {:>10} {:>7}",
-        "case",
-        "range m",
-        "cover %",
-        "traced px",
-        "frame ms",
-        "fps",
-        "rays",
-        "hilcam Mr/s",
-        "obvhs Mr/s",
-        "ratio"
+        "case", "range m", "cover %", "traced px", "frame ms", "fps", "rays", "hilcam Mr/s", "obvhs Mr/s", "ratio"
     );
     for r in rows {
         println!(

@@ -25,11 +25,7 @@ pub enum Bsdf {
 impl Bsdf {
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
         let Bsdf::Lambert(l) = self;
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            0.0
-        } else {
-            l.rho * FRAC_1_PI
-        }
+        if wo.z <= 0.0 || wi.z <= 0.0 { 0.0 } else { l.rho * FRAC_1_PI }
     }
     pub fn eval_cos(&self, wo: Vec3, wi: Vec3) -> f32 {
         self.eval(wo, wi) * wi.z.max(0.0)
@@ -37,18 +33,10 @@ impl Bsdf {
     pub fn sample(&self, wo: Vec3, u: Vec2, _u_lobe: f32) -> Option<BsdfSample> {
         let wi = cosine_hemisphere(u);
         let pdf = cosine_hemisphere_pdf(wi.z);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            f_cos: self.eval_cos(wo, wi),
-            pdf,
-        })
+        (pdf > 0.0).then(|| BsdfSample { wi, f_cos: self.eval_cos(wo, wi), pdf })
     }
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 {
-            0.0
-        } else {
-            cosine_hemisphere_pdf(wi.z)
-        }
+        if wo.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(wi.z) }
     }
     pub fn is_black(&self) -> bool {
         let Bsdf::Lambert(l) = self;
@@ -69,22 +57,16 @@ pub enum BsdfSpec {
 #[derive(Debug, thiserror::Error)]
 pub enum BsdfError {
     #[error("{field}: {message}")]
-    Invalid {
-        field: &'static str,
-        message: String,
-    },
+    Invalid { field: &'static str, message: String },
 }
 
 impl BsdfSpec {
     pub fn build(&self) -> Result<Bsdf, BsdfError> {
         match self {
-            BsdfSpec::Lambert { rho } if (0.0..=1.0).contains(rho) => {
-                Ok(Bsdf::Lambert(Lambert { rho: *rho }))
+            BsdfSpec::Lambert { rho } if (0.0..=1.0).contains(rho) => Ok(Bsdf::Lambert(Lambert { rho: *rho })),
+            BsdfSpec::Lambert { rho } => {
+                Err(BsdfError::Invalid { field: "rho", message: format!("must be in [0, 1], got {rho}") })
             }
-            BsdfSpec::Lambert { rho } => Err(BsdfError::Invalid {
-                field: "rho",
-                message: format!("must be in [0, 1], got {rho}"),
-            }),
         }
     }
 }

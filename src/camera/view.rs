@@ -53,12 +53,7 @@ pub struct View {
 
 impl View {
     /// `frame_origin_body` is where the render frame's origin sits in the body frame.
-    pub fn new(
-        cam: &CameraModel,
-        pose: &Pose,
-        frame_origin_body: DVec3,
-        bounds: TargetBounds,
-    ) -> View {
+    pub fn new(cam: &CameraModel, pose: &Pose, frame_origin_body: DVec3, bounds: TargetBounds) -> View {
         let body_to_cam = DMat3::from_quat(pose.attitude.normalize());
         let cam_to_body = body_to_cam.transpose();
         // Camera centre: x_c = R x_b + p = 0  ⇒  x_b = −Rᵀ p.
@@ -83,11 +78,7 @@ impl View {
     /// `(x, y)` (`x = col + u`, `y = row + v`).
     #[inline]
     pub fn camera_dir(&self, x: f64, y: f64) -> DVec3 {
-        DVec3::new(
-            (x - self.pp[0]) * self.inv_focal_px,
-            (y - self.pp[1]) * self.inv_focal_px,
-            1.0,
-        )
+        DVec3::new((x - self.pp[0]) * self.inv_focal_px, (y - self.pp[1]) * self.inv_focal_px, 1.0)
     }
 
     /// Continuous pixel coordinate where a camera-frame point projects (pinhole).
@@ -119,22 +110,13 @@ impl View {
             return None;
         }
         let start = (-b - h2.sqrt()).max(0.0);
-        Some(Ray {
-            origin: (self.origin + d * start).as_vec3(),
-            dir: d.as_vec3(),
-            tmax: f32::INFINITY,
-        })
+        Some(Ray { origin: (self.origin + d * start).as_vec3(), dir: d.as_vec3(), tmax: f32::INFINITY })
     }
 
     /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
     /// the bounds are entirely outside the image or behind the camera.
     pub fn pixel_rect(&self) -> Option<PixelRect> {
-        let full = PixelRect {
-            col0: 0,
-            col1: self.width,
-            row0: 0,
-            row1: self.height,
-        };
+        let full = PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height };
         let render_to_cam = self.cam_to_render.transpose();
         let c = render_to_cam * (self.bounds.centre - self.origin);
         let r = self.bounds.radius;
@@ -154,14 +136,7 @@ impl View {
             if hi <= -q || lo >= q {
                 return None; // entirely behind the camera plane in this projection
             }
-            Some((
-                if lo <= -q {
-                    f64::NEG_INFINITY
-                } else {
-                    lo.tan()
-                },
-                if hi >= q { f64::INFINITY } else { hi.tan() },
-            ))
+            Some((if lo <= -q { f64::NEG_INFINITY } else { lo.tan() }, if hi >= q { f64::INFINITY } else { hi.tan() }))
         };
         let (mut x0, mut x1) = extent(c.x)?;
         let (mut y0, mut y1) = extent(c.y)?;

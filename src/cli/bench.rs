@@ -47,16 +47,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
 }
 
 fn render(a: RenderBenchArgs) -> anyhow::Result<()> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads)
-        .build_global()
-        .ok();
-    let settings = RenderSettings {
-        spp: a.spp,
-        depth: a.depth,
-        sampler: SamplerKind::Cosine,
-        seed: 0,
-    };
+    rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
+    let settings = RenderSettings { spp: a.spp, depth: a.depth, sampler: SamplerKind::Cosine, ..Default::default() };
     let mut rows = Vec::new();
     for layout in &a.bvh {
         let scene = crate::scene::file::load_with_layout(&a.scene, Some(*layout))?;

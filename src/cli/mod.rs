@@ -7,11 +7,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser, Debug)]
-#[command(
-    name = "hilcam",
-    version,
-    about = "Hardware-in-the-loop camera simulator for spacecraft navigation"
-)]
+#[command(name = "hilcam", version, about = "Hardware-in-the-loop camera simulator for spacecraft navigation")]
 pub struct Cli {
     /// Log filter (tracing env-filter syntax), e.g. `info`, `hilcam=debug`.
     #[arg(long, global = true, default_value = "info", env = "HILCAM_LOG")]

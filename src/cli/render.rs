@@ -23,8 +23,14 @@ pub struct RenderArgs {
     pub depth: Option<u32>,
     #[arg(long, value_enum)]
     pub sampler: Option<SamplerKind>,
+    /// Random-number sequence: sobol (stratified, default) or independent.
+    #[arg(long, value_enum)]
+    pub sequence: Option<crate::sampling::Sequence>,
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Disable Russian roulette (every path runs to full depth).
+    #[arg(long)]
+    pub no_roulette: bool,
     /// Frame index (part of every random number's key).
     #[arg(long, default_value_t = 0)]
     pub frame: u64,
@@ -48,10 +54,7 @@ pub struct RenderArgs {
 
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .ok();
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let scene = crate::scene::load(&a.scene)?;
     let mut settings = scene.render;
@@ -64,6 +67,12 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if let Some(v) = a.sampler {
         settings.sampler = v;
     }
+    if let Some(v) = a.sequence {
+        settings.sequence = v;
+    }
+    if a.no_roulette {
+        settings.roulette = false;
+    }
     if let Some(v) = a.seed {
         settings.seed = v;
     }
@@ -74,8 +83,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     };
     let (img, stats) = render(&scene, &camera, &pose, &settings, a.frame);
     let info = write_radiance(&a.out, &img, None, a.png16)?;
-    let covered =
-        stats.traced_pixels as f64 / (f64::from(camera.width) * f64::from(camera.height)) * 100.0;
+    let covered = stats.traced_pixels as f64 / (f64::from(camera.width) * f64::from(camera.height)) * 100.0;
     print!(
         "{}: {}x{} spp {} depth {} {:?}: {:.3} s, {} rays ({:.2} Mrays/s), traced {:.1} % of pixels, BVH {} triangles built in {:.0} ms",
         a.out.display(),
@@ -96,19 +104,14 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         None => println!(),
     }
     if stats.rays.nonfinite > 0 {
-        println!(
-            "warning: {} non-finite samples dropped",
-            stats.rays.nonfinite
-        );
+        println!("warning: {} non-finite samples dropped", stats.rays.nonfinite);
     }
     Ok(())
 }
 
 /// The same camera at another resolution, with the same field of view.
 pub fn scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -> CameraModel {
-    let Some(w) = width
-        .or(height
-            .map(|h| (f64::from(h) * f64::from(c.width) / f64::from(c.height)).round() as u32))
+    let Some(w) = width.or(height.map(|h| (f64::from(h) * f64::from(c.width) / f64::from(c.height)).round() as u32))
     else {
         return c.clone();
     };
@@ -127,17 +130,10 @@ pub fn scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -
 pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     let v: Vec<f64> = s
         .split(',')
-        .map(|t| {
-            t.trim()
-                .parse::<f64>()
-                .with_context(|| format!("`{t}` is not a number"))
-        })
+        .map(|t| t.trim().parse::<f64>().with_context(|| format!("`{t}` is not a number")))
         .collect::<Result<_, _>>()?;
     if !matches!(v.len(), 3 | 7 | 10) {
-        bail!(
-            "expected 3, 7 or 10 comma-separated numbers, got {}",
-            v.len()
-        );
+        bail!("expected 3, 7 or 10 comma-separated numbers, got {}", v.len());
     }
     let mut p = *base;
     p.position = DVec3::new(v[0], v[1], v[2]);

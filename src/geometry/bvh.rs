@@ -64,11 +64,7 @@ impl Accel {
         let tris: Vec<Triangle> = (0..mesh.indices.len())
             .map(|i| {
                 let [a, b, c] = mesh.triangle(i);
-                Triangle {
-                    v0: a.into(),
-                    v1: b.into(),
-                    v2: c.into(),
-                }
+                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
             .collect();
         let params = BvhBuildParams::medium_build();
@@ -89,16 +85,8 @@ impl Accel {
                 }
             }
         };
-        let rt = original
-            .iter()
-            .map(|&i| RtTriangle::from(&tris[i as usize]))
-            .collect();
-        Accel {
-            tree,
-            tris: rt,
-            original,
-            build_time: t0.elapsed(),
-        }
+        let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
+        Accel { tree, tris: rt, original, build_time: t0.elapsed() }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -123,10 +111,7 @@ impl Accel {
             Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
             Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
         };
-        found.then(|| Hit {
-            tri: self.original[hit.primitive_id as usize],
-            t: hit.t,
-        })
+        found.then(|| Hit { tri: self.original[hit.primitive_id as usize], t: hit.t })
     }
 
     /// True when anything blocks the ray within `(0, tmax]` (stops at the first hit).

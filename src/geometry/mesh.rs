@@ -13,11 +13,7 @@ pub struct TriMesh {
 impl TriMesh {
     pub fn triangle(&self, i: usize) -> [Vec3; 3] {
         let [a, b, c] = self.indices[i];
-        [
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        ]
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
     /// Geometric normal of triangle `i` (right-handed winding), unnormalised: its length is
@@ -31,8 +27,7 @@ impl TriMesh {
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
-        self.indices
-            .extend(other.indices.iter().map(|t| t.map(|i| i + base)));
+        self.indices.extend(other.indices.iter().map(|t| t.map(|i| i + base)));
         self.material.extend_from_slice(&other.material);
     }
 }

@@ -8,8 +8,7 @@
 
 use crate::geometry::Ray;
 use crate::sampling::{
-    Frame, Rng, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, cosine_hemisphere_pdf,
-    uniform_hemisphere,
+    Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, cosine_hemisphere_pdf, uniform_hemisphere,
 };
 use crate::scene::Scene;
 use glam::Vec3;
@@ -35,6 +34,10 @@ pub struct RenderSettings {
     /// Surface interactions per path (≥ 1).
     pub depth: u32,
     pub sampler: SamplerKind,
+    /// Independent or low-discrepancy (Sobol) random numbers.
+    pub sequence: Sequence,
+    /// Russian roulette on low-throughput paths (from the second indirect bounce on).
+    pub roulette: bool,
     pub seed: u64,
 }
 
@@ -44,6 +47,8 @@ impl Default for RenderSettings {
             spp: 4,
             depth: 2,
             sampler: SamplerKind::Cosine,
+            sequence: Sequence::Sobol,
+            roulette: true,
             seed: 0,
         }
     }
@@ -106,6 +111,7 @@ pub struct PathContext<'a> {
     pub sampler: SamplerKind,
     /// False when no bounce can carry energy (depth 1 or all materials black).
     pub indirect: bool,
+    pub roulette: bool,
 }
 
 impl<'a> PathContext<'a> {
@@ -117,6 +123,7 @@ impl<'a> PathContext<'a> {
             depth: settings.depth.max(1),
             sampler: settings.sampler,
             indirect,
+            roulette: settings.roulette,
         }
     }
 
@@ -129,10 +136,10 @@ impl<'a> PathContext<'a> {
 
     /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻².
     #[inline]
-    pub fn radiance<L: RayLog>(
+    pub fn radiance<L: RayLog, S: SampleSource>(
         &self,
         mut ray: Ray,
-        rng: &mut Rng,
+        rng: &mut S,
         counts: &mut RayCounts,
         log: &mut L,
     ) -> f32 {
@@ -167,11 +174,7 @@ impl<'a> PathContext<'a> {
                 let f_cos = bsdf.eval_cos(wo_l, frame.to_local(self.sun));
                 if f_cos > 0.0 {
                     counts.shadow += 1;
-                    if !scene.accel.occluded(&Ray {
-                        origin,
-                        dir: self.sun,
-                        tmax: f32::INFINITY,
-                    }) {
+                    if !scene.accel.occluded(&Ray { origin, dir: self.sun, tmax: f32::INFINITY }) {
                         l += beta * f_cos * e_sun;
                     }
                 }
@@ -181,7 +184,7 @@ impl<'a> PathContext<'a> {
                 break;
             }
             let u = rng.next_2d();
-            let u_lobe = rng.next_f32();
+            let u_lobe = rng.next_1d();
             let (wi_l, weight) = match self.sampler {
                 SamplerKind::Uniform => {
                     let wi = uniform_hemisphere(u);
@@ -190,14 +193,7 @@ impl<'a> PathContext<'a> {
                 SamplerKind::Cosine => {
                     let wi = cosine_hemisphere(u);
                     let pdf = cosine_hemisphere_pdf(wi.z);
-                    (
-                        wi,
-                        if pdf > 0.0 {
-                            bsdf.eval_cos(wo_l, wi) / pdf
-                        } else {
-                            0.0
-                        },
-                    )
+                    (wi, if pdf > 0.0 { bsdf.eval_cos(wo_l, wi) / pdf } else { 0.0 })
                 }
                 SamplerKind::Brdf => match bsdf.sample(wo_l, u, u_lobe) {
                     Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
@@ -208,11 +204,16 @@ impl<'a> PathContext<'a> {
             if beta <= 0.0 || !beta.is_finite() {
                 break;
             }
-            ray = Ray {
-                origin,
-                dir: frame.to_world(wi_l),
-                tmax: f32::INFINITY,
-            };
+            // Russian roulette from the second indirect bounce on: a path whose throughput
+            // fell below 1 survives with probability `beta` and carries 1 afterwards —
+            // unbiased, and low-throughput paths stop costing rays.
+            if self.roulette && bounce >= 1 && beta < 1.0 {
+                if rng.next_1d() >= beta {
+                    break;
+                }
+                beta = 1.0;
+            }
+            ray = Ray { origin, dir: frame.to_world(wi_l), tmax: f32::INFINITY };
         }
         l
     }

@@ -38,6 +38,7 @@ use crate::camera::CameraModel;
 use crate::geometry::{BvhLayout, TriMesh};
 use crate::integrator::{RenderSettings, SamplerKind};
 use crate::pose::Pose;
+use crate::sampling::Sequence;
 use glam::{DQuat, DVec3, EulerRot};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -47,26 +48,14 @@ use toml::Spanned;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     /// toml's message already says "at line L, column C".
     #[error("{path}: {message}")]
     Parse { path: PathBuf, message: String },
     #[error("{path}:{line}: {field}: {message}")]
-    Field {
-        path: PathBuf,
-        line: usize,
-        field: String,
-        message: String,
-    },
+    Field { path: PathBuf, line: usize, field: String, message: String },
     #[error("{path}: {field}: {message}")]
-    Missing {
-        path: PathBuf,
-        field: String,
-        message: String,
-    },
+    Missing { path: PathBuf, field: String, message: String },
 }
 
 #[derive(Deserialize)]
@@ -115,9 +104,7 @@ struct SunSection {
 
 impl Default for SunSection {
     fn default() -> Self {
-        SunSection {
-            irradiance: default_irradiance(),
-        }
+        SunSection { irradiance: default_irradiance() }
     }
 }
 
@@ -165,9 +152,17 @@ struct RenderSection {
     #[serde(default)]
     sampler: SamplerKind,
     #[serde(default)]
+    sequence: Sequence,
+    #[serde(default = "yes")]
+    roulette: bool,
+    #[serde(default)]
     seed: u64,
     #[serde(default)]
     bvh: BvhLayout,
+}
+
+fn yes() -> bool {
+    true
 }
 
 fn default_spp() -> Spanned<u32> {
@@ -183,6 +178,8 @@ impl Default for RenderSection {
             spp: default_spp(),
             depth: default_depth(),
             sampler: SamplerKind::default(),
+            sequence: Sequence::default(),
+            roulette: true,
             seed: 0,
             bvh: BvhLayout::default(),
         }
@@ -191,11 +188,7 @@ impl Default for RenderSection {
 
 /// 1-based line of a byte offset.
 fn line_of(src: &str, offset: usize) -> usize {
-    src[..offset.min(src.len())]
-        .bytes()
-        .filter(|b| *b == b'\n')
-        .count()
-        + 1
+    src[..offset.min(src.len())].bytes().filter(|b| *b == b'\n').count() + 1
 }
 
 /// Load and build a scene file.
@@ -205,10 +198,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// Load a scene file, overriding its BVH layout.
 pub fn load_with_layout(path: &Path, layout: Option<BvhLayout>) -> Result<Scene, SceneError> {
-    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
     let mut parts = parse(path, &src)?;
     if let Some(l) = layout {
         parts.layout = l;
@@ -218,10 +208,8 @@ pub fn load_with_layout(path: &Path, layout: Option<BvhLayout>) -> Result<Scene,
 
 /// Parse a scene file's text (`path` names it in errors and anchors relative paths).
 pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
-    let file: SceneFile = toml::from_str(src).map_err(|e| SceneError::Parse {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let file: SceneFile =
+        toml::from_str(src).map_err(|e| SceneError::Parse { path: path.to_path_buf(), message: e.to_string() })?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let field = |span: std::ops::Range<usize>, field: &str, message: String| SceneError::Field {
         path: path.to_path_buf(),
@@ -233,21 +221,11 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     // Materials, in name order (BTreeMap) so indices are stable.
     let mut materials = Vec::new();
     for (name, spec) in &file.materials {
-        let bsdf = spec
-            .get_ref()
-            .build()
-            .map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
-        materials.push(Material {
-            name: name.clone(),
-            bsdf,
-        });
+        let bsdf =
+            spec.get_ref().build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
+        materials.push(Material { name: name.clone(), bsdf });
     }
-    let index_of = |name: &str| {
-        materials
-            .iter()
-            .position(|m| m.name == name)
-            .map(|i| i as u32)
-    };
+    let index_of = |name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
 
     // Meshes, transformed into the body frame.
     if file.mesh.is_empty() {
@@ -261,13 +239,8 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
-        let loaded = load_obj(&obj_path).map_err(|m| {
-            field(
-                entry.obj.span(),
-                &fname,
-                format!("{}: {m}", obj_path.display()),
-            )
-        })?;
+        let loaded =
+            load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, format!("{}: {m}", obj_path.display())))?;
         let scale = *entry.scale.get_ref();
         if !(scale.is_finite() && scale > 0.0) {
             return Err(field(
@@ -279,11 +252,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         // Map each MTL name to a scene material.
         let mut map = Vec::new();
         for name in &loaded.material_names {
-            let target = entry
-                .material
-                .as_ref()
-                .map(|m| m.get_ref().as_str())
-                .unwrap_or(name);
+            let target = entry.material.as_ref().map(|m| m.get_ref().as_str()).unwrap_or(name);
             match index_of(target) {
                 Some(i) => map.push(i),
                 None => {
@@ -320,14 +289,9 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     // Camera: inline table or a camera file's [camera] table.
     let camera = match (&file.camera, &file.camera_file) {
         (Some(c), None) => c.get_ref().clone(),
-        (None, Some(f)) => load_camera_file(&dir.join(f.get_ref()))
-            .map_err(|m| field(f.span(), "camera_file", m))?,
+        (None, Some(f)) => load_camera_file(&dir.join(f.get_ref())).map_err(|m| field(f.span(), "camera_file", m))?,
         (Some(c), Some(_)) => {
-            return Err(field(
-                c.span(),
-                "camera",
-                "give either [camera] or camera_file, not both".into(),
-            ));
+            return Err(field(c.span(), "camera", "give either [camera] or camera_file, not both".into()));
         }
         (None, None) => {
             return Err(SceneError::Missing {
@@ -339,42 +303,28 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     };
     validate_camera(&camera).map_err(|(f, m)| match &file.camera {
         Some(c) => field(c.span(), &format!("camera.{f}"), m),
-        None => SceneError::Missing {
-            path: path.to_path_buf(),
-            field: format!("camera.{f}"),
-            message: m,
-        },
+        None => SceneError::Missing { path: path.to_path_buf(), field: format!("camera.{f}"), message: m },
     })?;
 
     let pose = pose_from(&file.pose).map_err(|(span, f, m)| field(span, &f, m))?;
     let irradiance = *file.sun.irradiance.get_ref();
     if !(irradiance.is_finite() && irradiance >= 0.0) {
-        return Err(field(
-            file.sun.irradiance.span(),
-            "sun.irradiance",
-            format!("must be ≥ 0 W/m², got {irradiance}"),
-        ));
+        return Err(field(file.sun.irradiance.span(), "sun.irradiance", format!("must be ≥ 0 W/m², got {irradiance}")));
     }
     let r = &file.render;
     let render = RenderSettings {
         spp: *r.spp.get_ref(),
         depth: *r.depth.get_ref(),
         sampler: r.sampler,
+        sequence: r.sequence,
+        roulette: r.roulette,
         seed: r.seed,
     };
     if render.spp == 0 {
-        return Err(field(
-            r.spp.span(),
-            "render.spp",
-            "must be at least 1".into(),
-        ));
+        return Err(field(r.spp.span(), "render.spp", "must be at least 1".into()));
     }
     if render.depth == 0 {
-        return Err(field(
-            r.depth.span(),
-            "render.depth",
-            "must be at least 1 (1 = direct sunlight only)".into(),
-        ));
+        return Err(field(r.depth.span(), "render.depth", "must be at least 1 (1 = direct sunlight only)".into()));
     }
     Ok(SceneParts {
         mesh,
@@ -391,25 +341,16 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
 /// Read the `[camera]` table of a camera file (which may hold other tables too).
 pub fn load_camera_file(path: &Path) -> Result<CameraModel, String> {
     let src = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let table: toml::Table =
-        toml::from_str(&src).map_err(|e| format!("{}: {e}", path.display()))?;
-    let cam = table
-        .get("camera")
-        .ok_or_else(|| format!("{}: no [camera] table", path.display()))?;
-    let cam: CameraModel = cam
-        .clone()
-        .try_into()
-        .map_err(|e| format!("{}: [camera]: {e}", path.display()))?;
+    let table: toml::Table = toml::from_str(&src).map_err(|e| format!("{}: {e}", path.display()))?;
+    let cam = table.get("camera").ok_or_else(|| format!("{}: no [camera] table", path.display()))?;
+    let cam: CameraModel = cam.clone().try_into().map_err(|e| format!("{}: [camera]: {e}", path.display()))?;
     validate_camera(&cam).map_err(|(f, m)| format!("{}: camera.{f}: {m}", path.display()))?;
     Ok(cam)
 }
 
 fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
     if c.width == 0 || c.height == 0 {
-        return Err((
-            "width",
-            format!("image must be at least 1×1, got {}×{}", c.width, c.height),
-        ));
+        return Err(("width", format!("image must be at least 1×1, got {}×{}", c.width, c.height)));
     }
     if !(c.pitch_um.is_finite() && c.pitch_um > 0.0) {
         return Err(("pitch_um", format!("must be positive, got {}", c.pitch_um)));
@@ -428,11 +369,7 @@ type FieldErr = (std::ops::Range<usize>, String, String);
 fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
     let pos = DVec3::from_array(*p.position.get_ref());
     if !pos.is_finite() {
-        return Err((
-            p.position.span(),
-            "pose.position".into(),
-            "must be finite".into(),
-        ));
+        return Err((p.position.span(), "pose.position".into(), "must be finite".into()));
     }
     let [w, x, y, z] = *p.attitude.get_ref();
     let q = DQuat::from_xyzw(x, y, z, w);
@@ -440,24 +377,12 @@ fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
         return Err((
             p.attitude.span(),
             "pose.attitude".into(),
-            format!(
-                "must be a unit quaternion [w, x, y, z], norm is {}",
-                q.length()
-            ),
+            format!("must be a unit quaternion [w, x, y, z], norm is {}", q.length()),
         ));
     }
     let sun = DVec3::from_array(*p.sun.get_ref());
     if !sun.is_finite() || sun.length() < 1e-9 {
-        return Err((
-            p.sun.span(),
-            "pose.sun".into(),
-            "must be a non-zero direction toward the sun".into(),
-        ));
+        return Err((p.sun.span(), "pose.sun".into(), "must be a non-zero direction toward the sun".into()));
     }
-    Ok(Pose {
-        position: pos,
-        attitude: q.normalize(),
-        sun_dir: sun.normalize(),
-        ..Pose::ahead(0.0)
-    })
+    Ok(Pose { position: pos, attitude: q.normalize(), sun_dir: sun.normalize(), ..Pose::ahead(0.0) })
 }

@@ -59,59 +59,29 @@ pub struct SceneParts {
 impl Scene {
     /// Re-centre the mesh on its bounds, compute normals and bounds, build the BVH.
     pub fn build(parts: SceneParts) -> Scene {
-        let SceneParts {
-            mut mesh,
-            materials,
-            sun_irradiance,
-            background,
-            camera,
-            pose,
-            render,
-            layout,
-        } = parts;
-        let (lo, hi) =
-            mesh.positions
-                .iter()
-                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-                    let p = p.as_dvec3();
-                    (lo.min(p), hi.max(p))
-                });
-        let centre = if mesh.positions.is_empty() {
-            DVec3::ZERO
-        } else {
-            (lo + hi) * 0.5
-        };
+        let SceneParts { mut mesh, materials, sun_irradiance, background, camera, pose, render, layout } = parts;
+        let (lo, hi) = mesh.positions.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            let p = p.as_dvec3();
+            (lo.min(p), hi.max(p))
+        });
+        let centre = if mesh.positions.is_empty() { DVec3::ZERO } else { (lo + hi) * 0.5 };
         for p in &mut mesh.positions {
             *p = (p.as_dvec3() - centre).as_vec3();
         }
-        let radius = mesh
-            .positions
-            .iter()
-            .map(|p| p.as_dvec3().length())
-            .fold(0.0, f64::max);
+        let radius = mesh.positions.iter().map(|p| p.as_dvec3().length()).fold(0.0, f64::max);
         // Inflate a little so that rays start strictly outside every triangle.
         let radius = radius * (1.0 + 1e-4) + 1e-6;
-        let normals = (0..mesh.indices.len())
-            .map(|i| mesh.face_normal_area2(i).normalize_or_zero())
-            .collect();
+        let normals = (0..mesh.indices.len()).map(|i| mesh.face_normal_area2(i).normalize_or_zero()).collect();
         let accel = Accel::build(&mesh, layout);
-        let (min, max) = if mesh.positions.is_empty() {
-            (DVec3::ZERO, DVec3::ZERO)
-        } else {
-            (lo - centre, hi - centre)
-        };
+        let (min, max) =
+            if mesh.positions.is_empty() { (DVec3::ZERO, DVec3::ZERO) } else { (lo - centre, hi - centre) };
         Scene {
             mesh,
             normals,
             materials,
             accel,
             frame_origin_body: centre,
-            bounds: TargetBounds {
-                centre: DVec3::ZERO,
-                radius,
-                min: min - 1e-6,
-                max: max + 1e-6,
-            },
+            bounds: TargetBounds { centre: DVec3::ZERO, radius, min: min - 1e-6, max: max + 1e-6 },
             sun_irradiance: sun_irradiance as f32,
             background: background as f32,
             camera,

@@ -12,8 +12,7 @@ pub struct ObjMesh {
 }
 
 pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
-    let (models, materials) =
-        tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| e.to_string())?;
+    let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| e.to_string())?;
     // A missing or broken .mtl still loads the geometry; the names come from `usemtl`
     // only through the material list, so without it every face is `default`.
     let mtl: Vec<String> = match materials {
@@ -29,11 +28,7 @@ pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
     let mut out = TriMesh::default();
     for model in &models {
         let m = &model.mesh;
-        let name = m
-            .material_id
-            .and_then(|i| mtl.get(i))
-            .cloned()
-            .unwrap_or_else(|| "default".to_string());
+        let name = m.material_id.and_then(|i| mtl.get(i)).cloned().unwrap_or_else(|| "default".to_string());
         let mat = match names.iter().position(|n| *n == name) {
             Some(i) => i,
             None => {
@@ -42,11 +37,7 @@ pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
             }
         } as u32;
         let base = out.positions.len() as u32;
-        out.positions.extend(
-            m.positions
-                .chunks_exact(3)
-                .map(|p| Vec3::new(p[0], p[1], p[2])),
-        );
+        out.positions.extend(m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])));
         for t in m.indices.chunks_exact(3) {
             out.indices.push([t[0] + base, t[1] + base, t[2] + base]);
             out.material.push(mat);
@@ -55,8 +46,5 @@ pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
     if out.indices.is_empty() {
         return Err("no triangles".to_string());
     }
-    Ok(ObjMesh {
-        mesh: out,
-        material_names: names,
-    })
+    Ok(ObjMesh { mesh: out, material_names: names })
 }

@@ -24,11 +24,7 @@ pub fn extrapolate(p: &Pose, dt_s: f64) -> (Pose, bool) {
         }
     }
     let dt_ns = (dt_s * 1e9).round();
-    out.t_ns = if dt_ns >= 0.0 {
-        p.t_ns.saturating_add(dt_ns as u64)
-    } else {
-        p.t_ns.saturating_sub((-dt_ns) as u64)
-    };
+    out.t_ns = if dt_ns >= 0.0 { p.t_ns.saturating_add(dt_ns as u64) } else { p.t_ns.saturating_sub((-dt_ns) as u64) };
     (out, true)
 }
 

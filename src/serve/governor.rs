@@ -43,10 +43,7 @@ impl Governor {
         let mut ladder = Vec::new();
         let mut spp = best.spp.max(1);
         loop {
-            ladder.push(Quality {
-                spp,
-                depth: best.depth.max(1),
-            });
+            ladder.push(Quality { spp, depth: best.depth.max(1) });
             if spp == 1 {
                 break;
             }
@@ -55,13 +52,7 @@ impl Governor {
         for depth in (1..best.depth.max(1)).rev() {
             ladder.push(Quality { spp: 1, depth });
         }
-        Governor {
-            policy,
-            budget,
-            ladder,
-            level: 0,
-            rate: None,
-        }
+        Governor { policy, budget, ladder, level: 0, rate: None }
     }
 
     pub fn budget(&self) -> Duration {
@@ -121,28 +112,11 @@ mod tests {
     fn ladder_halves_spp_then_lowers_depth() {
         let g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: 16, depth: 4 });
         let l: Vec<(u32, u32)> = g.ladder.iter().map(|q| (q.spp, q.depth)).collect();
-        assert_eq!(
-            l,
-            vec![
-                (16, 4),
-                (8, 4),
-                (4, 4),
-                (2, 4),
-                (1, 4),
-                (1, 3),
-                (1, 2),
-                (1, 1)
-            ]
-        );
+        assert_eq!(l, vec![(16, 4), (8, 4), (4, 4), (2, 4), (1, 4), (1, 3), (1, 2), (1, 1)]);
     }
 
     /// A simulated renderer whose time is proportional to the rung's cost.
-    fn simulate(
-        policy: Policy,
-        budget_ms: f64,
-        ms_per_cost: f64,
-        frames: usize,
-    ) -> (Governor, Vec<Quality>) {
+    fn simulate(policy: Policy, budget_ms: f64, ms_per_cost: f64, frames: usize) -> (Governor, Vec<Quality>) {
         let mut g = Governor::new(policy, ms(budget_ms), Quality { spp: 16, depth: 4 });
         let mut seen = Vec::new();
         for _ in 0..frames {
@@ -181,11 +155,7 @@ mod tests {
             let q = g.current();
             g.observe(q, ms(Governor::cost(q) * 4.0));
         }
-        assert_eq!(
-            g.current(),
-            Quality { spp: 8, depth: 2 },
-            "came down to {low:?}, should be back at best"
-        );
+        assert_eq!(g.current(), Quality { spp: 8, depth: 2 }, "came down to {low:?}, should be back at best");
     }
 
     #[test]

@@ -27,30 +27,15 @@ pub fn square(cx: f32, cy: f32, z: f32, s: f32, material: u32) -> TriMesh {
 pub fn lambert(name: &str, rho: f32) -> Material {
     Material {
         name: name.into(),
-        bsdf: toml::from_str::<BsdfSpec>(&format!("model = \"lambert\"\nrho = {rho}"))
-            .unwrap()
-            .build()
-            .unwrap(),
+        bsdf: toml::from_str::<BsdfSpec>(&format!("model = \"lambert\"\nrho = {rho}")).unwrap().build().unwrap(),
     }
 }
 
 pub fn camera(width: u32, height: u32, pitch_um: f64, focal_mm: f64) -> CameraModel {
-    CameraModel {
-        width,
-        height,
-        pitch_um,
-        focal_mm,
-        principal_point_px: [0.0, 0.0],
-    }
+    CameraModel { width, height, pitch_um, focal_mm, principal_point_px: [0.0, 0.0] }
 }
 
-pub fn scene(
-    mesh: TriMesh,
-    materials: Vec<Material>,
-    cam: CameraModel,
-    pose: Pose,
-    render: RenderSettings,
-) -> Scene {
+pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Pose, render: RenderSettings) -> Scene {
     Scene::build(SceneParts {
         mesh,
         materials,

@@ -3,7 +3,10 @@
 //! Every random number is a pure function of (seed, frame, pixel, sample, dimension),
 //! so an image does not depend on how rayon schedules pixels onto threads.
 
+pub mod sobol;
+
 use glam::{Vec2, Vec3};
+pub use sobol::SobolStream;
 use std::f32::consts::{FRAC_1_PI, PI};
 
 /// A small, fast generator (PCG32, O'Neill 2014) seeded from a hash of the sample's key.
@@ -63,6 +66,45 @@ impl Rng {
     }
 }
 
+/// Where an estimator takes its random numbers from.
+pub trait SampleSource {
+    fn next_1d(&mut self) -> f32;
+    fn next_2d(&mut self) -> Vec2;
+}
+
+impl SampleSource for Rng {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        self.next_f32()
+    }
+    #[inline]
+    fn next_2d(&mut self) -> Vec2 {
+        Rng::next_2d(self)
+    }
+}
+
+impl SampleSource for SobolStream {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        SobolStream::next_1d(self)
+    }
+    #[inline]
+    fn next_2d(&mut self) -> Vec2 {
+        SobolStream::next_2d(self)
+    }
+}
+
+/// Which sequence feeds the estimator.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Sequence {
+    /// Independent random numbers (PCG32) per sample.
+    Independent,
+    /// Shuffled Owen-scrambled Sobol points per dimension pair (stratified).
+    #[default]
+    Sobol,
+}
+
 /// Uniform direction on the upper (+Z) hemisphere; pdf 1/(2π).
 #[inline]
 pub fn uniform_hemisphere(u: Vec2) -> Vec3 {
@@ -98,10 +140,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     let (r, theta) = if o.x.abs() > o.y.abs() {
         (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
     } else {
-        (
-            o.y,
-            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
-        )
+        (o.y, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y))
     };
     r * Vec2::new(theta.cos(), theta.sin())
 }
@@ -142,18 +181,9 @@ mod tests {
 
     #[test]
     fn rng_is_a_pure_function_of_its_key() {
-        let a: Vec<u32> = (0..8)
-            .map(|_| 0)
-            .scan(Rng::for_sample(1, 2, 3, 4), |r, _| Some(r.next_u32()))
-            .collect();
-        let b: Vec<u32> = (0..8)
-            .map(|_| 0)
-            .scan(Rng::for_sample(1, 2, 3, 4), |r, _| Some(r.next_u32()))
-            .collect();
-        let c: Vec<u32> = (0..8)
-            .map(|_| 0)
-            .scan(Rng::for_sample(1, 2, 3, 5), |r, _| Some(r.next_u32()))
-            .collect();
+        let a: Vec<u32> = (0..8).map(|_| 0).scan(Rng::for_sample(1, 2, 3, 4), |r, _| Some(r.next_u32())).collect();
+        let b: Vec<u32> = (0..8).map(|_| 0).scan(Rng::for_sample(1, 2, 3, 4), |r, _| Some(r.next_u32())).collect();
+        let c: Vec<u32> = (0..8).map(|_| 0).scan(Rng::for_sample(1, 2, 3, 5), |r, _| Some(r.next_u32())).collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
     }
@@ -175,12 +205,9 @@ mod tests {
     fn frame_is_orthonormal_for_any_normal() {
         let mut r = Rng::from_state(3);
         for _ in 0..10_000 {
-            let n = (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 2.0 - 1.0)
-                .normalize_or(Vec3::Z);
+            let n = (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 2.0 - 1.0).normalize_or(Vec3::Z);
             let f = Frame::from_normal(n);
-            assert!(
-                f.t.dot(f.b).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5 && f.b.dot(n).abs() < 1e-5
-            );
+            assert!(f.t.dot(f.b).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5 && f.b.dot(n).abs() < 1e-5);
             assert!((f.t.length() - 1.0).abs() < 1e-5 && (f.b.length() - 1.0).abs() < 1e-5);
             let v = Vec3::new(0.3, -0.2, 0.9);
             assert!((f.to_local(f.to_world(v)) - v).length() < 1e-5);
@@ -249,23 +276,14 @@ mod tests {
     #[test]
     fn hemisphere_samplers_match_their_pdfs() {
         for (name, (chi2, dof, total)) in [
-            (
-                "uniform",
-                chi_square(uniform_hemisphere, |_| UNIFORM_HEMISPHERE_PDF),
-            ),
-            (
-                "cosine",
-                chi_square(cosine_hemisphere, |w| cosine_hemisphere_pdf(w.z)),
-            ),
+            ("uniform", chi_square(uniform_hemisphere, |_| UNIFORM_HEMISPHERE_PDF)),
+            ("cosine", chi_square(cosine_hemisphere, |w| cosine_hemisphere_pdf(w.z))),
         ] {
             // The pdf integrates to 1 over the hemisphere.
             assert!((total - 1.0).abs() < 1e-3, "{name}: ∫pdf = {total}");
             // For 511 degrees of freedom, χ² above dof + 5·sqrt(2·dof) ≈ 671 has p < 1e-6.
             let limit = dof as f64 + 5.0 * (2.0 * dof as f64).sqrt();
-            assert!(
-                chi2 < limit,
-                "{name}: chi2 {chi2:.1} for {dof} dof (limit {limit:.0})"
-            );
+            assert!(chi2 < limit, "{name}: chi2 {chi2:.1} for {dof} dof (limit {limit:.0})");
         }
     }
 }
