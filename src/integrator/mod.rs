@@ -184,7 +184,6 @@ impl<'a> PathContext<'a> {
                 break;
             }
             let u = rng.next_2d();
-            let u_lobe = rng.next_1d();
             let (wi_l, weight) = match self.sampler {
                 SamplerKind::Uniform => {
                     let wi = uniform_hemisphere(u);
@@ -195,7 +194,7 @@ impl<'a> PathContext<'a> {
                     let pdf = cosine_hemisphere_pdf(wi.z);
                     (wi, if pdf > 0.0 { bsdf.eval_cos(wo_l, wi) / pdf } else { 0.0 })
                 }
-                SamplerKind::Brdf => match bsdf.sample(wo_l, u, u_lobe) {
+                SamplerKind::Brdf => match bsdf.sample(wo_l, u, rng.next_1d()) {
                     Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
                     _ => break,
                 },
