@@ -19,6 +19,7 @@
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
+//! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
 
 pub mod bsdf;
@@ -34,4 +35,5 @@ pub mod sampling;
 pub mod scene;
 pub mod sensor;
 pub mod sink;
+pub mod trajectory;
 pub mod transport;
