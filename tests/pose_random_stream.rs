@@ -60,9 +60,13 @@ fn serial_million_bytes_of_garbage_and_frames() {
                 stream.extend_from_slice(&f);
             }
             2 => {
-                // truncated frame
+                // Truncated frame. It is cut at least 4 bytes short: if only the
+                // last CRC byte were missing and it happened to be A5 (1 in 256),
+                // the next frame's sync byte would complete it into a genuinely
+                // valid frame, costing the next frame its sync — correct
+                // decoding, but not what this test counts.
                 let f = serial::encode_frame(&Message::Pose(pose(&mut r, 0, t)));
-                let k = r.u(f.len());
+                let k = r.u(f.len() - 3);
                 stream.extend_from_slice(&f[..k]);
             }
             _ => {
@@ -115,16 +119,23 @@ fn can_and_slcan_garbage_never_yield_invalid_poses() {
         let p = pose(&mut r, i, i as u64);
         let mut frames = can::encode_message(ids, &Message::Pose(p), r.u(4) == 0);
         match r.u(4) {
+            0 if frames[0].fd => {
+                // A corrupted FD frame never reaches software: the bus's
+                // CRC-17/21 rejects it (the FD pose has no CRC of its own).
+                frames.clear();
+            }
             0 => {
                 let k = r.u(frames.len());
                 let mut d = frames[k].data().to_vec();
                 let j = r.u(d.len());
                 d[j] ^= 1 << r.u(8);
-                frames[k] = if frames[k].fd {
-                    CanFrame::new_fd(frames[k].id, false, &d, true).unwrap()
-                } else {
-                    CanFrame::new(frames[k].id, false, &d).unwrap()
-                };
+                // Zero padding after the group CRC carries nothing: flipping it
+                // leaves the pose intact (and delivered).
+                let stream_len = [41, 53, 65][(frames.len() - 6) / 2];
+                if j > 0 && 7 * k + j - 1 >= stream_len {
+                    sent += 1;
+                }
+                frames[k] = CanFrame::new(frames[k].id, false, &d).unwrap();
             }
             1 => {
                 let k = r.u(frames.len());
@@ -141,6 +152,7 @@ fn can_and_slcan_garbage_never_yield_invalid_poses() {
         for f in &frames {
             text.extend_from_slice(slcan::encode_frame(f).as_bytes());
         }
+
         if r.u(10) == 0 {
             text.extend((0..r.u(50)).map(|_| r.byte()));
             text.push(b'\r');
@@ -151,18 +163,23 @@ fn can_and_slcan_garbage_never_yield_invalid_poses() {
     for chunk in text.chunks(97) {
         dec.push(chunk);
         while let Some(item) = dec.next_item() {
-            if let Ok(SlcanItem::Frame(f)) = item {
-                if let Some(CanEvent::Message(Message::Pose(p))) = asm.push(&f) {
-                    if v.check(&p).is_ok() {
-                        got += 1;
+            match item {
+                Ok(SlcanItem::Frame(f)) => {
+                    let e = asm.push(&f);
+
+                    if let Some(CanEvent::Message(Message::Pose(p))) = e {
+                        match v.check(&p) {
+                            Ok(_) => got += 1,
+                            Err(e) => panic!("invalid pose out of the assembler: {e} {p:?}"),
+                        }
                     }
                 }
+                Ok(_) | Err(_) => {}
             }
         }
     }
-    // Random frames appended after a valid group (case 2) may break it only if
-    // they land on a group id; count those losses exactly by replaying without text noise
-    // is overkill: require that nearly all intact groups arrive and none extra.
+    // An intact group is lost only when a random frame (case 2) before it has
+    // the same group sequence (1 in 256) and lands on one of its ids.
     assert!(got <= sent, "got {got} > sent {sent}");
-    assert!(got as f64 >= 0.9 * sent as f64, "got {got} of {sent}");
+    assert!(got as f64 >= 0.99 * sent as f64, "got {got} of {sent}");
 }

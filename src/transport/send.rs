@@ -283,10 +283,10 @@ pub fn send_trajectory_blocking(
     w: &mut dyn MessageWriter,
     stop: &AtomicBool,
 ) -> Result<SendStats, SendError> {
-    if !(opts.speed > 0.0) {
+    if opts.speed.is_nan() || opts.speed <= 0.0 {
         return Err(SendError::Options(format!("speed must be > 0, got {}", opts.speed)));
     }
-    if opts.rate_hz.is_some_and(|r| !(r > 0.0 && r.is_finite())) {
+    if opts.rate_hz.is_some_and(|r| r.is_nan() || r <= 0.0 || r.is_infinite()) {
         return Err(SendError::Options("rate must be a positive number".into()));
     }
     let (Some(first), Some(last)) = (samples.first(), samples.last()) else {
