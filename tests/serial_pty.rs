@@ -24,17 +24,19 @@ fn pose(seq: u32, t_ns: u64) -> Pose {
 fn line_settings_are_applied() {
     let (_master, slave) = TTYPort::pair().unwrap();
     let path = pty_name(&slave);
-    for (baud, bits, parity, stop) in [
-        (9600, DataBits::Eight, Parity::None, StopBits::One),
-        (115_200, DataBits::Seven, Parity::Even, StopBits::Two),
-        (921_600, DataBits::Eight, Parity::Odd, StopBits::One),
-        (4_000_000, DataBits::Eight, Parity::None, StopBits::One),
+    // Linux ptys force CS8 and no parity (drivers/tty/pty.c, pty_set_termios),
+    // so only the baud rate and stop bits can be checked here; data bits and
+    // parity go through the same serialport builder call.
+    for (baud, stop) in [
+        (9600, StopBits::One),
+        (115_200, StopBits::Two),
+        (921_600, StopBits::One),
+        (4_000_000, StopBits::Two),
     ] {
-        let p = open_port(&path, baud, bits, parity, stop).unwrap();
+        let p = open_port(&path, baud, DataBits::Eight, Parity::None, stop).unwrap();
         assert_eq!(p.baud_rate().unwrap(), baud);
-        assert_eq!(p.data_bits().unwrap(), bits);
-        assert_eq!(p.parity().unwrap(), parity);
         assert_eq!(p.stop_bits().unwrap(), stop);
+        assert_eq!(p.data_bits().unwrap(), DataBits::Eight);
     }
     let e = open_port("/dev/does-not-exist", 9600, DataBits::Eight, Parity::None, StopBits::One).unwrap_err();
     assert!(e.to_string().contains("/dev/does-not-exist"), "{e}");

@@ -11,7 +11,7 @@ use hilcam::trajectory::Trajectory;
 use hilcam::transport::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
 use hilcam::transport::serial::SerialConfig;
 use hilcam::transport::slcan::{SlcanConfig, run_slcan};
-use serialport::TTYPort;
+use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
