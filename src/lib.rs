@@ -19,6 +19,7 @@
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
+//! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
 //! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
 //! - [`serve`]: the real-time scheduler, quality governor and `hilcam serve`.
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
@@ -38,4 +39,5 @@ pub mod scene;
 pub mod sensor;
 pub mod serve;
 pub mod sink;
+pub mod trajectory;
 pub mod transport;

@@ -2,7 +2,7 @@
 //! against an independent computation.
 
 mod common;
-use common::*;
+use common::scenes::*;
 use glam::{DQuat, DVec3, Vec3};
 use hilcam::geometry::TriMesh;
 use hilcam::integrator::{RenderSettings, SamplerKind};

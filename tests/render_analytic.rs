@@ -1,7 +1,7 @@
 //! The renderer against answers computed independently (radiometry, projection).
 
 mod common;
-use common::*;
+use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam::camera::View;
 use hilcam::integrator::{RenderSettings, SamplerKind};

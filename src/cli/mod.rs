@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod render;
+pub mod send;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,6 +25,8 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
+    /// Replay a trajectory file as live pose messages (serial, SocketCAN or slcan).
+    Send(send::SendArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -39,6 +42,7 @@ pub fn main() -> ExitCode {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())
         }
+        Command::Send(args) => send::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -42,3 +42,36 @@ impl Pose {
         }
     }
 }
+
+pub mod can;
+pub mod crc;
+pub mod serial;
+pub mod slcan;
+pub mod validate;
+mod wire;
+
+/// One decoded protocol message, whatever link it came over.
+///
+/// Fields a link does not carry are documented per link in `docs/protocol.md`
+/// (e.g. a CAN trigger has no sequence number, so `seq` is 0 there).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Message {
+    /// A relative pose (not yet validated: see [`validate::PoseValidator`]).
+    Pose(Pose),
+    /// "Render now" from the bench, stamped with its simulation time.
+    Trigger {
+        /// Sender's sequence number (wraps; 0 where the link does not carry it).
+        seq: u32,
+        /// Simulation time, ns (0 where the link does not carry it).
+        t_ns: u64,
+    },
+    /// Liveness message; `status` is sender-defined (0 = nominal).
+    Heartbeat {
+        /// Sender's sequence number (wraps).
+        seq: u32,
+        /// Simulation time, ns (0 where the link does not carry it).
+        t_ns: u64,
+        /// Sender-defined status word, 0 = nominal.
+        status: u32,
+    },
+}

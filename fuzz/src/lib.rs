@@ -1,0 +1,7 @@
+//! The pure codec modules of hilcam, compiled on their own for fuzzing.
+#![allow(dead_code)]
+
+#[path = "../../src/pose/mod.rs"]
+pub mod pose;
+#[path = "../../src/trajectory.rs"]
+pub mod trajectory;

@@ -1,0 +1,78 @@
+//! `hilcam send`: replay a trajectory file as live pose messages.
+
+use crate::pose::can::CanIds;
+use crate::trajectory::Trajectory;
+use crate::transport::send::{SendOptions, SendTarget, open_target, send_trajectory};
+use anyhow::Context;
+use std::path::PathBuf;
+
+/// Arguments of `hilcam send`.
+#[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("target").required(true).args(["serial", "can", "slcan"])))]
+pub struct SendArgs {
+    /// Trajectory CSV (see docs/trajectory.md).
+    #[arg(long)]
+    pub trajectory: PathBuf,
+    /// Send serial frames on this tty.
+    #[arg(long, value_name = "DEV")]
+    pub serial: Option<String>,
+    /// Send CAN frames on this SocketCAN interface.
+    #[arg(long, value_name = "IFACE")]
+    pub can: Option<String>,
+    /// Send CAN frames through an slcan adapter on this tty.
+    #[arg(long, value_name = "DEV")]
+    pub slcan: Option<String>,
+    /// Fixed send rate in Hz (latest sample held); default: each sample at its time.
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<f64>,
+    /// Replay speed (simulation s per wall s); `inf` = as fast as the link takes.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// Serial baud rate (also the slcan adapter's line).
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// CAN bit rate configured on the slcan adapter.
+    #[arg(long, default_value_t = 500_000)]
+    pub bitrate: u32,
+    /// CAN base id (hex with 0x, or decimal).
+    #[arg(long, default_value = "0x300", value_parser = parse_id)]
+    pub can_base: u32,
+    /// Use 29-bit CAN ids.
+    #[arg(long)]
+    pub can_extended: bool,
+    /// Send each pose as one CAN FD frame instead of a classic group.
+    #[arg(long)]
+    pub can_fd: bool,
+}
+
+fn parse_id(s: &str) -> Result<u32, String> {
+    match s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
+        Some(h) => u32::from_str_radix(h, 16),
+        None => s.parse(),
+    }
+    .map_err(|e| format!("bad CAN id `{s}`: {e}"))
+}
+
+/// Runs `hilcam send`.
+///
+/// # Errors
+/// Bad trajectory, options or device.
+pub fn run(args: SendArgs) -> anyhow::Result<()> {
+    let samples = Trajectory::load(&args.trajectory)?;
+    let ids = CanIds::new(args.can_base, args.can_extended)?;
+    let target = match (&args.serial, &args.can, &args.slcan) {
+        (Some(p), _, _) => SendTarget::Serial { path: p.clone(), baud: args.baud },
+        (_, Some(i), _) => SendTarget::Can { iface: i.clone() },
+        (_, _, Some(p)) => SendTarget::Slcan { path: p.clone(), baud: args.baud, bitrate: Some(args.bitrate) },
+        _ => unreachable!("clap requires one target"),
+    };
+    let writer = open_target(&target, ids, args.can_fd)?;
+    let opts = SendOptions { rate_hz: args.rate, speed: args.speed };
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("tokio runtime")?;
+    let stats = rt.block_on(send_trajectory(samples.into(), opts, writer, async {
+        let _ = tokio::signal::ctrl_c().await;
+    }))?;
+    tracing::info!(poses = stats.poses, elapsed_s = stats.elapsed.as_secs_f64(), "send finished");
+    println!("sent {} poses in {:.3} s", stats.poses, stats.elapsed.as_secs_f64());
+    Ok(())
+}

@@ -1,0 +1,165 @@
+//! Pose validation: every decoded pose passes here before anything renders it.
+//!
+//! Checks, in order: all values finite; attitude quaternion norm within
+//! [`PoseLimits::norm_tolerance`] of 1 (then renormalised) else rejected; the
+//! same for the sun direction; range within `[min_range_m, max_range_m]`;
+//! optional speed / angular-rate limits; simulation time not before the last
+//! accepted pose. Every rejection is a [`Rejection`] the caller logs and counts.
+
+use super::Pose;
+
+/// Configured limits (defaults suit a rendezvous camera: 0.1 m … 10 000 km).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseLimits {
+    /// Smallest accepted range (|position|), m.
+    pub min_range_m: f64,
+    /// Largest accepted range, m.
+    pub max_range_m: f64,
+    /// Largest accepted |‖q‖ − 1| and |‖sun‖ − 1|; smaller drift is renormalised.
+    pub norm_tolerance: f64,
+    /// Largest accepted |velocity|, m/s.
+    pub max_speed_mps: f64,
+    /// Largest accepted |angular rate|, rad/s.
+    pub max_angular_rate_rps: f64,
+}
+
+impl Default for PoseLimits {
+    fn default() -> Self {
+        PoseLimits {
+            min_range_m: 0.1,
+            max_range_m: 1.0e7,
+            // CAN's Q23 quaternion and Q15 sun quantisation stay far inside this.
+            norm_tolerance: 1.0e-3,
+            max_speed_mps: 1.0e4,
+            max_angular_rate_rps: 10.0,
+        }
+    }
+}
+
+/// Why a pose was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, thiserror::Error)]
+pub enum Rejection {
+    /// A NaN or infinite value.
+    #[error("non-finite value")]
+    NonFinite,
+    /// Attitude quaternion norm too far from 1.
+    #[error("quaternion norm outside tolerance")]
+    QuaternionNorm,
+    /// Sun direction norm too far from 1.
+    #[error("sun direction not a unit vector")]
+    SunNorm,
+    /// Range below the minimum.
+    #[error("range below minimum")]
+    TooClose,
+    /// Range above the maximum.
+    #[error("range above maximum")]
+    TooFar,
+    /// Velocity or angular rate above its limit.
+    #[error("velocity or angular rate above limit")]
+    RateLimit,
+    /// Simulation time earlier than the last accepted pose.
+    #[error("timestamp went backwards")]
+    TimeBackwards,
+}
+
+impl Rejection {
+    /// Every reason, for exporting zero-valued counters.
+    pub const ALL: [Rejection; 7] = [
+        Rejection::NonFinite,
+        Rejection::QuaternionNorm,
+        Rejection::SunNorm,
+        Rejection::TooClose,
+        Rejection::TooFar,
+        Rejection::RateLimit,
+        Rejection::TimeBackwards,
+    ];
+
+    /// Stable snake_case name for logs and metric labels.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Rejection::NonFinite => "non_finite",
+            Rejection::QuaternionNorm => "quaternion_norm",
+            Rejection::SunNorm => "sun_norm",
+            Rejection::TooClose => "too_close",
+            Rejection::TooFar => "too_far",
+            Rejection::RateLimit => "rate_limit",
+            Rejection::TimeBackwards => "time_backwards",
+        }
+    }
+}
+
+/// Stateless checks of one pose; returns it with unit quaternion and sun.
+///
+/// # Errors
+/// The first failed check.
+pub fn check_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, Rejection> {
+    let q = p.attitude;
+    let finite = p.position.is_finite()
+        && q.is_finite()
+        && p.sun_dir.is_finite()
+        && p.velocity.is_none_or(|v| v.is_finite())
+        && p.angular_rate.is_none_or(|v| v.is_finite());
+    if !finite {
+        return Err(Rejection::NonFinite);
+    }
+    let qn = q.length();
+    if (qn - 1.0).abs() > lim.norm_tolerance {
+        return Err(Rejection::QuaternionNorm);
+    }
+    let sn = p.sun_dir.length();
+    if (sn - 1.0).abs() > lim.norm_tolerance {
+        return Err(Rejection::SunNorm);
+    }
+    let range = p.position.length();
+    if range < lim.min_range_m {
+        return Err(Rejection::TooClose);
+    }
+    if range > lim.max_range_m {
+        return Err(Rejection::TooFar);
+    }
+    if p.velocity.is_some_and(|v| v.length() > lim.max_speed_mps)
+        || p.angular_rate.is_some_and(|w| w.length() > lim.max_angular_rate_rps)
+    {
+        return Err(Rejection::RateLimit);
+    }
+    Ok(Pose { attitude: q / qn, sun_dir: p.sun_dir / sn, ..*p })
+}
+
+/// Stateful validator for one pose stream: [`check_pose`] plus monotonic time.
+#[derive(Clone, Debug)]
+pub struct PoseValidator {
+    limits: PoseLimits,
+    last_t_ns: Option<u64>,
+}
+
+impl PoseValidator {
+    /// A validator with no pose seen yet.
+    pub fn new(limits: PoseLimits) -> Self {
+        PoseValidator { limits, last_t_ns: None }
+    }
+
+    /// The limits in force.
+    pub fn limits(&self) -> &PoseLimits {
+        &self.limits
+    }
+
+    /// Forgets the last timestamp (e.g. after the sender restarted its
+    /// simulation; the transports call it on reconnect).
+    pub fn reset_time(&mut self) {
+        self.last_t_ns = None;
+    }
+
+    /// Checks `p`; on success remembers its time. Equal timestamps pass
+    /// (a sender may repeat a pose), earlier ones do not.
+    ///
+    /// # Errors
+    /// The [`Rejection`] reason.
+    pub fn check(&mut self, p: &Pose) -> Result<Pose, Rejection> {
+        let ok = check_pose(p, &self.limits)?;
+        if self.last_t_ns.is_some_and(|last| p.t_ns < last) {
+            return Err(Rejection::TimeBackwards);
+        }
+        self.last_t_ns = Some(p.t_ns);
+        Ok(ok)
+    }
+}

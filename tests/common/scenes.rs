@@ -1,0 +1,58 @@
+//! Scene builders shared by the rendering tests.
+
+use glam::{DVec3, Vec3};
+use hilcam::bsdf::BsdfSpec;
+use hilcam::camera::CameraModel;
+use hilcam::geometry::{BvhLayout, TriMesh};
+use hilcam::integrator::RenderSettings;
+use hilcam::pose::Pose;
+use hilcam::scene::{Material, Scene, SceneParts};
+
+/// An axis-aligned square in the plane z = `z` (body frame), side `s`, centred at (cx, cy).
+pub fn square(cx: f32, cy: f32, z: f32, s: f32, material: u32) -> TriMesh {
+    let h = s * 0.5;
+    TriMesh {
+        positions: vec![
+            Vec3::new(cx - h, cy - h, z),
+            Vec3::new(cx + h, cy - h, z),
+            Vec3::new(cx + h, cy + h, z),
+            Vec3::new(cx - h, cy + h, z),
+        ],
+        indices: vec![[0, 2, 1], [0, 3, 2]],
+        material: vec![material; 2],
+    }
+}
+
+pub fn lambert(name: &str, rho: f32) -> Material {
+    Material {
+        name: name.into(),
+        bsdf: toml::from_str::<BsdfSpec>(&format!("model = \"lambert\"\nrho = {rho}")).unwrap().build().unwrap(),
+    }
+}
+
+pub fn camera(width: u32, height: u32, pitch_um: f64, focal_mm: f64) -> CameraModel {
+    CameraModel { width, height, pitch_um, focal_mm, principal_point_px: [0.0, 0.0] }
+}
+
+pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Pose, render: RenderSettings) -> Scene {
+    Scene::build(SceneParts {
+        mesh,
+        materials,
+        sun_irradiance: 593.1,
+        background: 0.0,
+        camera: cam,
+        pose,
+        render,
+        layout: BvhLayout::Bvh2,
+    })
+}
+
+/// Sun direction (camera frame) at incidence `deg` on a plate whose normal faces the camera.
+pub fn sun_at_incidence(deg: f64) -> DVec3 {
+    let t = deg.to_radians();
+    DVec3::new(t.sin(), 0.0, -t.cos())
+}
+
+pub fn mean(v: &[f32]) -> f64 {
+    v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64
+}
