@@ -1,5 +1,7 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
+pub mod recv;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -21,6 +23,8 @@ pub struct Cli {
 pub enum Command {
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
+    /// Receive a frame stream: verify CRCs, save frames, print rate, gaps and latency.
+    Recv(recv::RecvArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -34,6 +38,7 @@ pub fn main() -> ExitCode {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())
         }
+        Command::Recv(args) => recv::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
