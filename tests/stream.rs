@@ -486,12 +486,17 @@ async fn shutdown_abandons_a_stalled_write_after_the_grace_period() {
     sock.set_recv_buffer_size(4096).unwrap();
     let _stalled = sock.connect(server.local_addr()).await.unwrap();
     until(|| server.client_count() == 1).await;
-    for seq in 0..4 {
-        server.publish(float_frame(seq, 1024, 1024));
-    }
+    // 16 MiB: more than the socket buffers can take, so the write cannot finish.
+    server.publish(float_frame(0, 2048, 2048));
+    // Once the queue is empty the writer has taken the frame and is blocked in it.
+    until(|| server.clients()[0].queued == 0).await;
     let before = tokio::time::Instant::now();
     server.shutdown().await;
     assert!(tokio::time::Instant::now() - before >= Duration::from_secs(3600));
+    assert_eq!(
+        counter(&reg, "hilcam_stream_frames_sent_total{client=\"1\"}"),
+        0
+    );
 }
 
 #[tokio::test]
