@@ -87,7 +87,7 @@ pub struct FrameMeta {
     pub pose_seq: u32,
     /// That pose's timestamp, simulation time, ns.
     pub pose_t_ns: u64,
-    /// When the pose arrived at hilcam, wall clock, ns since the UNIX epoch.
+    /// When the pose arrived at hilcam, wall clock, ns since the UNIX epoch (0: none).
     pub pose_arrival_unix_ns: u64,
     /// When the frame was encoded for the sinks, wall clock, ns since the UNIX epoch.
     pub emit_unix_ns: u64,

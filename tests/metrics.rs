@@ -97,12 +97,15 @@ fn interval_snapshots_see_only_the_new_values() {
     assert_eq!(Histogram::new().snapshot().quantile(0.5), None);
 }
 
+/// One sample line: name, labels in order, value.
+type Sample = (String, Vec<(String, String)>, f64);
+
 /// A strict reader for the subset of the text format we emit.
 #[derive(Debug, Default)]
 struct Parsed {
     types: BTreeMap<String, String>,
     helps: BTreeMap<String, String>,
-    samples: Vec<(String, Vec<(String, String)>, f64)>,
+    samples: Vec<Sample>,
 }
 
 fn parse_prometheus(text: &str) -> Parsed {

@@ -409,7 +409,10 @@ async fn serve_client(
         };
         client.sent.inc();
         shared.bytes.add(frame.bytes.len() as u64);
-        shared.latency.record(ev.latency_ns());
+        if ev.pose_arrival_unix_ns != 0 {
+            // 0 means "no pose time" (e.g. a test pattern): nothing to measure from.
+            shared.latency.record(ev.latency_ns());
+        }
         if let Some(hook) = &shared.hook {
             hook(&ev);
         }
