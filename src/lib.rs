@@ -18,6 +18,7 @@
 //! - [`sensor`]: entrance-pupil radiance → electrons → digital numbers.
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
+//! - [`metrics`]: counters, latency histograms, Prometheus text and `/metrics` HTTP.
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
 //! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
 //! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
@@ -32,6 +33,7 @@ pub mod film;
 pub mod frame;
 pub mod geometry;
 pub mod integrator;
+pub mod metrics;
 pub mod pose;
 pub mod render;
 pub mod sampling;

@@ -1,6 +1,7 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
 pub mod bench;
+pub mod recv;
 pub mod render;
 pub mod send;
 
@@ -27,6 +28,8 @@ pub enum Command {
     Version,
     /// Replay a trajectory file as live pose messages (serial, SocketCAN or slcan).
     Send(send::SendArgs),
+    /// Receive a frame stream: verify CRCs, save frames, print rate, gaps and latency.
+    Recv(recv::RecvArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -43,6 +46,7 @@ pub fn main() -> ExitCode {
             Ok(())
         }
         Command::Send(args) => send::run(args),
+        Command::Recv(args) => recv::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
