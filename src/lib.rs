@@ -19,6 +19,7 @@
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
+//! - [`plot`]: small PNG line charts (RMSE vs spp, Pareto fronts, BRDF curves).
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
 
 pub mod bsdf;
@@ -28,6 +29,7 @@ pub mod film;
 pub mod frame;
 pub mod geometry;
 pub mod integrator;
+pub mod plot;
 pub mod pose;
 pub mod render;
 pub mod sampling;
