@@ -24,7 +24,7 @@ pub struct BlinnPhong {
 impl BlinnPhong {
     /// Our least-squares fit of Eq. (4) to the paper's Eq. (5) gold-polyimide curves at
     /// θi = 30° and 60° (docs/brdf.md): `[ρd, ρs, α]`.
-    pub const GOLD_POLYIMIDE_FIT: [f32; 3] = [0.3717, 283.9, 3865.7];
+    pub const GOLD_POLYIMIDE_FIT: [f32; 3] = [0.3717, 269.39, 4138.6];
 
     /// # Errors
     /// [`BsdfError::Invalid`] naming the field: `rho_d ∈ [0,1]`, `rho_s ≥ 0`, `alpha ≥ 0`

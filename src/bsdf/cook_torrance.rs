@@ -91,7 +91,7 @@ impl SpecularLobe for BeckmannLobe {
         let Some(hv) = Half::new(wo, wi) else {
             return 0.0;
         };
-        self.d(&hv) * hv.cos / (4.0 * hv.wo_dot_h)
+        (self.d(&hv) * hv.cos / (4.0 * hv.wo_dot_h)).min(f32::MAX)
     }
 
     fn albedo_hint(&self, cos_o: f32) -> f32 {
@@ -113,7 +113,7 @@ pub struct CookTorrance {
 impl CookTorrance {
     /// Our least-squares fit to the paper's Eq. (5) gold-polyimide curves at θi = 30° and
     /// 60° (docs/brdf.md): `[ρd, m, F0, k_s]`.
-    pub const GOLD_POLYIMIDE_FIT: [f32; 4] = [0.3717, 0.02, 0.6, 1.0];
+    pub const GOLD_POLYIMIDE_FIT: [f32; 4] = [0.3717, 0.02201, 0.8734, 1.0];
 
     /// # Errors
     /// [`BsdfError::Invalid`] naming the field: `rho_d, f0 ∈ [0,1]`, `1e-3 ≤ m ≤ 1`,

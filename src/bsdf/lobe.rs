@@ -26,14 +26,17 @@ impl Half {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return None;
         }
-        let v = wo + wi;
+        // Rescale before squaring: at grazing angles |wo + wi|² underflows f32.
+        let sum = wo + wi;
+        let scale = sum.abs().max_element();
+        let v = sum / scale;
         let len2 = v.length_squared();
         let len = len2.sqrt();
         let sin2 = ((v.x * v.x + v.y * v.y) / len2).min(1.0);
         Some(Half {
             cos: v.z / len,
             sin2,
-            wo_dot_h: 0.5 * len,
+            wo_dot_h: 0.5 * len * scale,
         })
     }
 
@@ -127,7 +130,7 @@ impl BlinnLobe {
             return 0.0;
         };
         let pdf_h = (self.alpha + 1.0) / (2.0 * PI) * (self.alpha * hv.ln_cos()).exp();
-        pdf_h / (4.0 * hv.wo_dot_h)
+        (pdf_h / (4.0 * hv.wo_dot_h)).min(f32::MAX)
     }
 
     /// A cheap estimate of the lobe's directional albedo, used only to choose between
