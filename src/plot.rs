@@ -33,6 +33,17 @@ pub enum Scale {
     Log,
 }
 
+/// Where the legend box goes (inside the plot area).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Legend {
+    UpperRight,
+    UpperLeft,
+    LowerRight,
+    LowerLeft,
+    /// No legend.
+    Hidden,
+}
+
 /// One named polyline.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
@@ -51,7 +62,13 @@ pub struct Series {
 impl Series {
     /// A solid line without markers, palette colour.
     pub fn new(name: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
-        Series { name: name.into(), points, markers: false, color: None, dashed: false }
+        Series {
+            name: name.into(),
+            points,
+            markers: false,
+            color: None,
+            dashed: false,
+        }
     }
     /// With point markers.
     pub fn with_markers(mut self) -> Self {
@@ -105,6 +122,8 @@ pub struct LineChart {
     pub series: Vec<Series>,
     /// Image size in pixels.
     pub size: (u32, u32),
+    /// Legend placement (default upper right).
+    pub legend: Legend,
 }
 
 /// Palette (Tableau 10): distinguishable, print-safe.
@@ -124,7 +143,8 @@ const PALETTE: [[u8; 3]; 10] = [
 fn ensure_font() -> Result<(), PlotError> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
-        plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).map_err(|_| "invalid embedded font".to_string())
+        plotters::style::register_font(FAMILY, FontStyle::Normal, FONT)
+            .map_err(|_| "invalid embedded font".to_string())
     })
     .clone()
     .map_err(PlotError::Font)
@@ -148,6 +168,16 @@ fn tick_label(v: f64, s: Scale) -> String {
         "0".into()
     } else if !(1e-3..1e5).contains(&a) {
         format!("{x:.0e}")
+    } else if s == Scale::Log {
+        // Three significant digits: 316, 31.6, 0.316.
+        let digits = (2 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{x:.digits$}");
+        let s = if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            &s
+        };
+        s.to_string()
     } else {
         let s = format!("{x:.4}");
         let s = s.trim_end_matches('0').trim_end_matches('.');
@@ -155,17 +185,27 @@ fn tick_label(v: f64, s: Scale) -> String {
     }
 }
 
-fn range_of(vals: impl Iterator<Item = f64>, fixed: Option<(f64, f64)>, s: Scale) -> Option<(f64, f64)> {
+fn range_of(
+    vals: impl Iterator<Item = f64>,
+    fixed: Option<(f64, f64)>,
+    s: Scale,
+) -> Option<(f64, f64)> {
     if let Some((a, b)) = fixed {
         let (a, b) = (to_axis(a, s)?, to_axis(b, s)?);
         return (b > a).then_some((a, b));
     }
-    let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+    let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
     if !lo.is_finite() {
         return None;
     }
     let span = hi - lo;
-    let pad = if span > 0.0 { 0.04 * span } else { 0.5f64.max(lo.abs() * 0.1) };
+    let pad = if span > 0.0 {
+        0.04 * span
+    } else {
+        0.5f64.max(lo.abs() * 0.1)
+    };
     Some((lo - pad, hi + pad))
 }
 
@@ -182,6 +222,7 @@ impl LineChart {
             y_range: None,
             series: Vec::new(),
             size: (900, 600),
+            legend: Legend::UpperRight,
         }
     }
     pub fn x_label(mut self, s: impl Into<String>) -> Self {
@@ -208,6 +249,10 @@ impl LineChart {
     }
     pub fn size(mut self, w: u32, h: u32) -> Self {
         self.size = (w, h);
+        self
+    }
+    pub fn legend(mut self, l: Legend) -> Self {
+        self.legend = l;
         self
     }
     pub fn series(mut self, s: Series) -> Self {
@@ -251,11 +296,16 @@ impl LineChart {
         let xr = range_of(all().map(|p| p.0), self.x_range, self.x_scale);
         let yr = range_of(all().map(|p| p.1), self.y_range, self.y_scale);
         let (Some((x0, x1)), Some((y0, y1))) = (xr, yr) else {
-            return Err(PlotError::NoData { title: self.title.clone() });
+            return Err(PlotError::NoData {
+                title: self.title.clone(),
+            });
         };
         let (w, h) = self.size;
         let mut buf = vec![255u8; (w * h * 3) as usize];
-        let derr = |e: &dyn std::fmt::Display| PlotError::Draw { title: self.title.clone(), msg: e.to_string() };
+        let derr = |e: &dyn std::fmt::Display| PlotError::Draw {
+            title: self.title.clone(),
+            msg: e.to_string(),
+        };
         {
             let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
             root.fill(&WHITE).map_err(|e| derr(&e))?;
@@ -289,23 +339,33 @@ impl LineChart {
                         .draw_series(DashedLineSeries::new(p.iter().copied(), 8, 5, style))
                         .map_err(|e| derr(&e))?
                 } else {
-                    chart.draw_series(LineSeries::new(p.iter().copied(), style)).map_err(|e| derr(&e))?
+                    chart
+                        .draw_series(LineSeries::new(p.iter().copied(), style))
+                        .map_err(|e| derr(&e))?
                 };
-                anno.label(s.name.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], col.stroke_width(2)));
+                anno.label(s.name.as_str()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 22, y)], col.stroke_width(2))
+                });
                 if s.markers {
                     chart
                         .draw_series(p.iter().map(|&q| Circle::new(q, 3, col.filled())))
                         .map_err(|e| derr(&e))?;
                 }
             }
-            if self.series.iter().any(|s| !s.name.is_empty()) {
+            let pos = match self.legend {
+                Legend::UpperRight => Some(SeriesLabelPosition::UpperRight),
+                Legend::UpperLeft => Some(SeriesLabelPosition::UpperLeft),
+                Legend::LowerRight => Some(SeriesLabelPosition::LowerRight),
+                Legend::LowerLeft => Some(SeriesLabelPosition::LowerLeft),
+                Legend::Hidden => None,
+            };
+            if let Some(pos) = pos.filter(|_| self.series.iter().any(|s| !s.name.is_empty())) {
                 chart
                     .configure_series_labels()
                     .label_font((FAMILY, 14))
                     .background_style(WHITE.mix(0.85))
                     .border_style(BLACK)
-                    .position(SeriesLabelPosition::UpperRight)
+                    .position(pos)
                     .draw()
                     .map_err(|e| derr(&e))?;
             }
@@ -321,7 +381,10 @@ impl LineChart {
     pub fn save_png(&self, path: impl AsRef<Path>) -> Result<(), PlotError> {
         let img = self.render()?;
         img.save_with_format(path.as_ref(), image::ImageFormat::Png)
-            .map_err(|source| PlotError::Write { path: path.as_ref().to_path_buf(), source })
+            .map_err(|source| PlotError::Write {
+                path: path.as_ref().to_path_buf(),
+                source,
+            })
     }
 }
 
@@ -348,7 +411,10 @@ mod tests {
     fn log_axis_spaces_decades_evenly_and_linear_axis_spaces_values_evenly() {
         let (a, b, c) = ([200, 0, 0], [0, 200, 0], [0, 0, 200]);
         let flat = |v: f64| vec![(0.0, v), (1.0, v)];
-        for (scale, vals) in [(Scale::Log, [1.0, 10.0, 100.0]), (Scale::Linear, [0.25, 0.5, 0.75])] {
+        for (scale, vals) in [
+            (Scale::Log, [1.0, 10.0, 100.0]),
+            (Scale::Linear, [0.25, 0.5, 0.75]),
+        ] {
             let img = LineChart::new("t")
                 .scales(Scale::Linear, scale)
                 .series(Series::new("", flat(vals[0])).color(a))
@@ -356,18 +422,34 @@ mod tests {
                 .series(Series::new("", flat(vals[2])).color(c))
                 .render()
                 .unwrap();
-            let (ra, rb, rc) = (mean_row_of(&img, a).unwrap(), mean_row_of(&img, b).unwrap(), mean_row_of(&img, c).unwrap());
-            assert!(ra > rb && rb > rc, "larger values are higher up: {ra} {rb} {rc}");
-            assert!(((ra - rb) - (rb - rc)).abs() <= 1.5, "{scale:?}: {ra} {rb} {rc}");
+            let (ra, rb, rc) = (
+                mean_row_of(&img, a).unwrap(),
+                mean_row_of(&img, b).unwrap(),
+                mean_row_of(&img, c).unwrap(),
+            );
+            assert!(
+                ra > rb && rb > rc,
+                "larger values are higher up: {ra} {rb} {rc}"
+            );
+            assert!(
+                ((ra - rb) - (rb - rc)).abs() <= 1.5,
+                "{scale:?}: {ra} {rb} {rc}"
+            );
         }
     }
 
     #[test]
     fn text_is_drawn_and_png_round_trips() {
-        let chart = LineChart::new("Title").x_label("x").y_label("y").series(Series::new("legend", vec![(0.0, 1.0), (1.0, 2.0)]));
+        let chart = LineChart::new("Title")
+            .x_label("x")
+            .y_label("y")
+            .series(Series::new("legend", vec![(0.0, 1.0), (1.0, 2.0)]));
         let img = chart.render().unwrap();
         // Title area (top strip) holds dark anti-aliased glyph pixels only if text rendered.
-        let dark = (0..30).flat_map(|y| (0..img.width()).map(move |x| (x, y))).filter(|&(x, y)| img.get_pixel(x, y).0[0] < 100).count();
+        let dark = (0..30)
+            .flat_map(|y| (0..img.width()).map(move |x| (x, y)))
+            .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 100)
+            .count();
         assert!(dark > 20, "no title glyphs drawn ({dark} dark pixels)");
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("c.png");
@@ -378,11 +460,16 @@ mod tests {
 
     #[test]
     fn log_axis_skips_nonpositive_points_and_empty_chart_is_an_error() {
-        let chart = LineChart::new("t").scales(Scale::Linear, Scale::Log).series(Series::new("s", vec![(0.0, 0.0), (1.0, -1.0)]));
+        let chart = LineChart::new("t")
+            .scales(Scale::Linear, Scale::Log)
+            .series(Series::new("s", vec![(0.0, 0.0), (1.0, -1.0)]));
         assert!(matches!(chart.render(), Err(PlotError::NoData { .. })));
         let (pts, skipped) = LineChart::new("t")
             .scales(Scale::Log, Scale::Linear)
-            .series(Series::new("s", vec![(0.0, 1.0), (10.0, 2.0), (f64::NAN, 1.0)]))
+            .series(Series::new(
+                "s",
+                vec![(0.0, 1.0), (10.0, 2.0), (f64::NAN, 1.0)],
+            ))
             .axis_points();
         assert_eq!((pts[0].clone(), skipped), (vec![(1.0, 2.0)], 2));
     }
@@ -393,5 +480,7 @@ mod tests {
         assert_eq!(tick_label(-1.0, Scale::Log), "0.1");
         assert_eq!(tick_label(0.25, Scale::Linear), "0.25");
         assert_eq!(tick_label(6.0, Scale::Log), "1e6");
+        assert_eq!(tick_label(2.5, Scale::Log), "316");
+        assert_eq!(tick_label(-0.5, Scale::Log), "0.316");
     }
 }

@@ -68,15 +68,34 @@ fn conserving() -> Vec<(&'static str, Bsdf)> {
     vec![
         ("lambert 0.522", Bsdf::Lambert(Lambert::new(0.522).unwrap())),
         ("lambert 1", Bsdf::Lambert(Lambert::new(1.0).unwrap())),
-        ("blinn_phong rough", Bsdf::BlinnPhong(BlinnPhong::new(0.2, 0.5, 20.0).unwrap())),
-        ("blinn_phong gold normalized", Bsdf::BlinnPhong(gold_bp().normalized())),
-        ("improved gold normalized", Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide().normalized())),
+        (
+            "blinn_phong rough",
+            Bsdf::BlinnPhong(BlinnPhong::new(0.2, 0.5, 20.0).unwrap()),
+        ),
+        (
+            "blinn_phong gold normalized",
+            Bsdf::BlinnPhong(gold_bp().normalized()),
+        ),
+        (
+            "improved gold normalized",
+            Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide().normalized()),
+        ),
         (
             "improved alpha 1e5 normalized",
-            Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::new(0.3717, 283.9, 1e5, 0.9665, 1.3965).unwrap().normalized()),
+            Bsdf::ImprovedBlinnPhong(
+                ImprovedBlinnPhong::new(0.3717, 283.9, 1e5, 0.9665, 1.3965)
+                    .unwrap()
+                    .normalized(),
+            ),
         ),
-        ("cook_torrance rough", Bsdf::CookTorrance(CookTorrance::new(0.3, 0.3, 0.5, 1.0).unwrap())),
-        ("cook_torrance gold normalized", Bsdf::CookTorrance(gold_ct().normalized())),
+        (
+            "cook_torrance rough",
+            Bsdf::CookTorrance(CookTorrance::new(0.3, 0.3, 0.5, 1.0).unwrap()),
+        ),
+        (
+            "cook_torrance gold normalized",
+            Bsdf::CookTorrance(gold_ct().normalized()),
+        ),
     ]
 }
 
@@ -93,7 +112,10 @@ fn gold_ct() -> CookTorrance {
 /// The paper's fits, which do not conserve energy.
 fn paper_fits() -> Vec<(&'static str, Bsdf)> {
     vec![
-        ("improved gold (paper)", Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide())),
+        (
+            "improved gold (paper)",
+            Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide()),
+        ),
         ("blinn_phong gold fit", Bsdf::BlinnPhong(gold_bp())),
         ("cook_torrance gold fit", Bsdf::CookTorrance(gold_ct())),
     ]
@@ -115,7 +137,10 @@ fn h_space_quadrature_agrees_with_direct_quadrature() {
         let wo = wo_at(th);
         let a = albedo_quad(&b, wo);
         let d = quad_w(800, |wi| f64::from(b.eval_cos(wo, wi)));
-        assert!((a - d).abs() < 2e-3 * d, "θo {th}: h-space {a} vs direct {d}");
+        assert!(
+            (a - d).abs() < 2e-3 * d,
+            "θo {th}: h-space {a} vs direct {d}"
+        );
     }
 }
 
@@ -128,7 +153,9 @@ fn lambert_white_furnace_every_weight_is_rho() {
         let mut sum = 0.0f64;
         let n = 100_000;
         for _ in 0..n {
-            let s = b.sample(wo, rng.next_2d(), rng.next_f32()).expect("cosine sample above horizon");
+            let s = b
+                .sample(wo, rng.next_2d(), rng.next_f32())
+                .expect("cosine sample above horizon");
             let w = s.f_cos / s.pdf;
             assert!((w - rho).abs() < 1e-5 * rho, "weight {w}");
             sum += f64::from(w);
@@ -154,7 +181,11 @@ fn rho_d_is_an_albedo_not_a_brdf_value() {
         let f = b.eval(wo, wo_at(-50.0));
         assert!((f - rd / std::f32::consts::PI).abs() < 1e-7, "{f}");
         let a = albedo_quad(&b, wo);
-        assert!((a - f64::from(rd)).abs() < 2e-3, "albedo {a}, literal reading would be {}", PI * f64::from(rd));
+        assert!(
+            (a - f64::from(rd)).abs() < 2e-3,
+            "albedo {a}, literal reading would be {}",
+            PI * f64::from(rd)
+        );
     }
 }
 
@@ -173,10 +204,19 @@ fn paper_fits_exceed_one_and_normalized_variants_touch_one() {
     let paper = Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide());
     let a0 = albedo_quad(&paper, wo_at(0.0));
     eprintln!("improved Blinn-Phong, paper gold polyimide: albedo at θo=0 is {a0:.4}");
-    assert!(a0 > 1.5, "expected the paper's fit to reflect more than it receives: {a0}");
+    assert!(
+        a0 > 1.5,
+        "expected the paper's fit to reflect more than it receives: {a0}"
+    );
     let norm = Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide().normalized());
-    let max = VIEW_ANGLES.iter().map(|&t| albedo_quad(&norm, wo_at(t))).fold(0.0, f64::max);
-    assert!(max > 0.98 && max <= 1.0 + 2e-3, "normalized max albedo {max}");
+    let max = VIEW_ANGLES
+        .iter()
+        .map(|&t| albedo_quad(&norm, wo_at(t)))
+        .fold(0.0, f64::max);
+    assert!(
+        max > 0.98 && max <= 1.0 + 2e-3,
+        "normalized max albedo {max}"
+    );
     let bp = Bsdf::BlinnPhong(gold_bp());
     assert!(albedo_quad(&bp, wo_at(0.0)) > 1.0);
 }
@@ -188,7 +228,10 @@ fn directional_albedo_matches_quadrature() {
             let wo = wo_at(th);
             let q = albedo_quad(&b, wo);
             let d = f64::from(b.directional_albedo(wo.z, 4096));
-            assert!((d - q).abs() < 5e-3 * q.max(0.1), "{name} θo {th}: {d} vs quadrature {q}");
+            assert!(
+                (d - q).abs() < 5e-3 * q.max(0.1),
+                "{name} θo {th}: {d} vs quadrature {q}"
+            );
         }
     }
 }
@@ -206,7 +249,10 @@ fn reciprocity_where_it_holds() {
         let wi = hilcam::sampling::uniform_hemisphere(rng.next_2d());
         for b in &recip {
             let (f1, f2) = (b.eval(wo, wi), b.eval(wi, wo));
-            assert!((f1 - f2).abs() <= 1e-4 * f1.abs().max(1e-3), "{b:?}: {f1} vs {f2}");
+            assert!(
+                (f1 - f2).abs() <= 1e-4 * f1.abs().max(1e-3),
+                "{b:?}: {f1} vs {f2}"
+            );
         }
     }
 }
@@ -215,8 +261,16 @@ fn reciprocity_where_it_holds() {
 fn blinn_phong_models_are_not_reciprocal_by_exactly_the_nl_term() {
     // f_s(wo,wi)·cosθi^a is symmetric; f_s itself is not (the paper's (n·l)^-a).
     let models = [
-        (Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::new(0.3717, 283.9, 50.0, 0.9665, 1.3965).unwrap()), 0.9665f32),
-        (Bsdf::BlinnPhong(BlinnPhong::new(0.3717, 5.0, 50.0).unwrap()), 1.0),
+        (
+            Bsdf::ImprovedBlinnPhong(
+                ImprovedBlinnPhong::new(0.3717, 283.9, 50.0, 0.9665, 1.3965).unwrap(),
+            ),
+            0.9665f32,
+        ),
+        (
+            Bsdf::BlinnPhong(BlinnPhong::new(0.3717, 5.0, 50.0).unwrap()),
+            1.0,
+        ),
     ];
     let mut rng = Rng::from_state(9);
     let mut worst_asym = 0.0f32;
@@ -236,7 +290,10 @@ fn blinn_phong_models_are_not_reciprocal_by_exactly_the_nl_term() {
             }
         }
     }
-    assert!(worst_asym > 0.5, "expected visible non-reciprocity, got {worst_asym}");
+    assert!(
+        worst_asym > 0.5,
+        "expected visible non-reciprocity, got {worst_asym}"
+    );
 }
 
 #[test]
@@ -248,9 +305,16 @@ fn sample_returns_eval_cos_and_pdf_at_its_direction() {
             for _ in 0..20_000 {
                 if let Some(s) = b.sample(wo, rng.next_2d(), rng.next_f32()) {
                     assert!(s.wi.z > 0.0 && (s.wi.length() - 1.0).abs() < 1e-5, "{name}");
-                    assert!(s.f_cos.is_finite() && s.pdf.is_finite() && s.pdf > 0.0, "{name} {s:?}");
+                    assert!(
+                        s.f_cos.is_finite() && s.pdf.is_finite() && s.pdf > 0.0,
+                        "{name} {s:?}"
+                    );
                     let (f, p) = (b.eval_cos(wo, s.wi), b.pdf(wo, s.wi));
-                    assert!((s.f_cos - f).abs() <= 1e-5 * f.max(1e-6), "{name}: {} vs {f}", s.f_cos);
+                    assert!(
+                        (s.f_cos - f).abs() <= 1e-5 * f.max(1e-6),
+                        "{name}: {} vs {f}",
+                        s.f_cos
+                    );
                     assert!((s.pdf - p).abs() <= 1e-5 * p, "{name}: {} vs {p}", s.pdf);
                 }
             }
@@ -261,16 +325,39 @@ fn sample_returns_eval_cos_and_pdf_at_its_direction() {
 #[test]
 fn eval_cos_is_finite_at_grazing_and_huge_exponents() {
     let mut models = all_models();
-    models.push(("improved 1e5", Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::new(0.3717, 283.9, 1e5, 0.9665, 1.3965).unwrap())));
-    models.push(("improved 1e5 a=1", Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::new(0.0, 283.9, 1e5, 1.0, 0.0).unwrap())));
-    models.push(("blinn 1e5", Bsdf::BlinnPhong(BlinnPhong::new(0.3717, 283.9, 1e5).unwrap())));
+    models.push((
+        "improved 1e5",
+        Bsdf::ImprovedBlinnPhong(
+            ImprovedBlinnPhong::new(0.3717, 283.9, 1e5, 0.9665, 1.3965).unwrap(),
+        ),
+    ));
+    models.push((
+        "improved 1e5 a=1",
+        Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::new(0.0, 283.9, 1e5, 1.0, 0.0).unwrap()),
+    ));
+    models.push((
+        "blinn 1e5",
+        Bsdf::BlinnPhong(BlinnPhong::new(0.3717, 283.9, 1e5).unwrap()),
+    ));
     for (name, b) in models {
         for &z in &[1e-8f32, 0.0, 1e-30, 0.5, 1.0] {
             let r = (1.0 - z * z).sqrt();
-            for wo in [Vec3::Z, wo_at(60.0), Vec3::new(-r, 0.0, z), Vec3::new(-1.0, 0.0, 1e-8).normalize()] {
-                for wi in [Vec3::new(r, 0.0, z), Vec3::new(-r, 0.0, z), Vec3::new(0.0, r, z)] {
+            for wo in [
+                Vec3::Z,
+                wo_at(60.0),
+                Vec3::new(-r, 0.0, z),
+                Vec3::new(-1.0, 0.0, 1e-8).normalize(),
+            ] {
+                for wi in [
+                    Vec3::new(r, 0.0, z),
+                    Vec3::new(-r, 0.0, z),
+                    Vec3::new(0.0, r, z),
+                ] {
                     let (fc, f, p) = (b.eval_cos(wo, wi), b.eval(wo, wi), b.pdf(wo, wi));
-                    assert!(fc.is_finite() && fc >= 0.0, "{name} eval_cos({wo},{wi}) = {fc}");
+                    assert!(
+                        fc.is_finite() && fc >= 0.0,
+                        "{name} eval_cos({wo},{wi}) = {fc}"
+                    );
                     assert!(f.is_finite() && f >= 0.0, "{name} eval({wo},{wi}) = {f}");
                     assert!(p.is_finite() && p >= 0.0, "{name} pdf({wo},{wi}) = {p}");
                     if wi.z <= 0.0 || wo.z <= 0.0 {
@@ -303,13 +390,21 @@ fn pdf_integrates_to_the_probability_of_a_sample() {
             let integral = quad_h(wo, 1200, 256, |wi| f64::from(b.pdf(wo, wi)));
             let mut rng = Rng::from_state(17);
             let n = 200_000;
-            let some = (0..n).filter(|_| b.sample(wo, rng.next_2d(), rng.next_f32()).is_some()).count();
+            let some = (0..n)
+                .filter(|_| b.sample(wo, rng.next_2d(), rng.next_f32()).is_some())
+                .count();
             let frac = some as f64 / n as f64;
             let sigma = (frac * (1.0 - frac) / n as f64).sqrt();
-            assert!((integral - frac).abs() < 4.0 * sigma + 3e-3, "{name} θo {th}: ∫pdf {integral} vs P(Some) {frac}");
+            assert!(
+                (integral - frac).abs() < 4.0 * sigma + 3e-3,
+                "{name} θo {th}: ∫pdf {integral} vs P(Some) {frac}"
+            );
             assert!(integral <= 1.0 + 3e-3, "{name}: {integral}");
             if th == 0.0 {
-                assert!((integral - 1.0).abs() < 3e-3, "{name} at normal incidence: ∫pdf = {integral}");
+                assert!(
+                    (integral - 1.0).abs() < 3e-3,
+                    "{name} at normal incidence: ∫pdf = {integral}"
+                );
             }
         }
     }
@@ -354,7 +449,8 @@ fn sample_histogram_matches_pdf_chi_square() {
                     continue;
                 }
                 let dw = thh.sin() * dth * (2.0 * PI / (NP * SUB) as f64) * 4.0 * d;
-                expected[(i / SUB) * NP + j / SUB] += f64::from(b.pdf(wo, wi.normalize().as_vec3())) * dw;
+                expected[(i / SUB) * NP + j / SUB] +=
+                    f64::from(b.pdf(wo, wi.normalize().as_vec3())) * dw;
             }
         }
         let mut observed = vec![0.0f64; NS * NP];
@@ -366,7 +462,8 @@ fn sample_histogram_matches_pdf_chi_square() {
                     // θh from atan2 in f64: acos of an f32 z near 1 would misbin the spike.
                     let h = wo64 + s.wi.as_dvec3();
                     let thh = h.x.hypot(h.y).atan2(h.z);
-                    let si = (((thh / (0.5 * PI)).cbrt()) * NS as f64).min(NS as f64 - 1.0) as usize;
+                    let si =
+                        (((thh / (0.5 * PI)).cbrt()) * NS as f64).min(NS as f64 - 1.0) as usize;
                     let phi = h.y.atan2(h.x).rem_euclid(2.0 * PI);
                     let pj = ((phi / (2.0 * PI)) * NP as f64).min(NP as f64 - 1.0) as usize;
                     observed[si * NP + pj] += 1.0;
@@ -376,7 +473,11 @@ fn sample_histogram_matches_pdf_chi_square() {
         }
         // The "no sample" outcome is one more cell, with probability 1 − Σ expected.
         let total_e: f64 = expected.iter().sum();
-        let mut cells: Vec<(f64, f64)> = expected.iter().map(|e| e * n_samples as f64).zip(observed).collect();
+        let mut cells: Vec<(f64, f64)> = expected
+            .iter()
+            .map(|e| e * n_samples as f64)
+            .zip(observed)
+            .collect();
         cells.push(((1.0 - total_e).max(0.0) * n_samples as f64, none as f64));
         cells.sort_by(|a, b| a.0.total_cmp(&b.0));
         // Pool cells with expected count < 5 (pbrt does the same).
@@ -396,20 +497,49 @@ fn sample_histogram_matches_pdf_chi_square() {
         }
         let dof = (dof - 1).max(1) as f64;
         let limit = chi2_quantile(dof, z);
-        assert!(chi2 < limit, "{name} θo {th}: χ² = {chi2:.1} > {limit:.1} (dof {dof})");
+        assert!(
+            chi2 < limit,
+            "{name} θo {th}: χ² = {chi2:.1} > {limit:.1} (dof {dof})"
+        );
     }
 }
 
 /// Standard normal quantile (Acklam's rational approximation, |error| < 1.2e-9 relative).
 fn normal_quantile(p: f64) -> f64 {
-    let a = [-3.969683028665376e1, 2.209460984245205e2, -2.759285104469687e2, 1.383577518672690e2, -3.066479806614716e1, 2.506628277459239];
-    let b = [-5.447609879822406e1, 1.615858368580409e2, -1.556989798598866e2, 6.680131188771972e1, -1.328068155288572e1];
-    let c = [-7.784894002430293e-3, -3.223964580411365e-1, -2.400758277161838, -2.549732539343734, 4.374664141464968, 2.938163982698783];
-    let d = [7.784695709041462e-3, 3.224671290700398e-1, 2.445134137142996, 3.754408661907416];
+    let a = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383577518672690e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    let b = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    let c = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    let d = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
     let q = if p > 0.5 { 1.0 - p } else { p };
     let x = if q < 0.02425 {
         let r = (-2.0 * q.ln()).sqrt();
-        (((((c[0] * r + c[1]) * r + c[2]) * r + c[3]) * r + c[4]) * r + c[5]) / ((((d[0] * r + d[1]) * r + d[2]) * r + d[3]) * r + 1.0)
+        (((((c[0] * r + c[1]) * r + c[2]) * r + c[3]) * r + c[4]) * r + c[5])
+            / ((((d[0] * r + d[1]) * r + d[2]) * r + d[3]) * r + 1.0)
     } else {
         let r = q - 0.5;
         let s = r * r;
@@ -463,5 +593,8 @@ fn sampling_spike_at_alpha_1e5_lands_near_the_mirror_direction() {
     }
     let mean = sum / f64::from(n);
     let want = 1.0 / (f64::from(alpha) + 2.0);
-    assert!((mean / want - 1.0).abs() < 0.02, "mean 1−cosθh {mean:e} vs {want:e}");
+    assert!(
+        (mean / want - 1.0).abs() < 0.02,
+        "mean 1−cosθh {mean:e} vs {want:e}"
+    );
 }

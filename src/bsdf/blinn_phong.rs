@@ -33,7 +33,16 @@ impl BlinnPhong {
         check_unit("blinn_phong", "rho_d", rho_d)?;
         check_finite_nonneg("blinn_phong", "rho_s", rho_s)?;
         check_finite_nonneg("blinn_phong", "alpha", alpha)?;
-        Ok(BlinnPhong { rho_d, lobe: BlinnLobe { rho_s, alpha, a: 1.0, b: 0.0 }, normalization: 1.0 })
+        Ok(BlinnPhong {
+            rho_d,
+            lobe: BlinnLobe {
+                rho_s,
+                alpha,
+                a: 1.0,
+                b: 0.0,
+            },
+            normalization: 1.0,
+        })
     }
 
     /// The energy-normalised variant: ρs scaled by `min(1, (1 − ρd)/max_θo A_s(θo))` so
@@ -52,7 +61,13 @@ impl BlinnPhong {
 
     fn spec_albedo(&self, cos_o: f32, n: u32) -> f32 {
         let l = self.lobe;
-        stratified_albedo(cos_o, n, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i))
+        stratified_albedo(
+            cos_o,
+            n,
+            |o, u| l.sample(o, u),
+            |o, i| l.eval_cos(o, i),
+            |o, i| l.pdf(o, i),
+        )
     }
 
     /// `f_r`; at grazing `wi` the `1/(n·l)` is evaluated with `n·l ≥ 1e-30` (finite).

@@ -131,7 +131,11 @@ impl CookTorrance {
                 reason: "must be in [0.001, 1] (Beckmann RMS slope)",
             });
         }
-        Ok(CookTorrance { rho_d, lobe: BeckmannLobe { m, f0, k_s }, normalization: 1.0 })
+        Ok(CookTorrance {
+            rho_d,
+            lobe: BeckmannLobe { m, f0, k_s },
+            normalization: 1.0,
+        })
     }
 
     /// Energy-normalised variant: k_s scaled so the directional albedo is ≤ 1 everywhere.
@@ -149,7 +153,13 @@ impl CookTorrance {
 
     fn spec_albedo(&self, cos_o: f32, n: u32) -> f32 {
         let l = self.lobe;
-        stratified_albedo(cos_o, n, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i))
+        stratified_albedo(
+            cos_o,
+            n,
+            |o, u| l.sample(o, u),
+            |o, i| l.eval_cos(o, i),
+            |o, i| l.pdf(o, i),
+        )
     }
 
     /// `f_r`, finite (cosθi clamped to ≥ 1e-30 in the denominator).

@@ -39,7 +39,11 @@ impl ImprovedBlinnPhong {
         check_finite_nonneg(M, "alpha", alpha)?;
         check_unit(M, "a", a)?;
         check_finite_nonneg(M, "b", b)?;
-        Ok(ImprovedBlinnPhong { rho_d, lobe: BlinnLobe { rho_s, alpha, a, b }, normalization: 1.0 })
+        Ok(ImprovedBlinnPhong {
+            rho_d,
+            lobe: BlinnLobe { rho_s, alpha, a, b },
+            normalization: 1.0,
+        })
     }
 
     /// The paper's gold-polyimide parameters.
@@ -64,7 +68,13 @@ impl ImprovedBlinnPhong {
 
     fn spec_albedo(&self, cos_o: f32, n: u32) -> f32 {
         let l = self.lobe;
-        stratified_albedo(cos_o, n, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i))
+        stratified_albedo(
+            cos_o,
+            n,
+            |o, u| l.sample(o, u),
+            |o, i| l.eval_cos(o, i),
+            |o, i| l.pdf(o, i),
+        )
     }
 
     /// `f_r`; at grazing `wi`, `(n·l)^-a` is evaluated with `n·l ≥ 1e-30` (finite).

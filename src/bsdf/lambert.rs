@@ -23,7 +23,11 @@ impl Lambert {
 
     /// `f_r = ρ/π` above the surface, 0 otherwise.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 { 0.0 } else { self.rho * FRAC_1_PI }
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            0.0
+        } else {
+            self.rho * FRAC_1_PI
+        }
     }
 
     /// `ρ cosθi / π`.
@@ -38,11 +42,19 @@ impl Lambert {
         }
         let wi = cosine_hemisphere(u);
         let pdf = cosine_hemisphere_pdf(wi.z);
-        (wi.z > 0.0 && pdf > 0.0).then(|| BsdfSample { wi, f_cos: self.eval_cos(wo, wi), pdf })
+        (wi.z > 0.0 && pdf > 0.0).then(|| BsdfSample {
+            wi,
+            f_cos: self.eval_cos(wo, wi),
+            pdf,
+        })
     }
 
     /// `cosθi/π` above the surface.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(wi.z) }
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            0.0
+        } else {
+            cosine_hemisphere_pdf(wi.z)
+        }
     }
 }

@@ -197,16 +197,30 @@ mod tests {
         let wi = Vec3::new(t.sin(), 0.0, t.cos()); // h = wo, θh = t
         let hv = Half::new(wo, wi).unwrap();
         let want = (f64::from(t)).cos().ln();
-        assert!((f64::from(hv.ln_cos()) - want).abs() < 1e-12, "{}", hv.ln_cos());
+        assert!(
+            (f64::from(hv.ln_cos()) - want).abs() < 1e-12,
+            "{}",
+            hv.ln_cos()
+        );
         // (n·h)^1e5 = exp(-1e5 · 5e-9) ≈ 0.9995.
-        let l = BlinnLobe { rho_s: 1.0, alpha: 1e5, a: 1.0, b: 0.0 };
+        let l = BlinnLobe {
+            rho_s: 1.0,
+            alpha: 1e5,
+            a: 1.0,
+            b: 0.0,
+        };
         let v = l.eval_cos(wo, wi);
         assert!((f64::from(v) - (1e5 * want).exp()).abs() < 1e-5, "{v}");
     }
 
     #[test]
     fn sampled_cos_theta_h_follows_u_to_the_one_over_alpha_plus_one() {
-        let l = BlinnLobe { rho_s: 1.0, alpha: 3865.7, a: 1.0, b: 0.0 };
+        let l = BlinnLobe {
+            rho_s: 1.0,
+            alpha: 3865.7,
+            a: 1.0,
+            b: 0.0,
+        };
         let wo = Vec3::Z;
         for &ux in &[0.0f32, 0.1, 0.5, 0.9, 0.999] {
             let wi = l.sample(wo, Vec2::new(ux, 0.3)).unwrap();
@@ -218,8 +232,19 @@ mod tests {
 
     #[test]
     fn albedo_hint_is_close_to_the_stratified_albedo_at_normal_incidence() {
-        let l = BlinnLobe { rho_s: 283.9, alpha: 3865.7, a: 0.9665, b: 1.3965 };
-        let est = stratified_albedo(1.0, 64, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i));
+        let l = BlinnLobe {
+            rho_s: 283.9,
+            alpha: 3865.7,
+            a: 0.9665,
+            b: 1.3965,
+        };
+        let est = stratified_albedo(
+            1.0,
+            64,
+            |o, u| l.sample(o, u),
+            |o, i| l.eval_cos(o, i),
+            |o, i| l.pdf(o, i),
+        );
         let hint = l.albedo_hint(1.0);
         assert!((hint / est - 1.0).abs() < 0.1, "hint {hint} est {est}");
     }

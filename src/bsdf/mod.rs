@@ -178,7 +178,11 @@ pub(crate) fn normalization_factor(rho_d: f32, spec_albedo: impl Fn(f32) -> f32)
     ((1.0 - rho_d) * 0.998 / a).clamp(0.0, 1.0)
 }
 
-pub(crate) fn check_unit(model: &'static str, field: &'static str, v: f32) -> Result<(), BsdfError> {
+pub(crate) fn check_unit(
+    model: &'static str,
+    field: &'static str,
+    v: f32,
+) -> Result<(), BsdfError> {
     if (0.0..=1.0).contains(&v) {
         Ok(())
     } else {
@@ -191,7 +195,11 @@ pub(crate) fn check_unit(model: &'static str, field: &'static str, v: f32) -> Re
     }
 }
 
-pub(crate) fn check_finite_nonneg(model: &'static str, field: &'static str, v: f32) -> Result<(), BsdfError> {
+pub(crate) fn check_finite_nonneg(
+    model: &'static str,
+    field: &'static str,
+    v: f32,
+) -> Result<(), BsdfError> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {

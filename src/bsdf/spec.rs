@@ -9,7 +9,7 @@
 //! ```
 //! Explicit fields override the preset's; without a preset every field is required.
 
-use super::{Bsdf, BsdfError, BlinnPhong, CookTorrance, ImprovedBlinnPhong, Lambert};
+use super::{BlinnPhong, Bsdf, BsdfError, CookTorrance, ImprovedBlinnPhong, Lambert};
 use serde::Deserialize;
 
 /// Named parameter sets.
@@ -92,7 +92,9 @@ fn pick(
     explicit: Option<f32>,
     preset: Option<f32>,
 ) -> Result<f32, BsdfError> {
-    explicit.or(preset).ok_or(BsdfError::Missing { model, field })
+    explicit
+        .or(preset)
+        .ok_or(BsdfError::Missing { model, field })
 }
 
 fn wrong_preset(model: &'static str) -> BsdfError {
@@ -118,9 +120,17 @@ impl BsdfSpec {
                     Some(GoldPolyimide) => Some(ImprovedBlinnPhong::GOLD_POLYIMIDE[0]),
                     Some(WhitePaint) => Some(0.522),
                 };
-                Ok(Bsdf::Lambert(Lambert::new(pick("lambert", "rho", rho, p)?)?))
+                Ok(Bsdf::Lambert(Lambert::new(pick(
+                    "lambert", "rho", rho, p,
+                )?)?))
             }
-            BsdfSpec::BlinnPhong { preset, rho_d, rho_s, alpha, normalized } => {
+            BsdfSpec::BlinnPhong {
+                preset,
+                rho_d,
+                rho_s,
+                alpha,
+                normalized,
+            } => {
                 const M: &str = "blinn_phong";
                 let p = match preset {
                     None => None,
@@ -132,9 +142,21 @@ impl BsdfSpec {
                     pick(M, "rho_s", rho_s, p.map(|p| p[1]))?,
                     pick(M, "alpha", alpha, p.map(|p| p[2]))?,
                 )?;
-                Ok(Bsdf::BlinnPhong(if normalized { b.normalized() } else { b }))
+                Ok(Bsdf::BlinnPhong(if normalized {
+                    b.normalized()
+                } else {
+                    b
+                }))
             }
-            BsdfSpec::ImprovedBlinnPhong { preset, rho_d, rho_s, alpha, a, b, normalized } => {
+            BsdfSpec::ImprovedBlinnPhong {
+                preset,
+                rho_d,
+                rho_s,
+                alpha,
+                a,
+                b,
+                normalized,
+            } => {
                 const M: &str = "improved_blinn_phong";
                 let p = match preset {
                     None => None,
@@ -148,9 +170,20 @@ impl BsdfSpec {
                     pick(M, "a", a, p.map(|p| p[3]))?,
                     pick(M, "b", b, p.map(|p| p[4]))?,
                 )?;
-                Ok(Bsdf::ImprovedBlinnPhong(if normalized { m.normalized() } else { m }))
+                Ok(Bsdf::ImprovedBlinnPhong(if normalized {
+                    m.normalized()
+                } else {
+                    m
+                }))
             }
-            BsdfSpec::CookTorrance { preset, rho_d, roughness, f0, k_s, normalized } => {
+            BsdfSpec::CookTorrance {
+                preset,
+                rho_d,
+                roughness,
+                f0,
+                k_s,
+                normalized,
+            } => {
                 const M: &str = "cook_torrance";
                 let p = match preset {
                     None => None,
@@ -163,7 +196,11 @@ impl BsdfSpec {
                     pick(M, "f0", f0, p.map(|p| p[2]))?,
                     k_s.or(p.map(|p| p[3])).unwrap_or(1.0),
                 )?;
-                Ok(Bsdf::CookTorrance(if normalized { c.normalized() } else { c }))
+                Ok(Bsdf::CookTorrance(if normalized {
+                    c.normalized()
+                } else {
+                    c
+                }))
             }
         }
     }
@@ -183,25 +220,41 @@ mod tests {
 
     #[test]
     fn parses_the_documented_forms() {
-        let l = parse(r#"{ model = "lambert", rho = 0.522 }"#).unwrap().build().unwrap();
+        let l = parse(r#"{ model = "lambert", rho = 0.522 }"#)
+            .unwrap()
+            .build()
+            .unwrap();
         assert_eq!(l.is_lambertian(), Some(0.522));
         let p = parse(r#"{ model = "improved_blinn_phong", preset = "gold_polyimide" }"#)
             .unwrap()
             .build()
             .unwrap();
-        assert_eq!(p, Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide()));
-        let n = parse(r#"{ model = "improved_blinn_phong", preset = "gold_polyimide", normalized = true }"#)
-            .unwrap()
-            .build()
-            .unwrap();
-        let Bsdf::ImprovedBlinnPhong(n) = n else { panic!() };
-        assert!(n.normalization < 0.6 && n.normalization > 0.2, "{}", n.normalization);
+        assert_eq!(
+            p,
+            Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide())
+        );
+        let n = parse(
+            r#"{ model = "improved_blinn_phong", preset = "gold_polyimide", normalized = true }"#,
+        )
+        .unwrap()
+        .build()
+        .unwrap();
+        let Bsdf::ImprovedBlinnPhong(n) = n else {
+            panic!()
+        };
+        assert!(
+            n.normalization < 0.6 && n.normalization > 0.2,
+            "{}",
+            n.normalization
+        );
         // An explicit field overrides the preset.
         let o = parse(r#"{ model = "improved_blinn_phong", preset = "gold_polyimide", a = 1.0 }"#)
             .unwrap()
             .build()
             .unwrap();
-        let Bsdf::ImprovedBlinnPhong(o) = o else { panic!() };
+        let Bsdf::ImprovedBlinnPhong(o) = o else {
+            panic!()
+        };
         assert_eq!((o.lobe.a, o.lobe.alpha), (1.0, 3865.7));
         for s in [
             r#"{ model = "blinn_phong", preset = "gold_polyimide" }"#,
@@ -215,7 +268,10 @@ mod tests {
 
     #[test]
     fn errors_name_the_field() {
-        let e = parse(r#"{ model = "lambert", rho = 1.5 }"#).unwrap().build().unwrap_err();
+        let e = parse(r#"{ model = "lambert", rho = 1.5 }"#)
+            .unwrap()
+            .build()
+            .unwrap_err();
         assert!(e.to_string().contains("`rho`"), "{e}");
         let e = parse(r#"{ model = "improved_blinn_phong", preset = "gold_polyimide", a = 1.2 }"#)
             .unwrap()
@@ -226,13 +282,22 @@ mod tests {
             .unwrap()
             .build()
             .unwrap_err();
-        assert_eq!(e, BsdfError::Missing { model: "blinn_phong", field: "alpha" });
+        assert_eq!(
+            e,
+            BsdfError::Missing {
+                model: "blinn_phong",
+                field: "alpha"
+            }
+        );
         let e = parse(r#"{ model = "cook_torrance", rho_d = 0.3, roughness = 0.0, f0 = 0.5 }"#)
             .unwrap()
             .build()
             .unwrap_err();
         assert!(e.to_string().contains("`roughness`"), "{e}");
-        let e = parse(r#"{ model = "blinn_phong", preset = "white_paint" }"#).unwrap().build().unwrap_err();
+        let e = parse(r#"{ model = "blinn_phong", preset = "white_paint" }"#)
+            .unwrap()
+            .build()
+            .unwrap_err();
         assert!(e.to_string().contains("`preset`"), "{e}");
         // Unknown fields and models are rejected by serde, naming them.
         let e = parse(r#"{ model = "lambert", rho = 0.5, roh = 1 }"#).unwrap_err();

@@ -5,7 +5,7 @@
 //! `θv = +θi` (the forward-scatter side is positive), as in the paper's Fig. 6.
 
 use crate::bsdf::{BlinnPhong, Bsdf, CookTorrance, ImprovedBlinnPhong, Lambert};
-use crate::plot::{LineChart, Scale, Series};
+use crate::plot::{Legend, LineChart, Scale, Series};
 use anyhow::Context;
 use glam::Vec3;
 use std::fmt::Write as _;
@@ -36,13 +36,33 @@ pub fn gold_models() -> Vec<(&'static str, Bsdf, bool)> {
     let ct = CookTorrance::new(d, m, f0, ks).expect("preset valid");
     let imp = ImprovedBlinnPhong::gold_polyimide();
     vec![
-        ("improved Blinn-Phong (paper)", Bsdf::ImprovedBlinnPhong(imp), false),
-        ("improved Blinn-Phong normalized", Bsdf::ImprovedBlinnPhong(imp.normalized()), true),
+        (
+            "improved Blinn-Phong (paper)",
+            Bsdf::ImprovedBlinnPhong(imp),
+            false,
+        ),
+        (
+            "improved Blinn-Phong normalized",
+            Bsdf::ImprovedBlinnPhong(imp.normalized()),
+            true,
+        ),
         ("Blinn-Phong Eq.4 (fit)", Bsdf::BlinnPhong(bp), false),
-        ("Blinn-Phong Eq.4 normalized", Bsdf::BlinnPhong(bp.normalized()), true),
+        (
+            "Blinn-Phong Eq.4 normalized",
+            Bsdf::BlinnPhong(bp.normalized()),
+            true,
+        ),
         ("Cook-Torrance (fit)", Bsdf::CookTorrance(ct), false),
-        ("Cook-Torrance normalized", Bsdf::CookTorrance(ct.normalized()), true),
-        ("Lambert rho=0.3717", Bsdf::Lambert(Lambert::new(0.3717).expect("valid")), false),
+        (
+            "Cook-Torrance normalized",
+            Bsdf::CookTorrance(ct.normalized()),
+            true,
+        ),
+        (
+            "Lambert rho=0.3717",
+            Bsdf::Lambert(Lambert::new(0.3717).expect("valid")),
+            false,
+        ),
     ]
 }
 
@@ -70,18 +90,26 @@ pub fn curve_rmse(a: &Bsdf, b: &Bsdf, theta_i: f64) -> f64 {
 
 fn views(step: f64) -> Vec<f64> {
     let n = (178.0 / step).round() as i64;
-    (0..=n).map(|k| -89.0 + 178.0 * k as f64 / n as f64).collect()
+    (0..=n)
+        .map(|k| -89.0 + 178.0 * k as f64 / n as f64)
+        .collect()
 }
 
 /// Run the command.
 pub fn run(args: BrdfArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(args.step_deg > 0.0 && args.step_deg <= 10.0, "--step-deg must be in (0, 10]");
+    anyhow::ensure!(
+        args.step_deg > 0.0 && args.step_deg <= 10.0,
+        "--step-deg must be in (0, 10]"
+    );
     let models = gold_models();
     let mut out = String::new();
 
     // 1. f_r against view angle, coarse table (the plot and CSV have the full curves).
     for ti in [30.0, 60.0] {
-        writeln!(out, "\nf_r (1/sr) at theta_i = {ti} deg, in the plane of incidence (mirror at theta_v = +{ti})")?;
+        writeln!(
+            out,
+            "\nf_r (1/sr) at theta_i = {ti} deg, in the plane of incidence (mirror at theta_v = +{ti})"
+        )?;
         write!(out, "{:>8}", "theta_v")?;
         for (name, _, _) in &models {
             write!(out, " {:>12}", short(name))?;
@@ -102,7 +130,10 @@ pub fn run(args: BrdfArgs) -> anyhow::Result<()> {
     }
 
     // 2. Directional albedo ∫ f_r cosθi dωi for a view direction θo.
-    writeln!(out, "\ndirectional albedo (fraction of light from all directions reflected toward theta_o)")?;
+    writeln!(
+        out,
+        "\ndirectional albedo (fraction of light from all directions reflected toward theta_o)"
+    )?;
     write!(out, "{:<34}", "model")?;
     for th in [0.0, 30.0, 60.0, 85.0] {
         write!(out, " {:>9}", format!("{th}deg"))?;
@@ -117,52 +148,96 @@ pub fn run(args: BrdfArgs) -> anyhow::Result<()> {
             write!(out, " {a:>9.4}")?;
         }
         let note = match b {
-            Bsdf::ImprovedBlinnPhong(m) if m.normalization < 1.0 => format!("rho_s scaled x{:.4}", m.normalization),
-            Bsdf::BlinnPhong(m) if m.normalization < 1.0 => format!("rho_s scaled x{:.4}", m.normalization),
-            Bsdf::CookTorrance(m) if m.normalization < 1.0 => format!("k_s scaled x{:.4}", m.normalization),
+            Bsdf::ImprovedBlinnPhong(m) if m.normalization < 1.0 => {
+                format!("rho_s scaled x{:.4}", m.normalization)
+            }
+            Bsdf::BlinnPhong(m) if m.normalization < 1.0 => {
+                format!("rho_s scaled x{:.4}", m.normalization)
+            }
+            Bsdf::CookTorrance(m) if m.normalization < 1.0 => {
+                format!("k_s scaled x{:.4}", m.normalization)
+            }
             _ => String::new(),
         };
-        writeln!(out, "  {}{note}", if over { "ALBEDO > 1 (not energy-conserving) " } else { "" })?;
+        writeln!(
+            out,
+            "  {}{note}",
+            if over {
+                "ALBEDO > 1 (not energy-conserving) "
+            } else {
+                ""
+            }
+        )?;
     }
 
     // 3. Fit quality against the paper's model (cf. the paper's Table 2, which is against
     //    the measured BRDF; the measurements are not published, Eq. 5 stands in for them).
     let paper = models[0].1;
-    writeln!(out, "\nRMSE (1/sr) of each model's curve against the paper's improved Blinn-Phong")?;
+    writeln!(
+        out,
+        "\nRMSE (1/sr) of each model's curve against the paper's improved Blinn-Phong"
+    )?;
     writeln!(out, "{:<34} {:>9} {:>9}", "model", "30deg", "60deg")?;
     for (name, b, _) in models.iter().skip(1) {
-        writeln!(out, "{name:<34} {:>9.3} {:>9.3}", curve_rmse(&paper, b, 30.0), curve_rmse(&paper, b, 60.0))?;
+        writeln!(
+            out,
+            "{name:<34} {:>9.3} {:>9.3}",
+            curve_rmse(&paper, b, 30.0),
+            curve_rmse(&paper, b, 60.0)
+        )?;
     }
     print!("{out}");
 
     // 4. Curves: plot (two charts stacked) and CSV.
     let tvs = views(args.step_deg);
     let mut charts = Vec::new();
+    // Full range on the left, ±8° around the mirror direction on the right.
+    let panels = |ti: f64| {
+        [
+            (-90.0, 90.0, Legend::UpperLeft, "full range"),
+            (
+                ti - 8.0,
+                ti + 8.0,
+                Legend::Hidden,
+                "near the mirror direction",
+            ),
+        ]
+    };
     let mut csv = String::from("theta_i_deg,theta_v_deg");
     for (name, _, _) in &models {
         write!(csv, ",\"{name}\"")?;
     }
     csv.push('\n');
     for ti in [30.0, 60.0] {
-        let mut chart = LineChart::new(format!("gold polyimide BRDF, theta_i = {ti} deg (in plane)"))
-            .x_label("view angle theta_v (deg), mirror at +theta_i")
-            .y_label("f_r (1/sr)")
-            .scales(Scale::Linear, Scale::Log)
-            .x_range(-90.0, 90.0)
-            .y_range(0.05, 2000.0)
-            .size(1000, 620);
-        for (name, b, dashed) in &models {
-            let pts: Vec<(f64, f64)> = tvs
-                .iter()
-                .map(|&tv| {
-                    let (wo, wi) = in_plane(ti, tv);
-                    (tv, f64::from(b.eval(wo, wi)))
-                })
-                .collect();
-            let s = Series::new(*name, pts);
-            chart = chart.series(if *dashed { s.dashed() } else { s });
+        for (lo, hi, legend, what) in panels(ti) {
+            let mut chart =
+                LineChart::new(format!("gold polyimide BRDF, theta_i = {ti} deg, {what}"))
+                    .x_label("view angle theta_v (deg), mirror at +theta_i")
+                    .y_label("f_r (1/sr)")
+                    .scales(Scale::Linear, Scale::Log)
+                    .x_range(lo, hi)
+                    .y_range(0.05, 2000.0)
+                    .legend(legend)
+                    .size(800, 560);
+            let step = args.step_deg.min((hi - lo) / 400.0);
+            let n = ((hi - lo) / step).round() as i64;
+            for (name, b, dashed) in &models {
+                let pts: Vec<(f64, f64)> = (0..=n)
+                    .map(|k| {
+                        let tv = lo + (hi - lo) * k as f64 / n as f64;
+                        let (wo, wi) = in_plane(ti, tv.clamp(-89.99, 89.99));
+                        (tv, f64::from(b.eval(wo, wi)))
+                    })
+                    .collect();
+                let s = Series::new(*name, pts);
+                chart = chart.series(if *dashed { s.dashed() } else { s });
+            }
+            charts.push(
+                chart
+                    .render()
+                    .with_context(|| format!("drawing the theta_i = {ti} chart"))?,
+            );
         }
-        charts.push(chart.render().with_context(|| format!("drawing the theta_i = {ti} chart"))?);
         for &tv in &tvs {
             let (wo, wi) = in_plane(ti, tv);
             write!(csv, "{ti},{tv:.4}")?;
@@ -172,10 +247,16 @@ pub fn run(args: BrdfArgs) -> anyhow::Result<()> {
             csv.push('\n');
         }
     }
+    // 2 × 2 grid: rows θi = 30°, 60°; columns full range, zoom.
     let (w, h) = charts[0].dimensions();
-    let mut img = image::RgbImage::new(w, h * charts.len() as u32);
+    let mut img = image::RgbImage::new(2 * w, 2 * h);
     for (k, c) in charts.iter().enumerate() {
-        image::imageops::replace(&mut img, c, 0, i64::from(h) * k as i64);
+        image::imageops::replace(
+            &mut img,
+            c,
+            i64::from(w) * (k % 2) as i64,
+            i64::from(h) * (k / 2) as i64,
+        );
     }
     img.save_with_format(&args.out, image::ImageFormat::Png)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -213,9 +294,15 @@ mod tests {
     fn run_writes_png_and_csv() {
         let dir = tempfile::tempdir().unwrap();
         let (png, csv) = (dir.path().join("b.png"), dir.path().join("b.csv"));
-        run(BrdfArgs { out: png.clone(), csv: Some(csv.clone()), step_deg: 2.0, albedo_samples: 256 }).unwrap();
+        run(BrdfArgs {
+            out: png.clone(),
+            csv: Some(csv.clone()),
+            step_deg: 2.0,
+            albedo_samples: 256,
+        })
+        .unwrap();
         let img = image::open(&png).unwrap();
-        assert_eq!((img.width(), img.height()), (1000, 1240));
+        assert_eq!((img.width(), img.height()), (1600, 1120));
         let text = std::fs::read_to_string(&csv).unwrap();
         // Header + 2 incidence angles × 90 view angles.
         assert_eq!(text.lines().count(), 1 + 2 * 90);
