@@ -32,7 +32,7 @@ impl BeckmannLobe {
         let cos2 = hv.cos * hv.cos;
         let tan2 = hv.sin2 / cos2;
         let e = tan2 / (self.m * self.m);
-        if !(e < 80.0) {
+        if e.is_nan() || e >= 80.0 {
             return 0.0; // exp(−80) ≈ 2e−35: below anything that matters, avoids 0/0
         }
         (-e).exp() / (PI * self.m * self.m * cos2 * cos2)
