@@ -23,6 +23,7 @@
 //! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
 //! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
 //! - [`serve`]: the real-time scheduler, quality governor and `hilcam serve`.
+//! - [`plot`]: small PNG line charts (RMSE vs spp, Pareto fronts, BRDF curves).
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
 
 pub mod bench;
@@ -34,6 +35,7 @@ pub mod frame;
 pub mod geometry;
 pub mod integrator;
 pub mod metrics;
+pub mod plot;
 pub mod pose;
 pub mod render;
 pub mod sampling;

@@ -1,6 +1,7 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
 pub mod bench;
+pub mod brdf;
 pub mod recv;
 pub mod render;
 pub mod send;
@@ -30,6 +31,8 @@ pub enum Command {
     Send(send::SendArgs),
     /// Receive a frame stream: verify CRCs, save frames, print rate, gaps and latency.
     Recv(recv::RecvArgs),
+    /// Tabulate and plot the BRDF models (gold polyimide) and their directional albedo.
+    Brdf(brdf::BrdfArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -47,6 +50,7 @@ pub fn main() -> ExitCode {
         }
         Command::Send(args) => send::run(args),
         Command::Recv(args) => recv::run(args),
+        Command::Brdf(args) => brdf::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
