@@ -35,7 +35,7 @@ async fn run(frames: u64, fps: f64, width: u32, stalled: bool) -> Run {
     let cfg = StreamConfig { bind: "127.0.0.1:0".parse().unwrap(), ..StreamConfig::default() };
     let server = StreamServer::bind(cfg, reg, Some(hook)).await.unwrap();
     let addr = server.local_addr();
-    let opts = RecvOptions { count: Some(frames), progress: None, ..RecvOptions::default() };
+    let opts = RecvOptions { progress: None, ..RecvOptions::default() };
     let fast = tokio::spawn(receive(addr, opts));
     while server.client_count() < 1 {
         tokio::time::sleep(Duration::from_millis(1)).await;
@@ -77,9 +77,15 @@ async fn run(frames: u64, fps: f64, width: u32, stalled: bool) -> Run {
         server.publish(f);
         publish.record_duration(t.elapsed());
     }
-    let summary = fast.await.unwrap().unwrap();
-    let stalled_dropped = server.clients().iter().map(|c| c.dropped).sum();
+    // Let the reading client drain its queue, then close: it finishes at the clean EOF
+    // (frames it lost show as `missing`, they never hang the run).
+    let queued = |s: &StreamServer| s.clients().iter().find(|c| c.id == fast_id).map_or(0, |c| c.queued);
+    while queued(&server) > 0 {
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    let stalled_dropped = server.clients().iter().filter(|c| c.id != fast_id).map(|c| c.dropped).sum();
     server.shutdown().await;
+    let summary = fast.await.unwrap().unwrap();
     let (p, l) = (publish.snapshot(), latency.snapshot());
     Run {
         publish_p50: p.quantile(0.5).unwrap(),

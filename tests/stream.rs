@@ -584,3 +584,36 @@ fn recorder_counts_what_it_cannot_keep_up_with() {
         assert_eq!(img.data, want);
     }
 }
+
+/// `hilcam recv` end to end: saves the frames in the chosen format and prints the stats.
+#[tokio::test]
+async fn recv_command_saves_frames_and_reports_gaps() {
+    let server = StreamServer::bind(cfg(8), Registry::new(), None).await.unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
+        .args(["recv", "--connect", &server.local_addr().to_string(), "--count", "3"])
+        .args(["--format", "tiff", "--out"])
+        .arg(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    until(|| server.client_count() == 1).await;
+    let frames: Vec<_> = [3u64, 4, 7].into_iter().map(mono16_frame).collect();
+    for f in &frames {
+        server.publish(f.clone());
+    }
+    let out = tokio::task::spawn_blocking(move || child.wait_with_output()).await.unwrap().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("frames 3 "), "{stdout}");
+    assert!(stdout.contains("frame_seq 3..7: 1 gaps, 2 frames missing, 0 payload CRC errors"), "{stdout}");
+    assert!(stdout.contains("latency emit -> receive"), "{stdout}");
+    for f in &frames {
+        let name = format!("frame_{:010}.tif", f.meta.frame_seq);
+        let img = image::open(dir.path().join(name)).unwrap().into_luma16();
+        let Pixels::Mono16 { data, .. } = f.pixels() else { unreachable!() };
+        assert_eq!(img.into_raw(), data);
+    }
+    server.shutdown().await;
+}
