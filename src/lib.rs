@@ -25,6 +25,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod film;
+pub mod fold;
 pub mod frame;
 pub mod geometry;
 pub mod integrator;

@@ -3,6 +3,9 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+pub mod fold;
+pub mod model;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "hilcam",
@@ -21,6 +24,10 @@ pub struct Cli {
 pub enum Command {
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
+    /// Fold planes: generate at the paper's levels, measure E_PLANE / Var.
+    Fold(fold::FoldArgs),
+    /// Generate the shipped models (the Jason-like satellite).
+    Model(model::ModelArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -34,6 +41,8 @@ pub fn main() -> ExitCode {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())
         }
+        Command::Fold(args) => fold::run(args),
+        Command::Model(args) => model::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
