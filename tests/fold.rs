@@ -1,0 +1,235 @@
+//! Fold surfaces: generated planes hit the paper's statistics, the measure agrees with
+//! analytic answers, wrapping leaves no cracks, the satellite model is complete.
+
+use glam::{DVec3, Vec3};
+use hilcam::fold::{self, FoldLevel, FoldParams, measure, wrap_faces};
+use hilcam::geometry::TriMesh;
+use std::collections::HashMap;
+
+/// Count how many triangles use each undirected edge.
+fn edge_uses(m: &TriMesh) -> HashMap<(u32, u32), u32> {
+    let mut e = HashMap::new();
+    for t in &m.indices {
+        for k in 0..3 {
+            let (p, q) = (t[k], t[(k + 1) % 3]);
+            *e.entry((p.min(q), p.max(q))).or_insert(0) += 1;
+        }
+    }
+    e
+}
+
+fn assert_clean(m: &TriMesh) {
+    for i in 0..m.indices.len() {
+        let n = m.face_normal_area2(i);
+        assert!(n.is_finite(), "triangle {i}: non-finite normal");
+        assert!(n.length() > 1e-9, "triangle {i}: degenerate");
+    }
+}
+
+#[test]
+fn generated_planes_hit_the_paper_levels_for_several_seeds() {
+    println!("level   seed  E_PLANE  Var     slope  density iters  V      T");
+    for level in FoldLevel::ALL {
+        let target = level.target();
+        for seed in [1u64, 2, 3] {
+            let p = fold::generate_plane(target, seed).unwrap();
+            let s = measure(&p.mesh, DVec3::X).unwrap();
+            println!(
+                "{:7} {seed:4}  {:.5}  {:.5}  {:.3}  {:.3}  {:3}  {} {}",
+                level.name(),
+                s.e_plane,
+                s.var,
+                p.fit.params.slope,
+                p.fit.params.density,
+                p.fit.iterations,
+                p.mesh.positions.len(),
+                p.mesh.indices.len()
+            );
+            assert!((s.e_plane - target.e_plane).abs() <= 0.002, "{level:?} seed {seed}: E {}", s.e_plane);
+            assert!((s.var - target.var).abs() <= 0.001, "{level:?} seed {seed}: Var {}", s.var);
+            assert_eq!(s.degenerate, 0);
+            assert_clean(&p.mesh);
+            let (v, t) = (p.mesh.positions.len() as f64, p.mesh.indices.len() as f64);
+            assert!((v / 13022.0 - 1.0).abs() < 0.01 && (t / 26040.0 - 1.0).abs() < 0.01);
+        }
+    }
+}
+
+#[test]
+fn generation_is_deterministic_and_seed_dependent() {
+    let t = FoldLevel::Medium.target();
+    let a = fold::generate_plane(t, 9).unwrap();
+    let b = fold::generate_plane(t, 9).unwrap();
+    let c = fold::generate_plane(t, 10).unwrap();
+    assert_eq!(a.mesh, b.mesh);
+    assert_ne!(a.mesh.positions, c.mesh.positions);
+}
+
+#[test]
+fn flat_plane_measures_one_and_zero() {
+    let disk = fold::disk::reference_disk();
+    let s = measure(&disk, DVec3::X).unwrap();
+    assert_eq!(s.e_plane, 1.0);
+    assert_eq!(s.var, 0.0);
+    assert_eq!(s.triangles, disk.indices.len());
+    // Any scaling of the normal gives the same answer; the opposite normal gives −1.
+    assert_eq!(measure(&disk, DVec3::new(3.0, 0.0, 0.0)).unwrap().e_plane, 1.0);
+    assert_eq!(measure(&disk, -DVec3::X).unwrap().e_plane, -1.0);
+}
+
+/// Mean and variance of cos θ = 1/√(1+(Ak cos kx)²) over one period, by the midpoint rule
+/// with 10⁶ points (independent of any mesh).
+fn corrugation_truth(ak: f64) -> (f64, f64) {
+    let n = 1_000_000;
+    let (mut s1, mut s2) = (0.0, 0.0);
+    for i in 0..n {
+        let x = (i as f64 + 0.5) / n as f64 * std::f64::consts::TAU;
+        let c = 1.0 / (1.0 + (ak * x.cos()).powi(2)).sqrt();
+        s1 += c;
+        s2 += c * c;
+    }
+    let m = s1 / n as f64;
+    (m, s2 / n as f64 - m * m)
+}
+
+/// z-displacement A sin(kx) over a strip, as equal-width triangle pairs so the plain mean
+/// over triangles equals the x-average.
+fn corrugation_mesh(a: f64, k: f64, cells: u32) -> TriMesh {
+    let len = std::f64::consts::TAU / k;
+    let mut m = TriMesh::default();
+    for i in 0..=cells {
+        let x = len * f64::from(i) / f64::from(cells);
+        let z = a * (k * x).sin();
+        m.positions.push(Vec3::new(x as f32, 0.0, z as f32));
+        m.positions.push(Vec3::new(x as f32, 0.05, z as f32));
+    }
+    for i in 0..cells {
+        let (p, q) = (2 * i, 2 * i + 2);
+        m.indices.push([p, q, p + 1]);
+        m.indices.push([q, q + 1, p + 1]);
+        m.material.extend([0, 0]);
+    }
+    m
+}
+
+#[test]
+fn corrugation_measures_its_analytic_mean_and_variance() {
+    for (a, k) in [(0.02, 50.0), (0.03, 60.0), (0.01, 150.0)] {
+        let (mean, var) = corrugation_truth(a * k);
+        let s = measure(&corrugation_mesh(a, k, 20_000), DVec3::Z).unwrap();
+        assert!((s.e_plane - mean).abs() < 2e-5, "A k = {}: {} vs {mean}", a * k, s.e_plane);
+        assert!((s.var - var).abs() < 2e-5, "A k = {}: {} vs {var}", a * k, s.var);
+        assert!(var > 1e-3, "the case must not be trivially flat");
+    }
+}
+
+/// A box as 12 triangles with shared vertices, material per face from `mat`.
+fn box_mesh(size: Vec3, mat: impl Fn(usize) -> u32) -> TriMesh {
+    let h = size * 0.5;
+    let mut m = TriMesh::default();
+    for i in 0..8 {
+        let s = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
+        m.positions.push(Vec3::new(s(1) * h.x, s(2) * h.y, s(4) * h.z));
+    }
+    // Faces as quads (outward CCW): -x, +x, -y, +y, -z, +z.
+    let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+    for (f, q) in quads.iter().enumerate() {
+        m.indices.push([q[0], q[1], q[2]]);
+        m.indices.push([q[0], q[2], q[3]]);
+        m.material.extend([mat(f), mat(f)]);
+    }
+    m
+}
+
+#[test]
+fn wrap_folds_selected_faces_without_cracks_and_leaves_others_flat() {
+    let params = FoldParams::new(0.9, 0.6);
+    // Faces 0..4 are MLI (material 1), ±z are paint (material 0).
+    let boxm = box_mesh(Vec3::new(0.6, 0.8, 1.0), |f| u32::from(f < 4));
+    for t in 0..boxm.indices.len() {
+        assert!(boxm.face_normal_area2(t).dot(boxm.triangle(t)[0]) > 0.0, "outward winding");
+    }
+    let out = wrap_faces(&boxm, &[1], &params, 5, 0.02);
+    assert_clean(&out);
+    // Inside the MLI region every edge is shared by exactly two triangles (no cracks, no
+    // T-junctions). Edges used once are the MLI side of the two seams with the unfolded
+    // paint faces (z = ±0.5): undisplaced, on the seam, and tiling its whole length.
+    let uses = edge_uses(&out);
+    let mli = TriMesh {
+        indices: (0..out.indices.len()).filter(|&t| out.material[t] == 1).map(|t| out.indices[t]).collect(),
+        ..out.clone()
+    };
+    let mut seam_len = 0.0f64;
+    for ((p, q), c) in edge_uses(&mli) {
+        if c == 2 {
+            continue;
+        }
+        assert_eq!(c, 1, "edge used {c} times");
+        let (a, b) = (out.positions[p as usize], out.positions[q as usize]);
+        assert!(a.z.abs() == 0.5 && b.z == a.z, "open MLI edge off the seam: {a} {b}");
+        let on_rim = |v: Vec3| (v.x.abs() - 0.3).abs() < 1e-6 || (v.y.abs() - 0.4).abs() < 1e-6;
+        assert!(on_rim(a) && on_rim(b), "seam vertex moved: {a} {b}");
+        seam_len += f64::from((a - b).length());
+    }
+    assert!((seam_len - 2.0 * 2.8).abs() < 1e-4, "seam length {seam_len}");
+    assert!(uses.values().all(|&c| c <= 2));
+    // Unselected faces are copied unchanged: two triangles each, at z = ±0.5 exactly.
+    let paint: Vec<usize> = (0..out.indices.len()).filter(|&t| out.material[t] == 0).collect();
+    assert_eq!(paint.len(), 4);
+    for t in paint {
+        assert!(out.triangle(t).iter().all(|p| p.z.abs() == 0.5));
+    }
+    // Selected faces did fold: their normals deviate from the face normal.
+    let folded = (0..out.indices.len())
+        .filter(|&t| out.material[t] == 1)
+        .filter(|&t| {
+            let n = out.face_normal_area2(t).normalize();
+            let axis = n.abs().max_element();
+            axis < 0.999
+        })
+        .count();
+    assert!(folded > 1000, "only {folded} tilted triangles");
+    // Sub-triangle size honours edge_m (longest edge ≤ edge_m·√2 on the flat faces).
+    let max_edge = (0..out.indices.len())
+        .filter(|&t| out.material[t] == 1)
+        .map(|t| {
+            let [a, b, c] = out.triangle(t);
+            (a - b).length().max((b - c).length()).max((c - a).length())
+        })
+        .fold(0.0f32, f32::max);
+    assert!(max_edge < 0.05, "max edge {max_edge}");
+}
+
+#[test]
+fn wrap_of_a_fully_selected_box_is_closed_and_pins_corners() {
+    let boxm = box_mesh(Vec3::new(1.0, 1.0, 1.5), |_| 7);
+    let out = wrap_faces(&boxm, &[7], &FoldParams::new(1.0, 0.8), 1, 0.03);
+    assert!(edge_uses(&out).values().all(|&c| c == 2));
+    // Box corners stay where they were.
+    for c in &boxm.positions {
+        assert!(out.positions.contains(c), "corner {c} moved");
+    }
+}
+
+#[test]
+fn wrapped_flat_panel_matches_the_plane_statistics_at_the_disk_resolution() {
+    // A 2 m × 2 m panel split into 2 triangles, with open edges (nothing is pinned), wrapped
+    // at about the reference disk's edge length: stats near the medium level's.
+    let plane = fold::generate_plane(FoldLevel::Medium.target(), 4).unwrap();
+    let panel = TriMesh {
+        positions: vec![
+            Vec3::new(0.0, -1.0, -1.0),
+            Vec3::new(0.0, 1.0, -1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(0.0, -1.0, 1.0),
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        material: vec![0, 0],
+    };
+    let out = wrap_faces(&panel, &[0], &plane.fit.params, 4, 0.016);
+    let s = measure(&out, DVec3::X).unwrap();
+    let t = FoldLevel::Medium.target();
+    println!("wrapped panel: E {:.4} Var {:.4} ({} triangles)", s.e_plane, s.var, s.triangles);
+    assert!((s.e_plane - t.e_plane).abs() < 0.01, "E {}", s.e_plane);
+    assert!((s.var - t.var).abs() < 0.005, "Var {}", s.var);
+}
