@@ -29,6 +29,7 @@ pub mod fold;
 pub mod frame;
 pub mod geometry;
 pub mod integrator;
+pub mod model;
 pub mod pose;
 pub mod render;
 pub mod sampling;

@@ -233,3 +233,103 @@ fn wrapped_flat_panel_matches_the_plane_statistics_at_the_disk_resolution() {
     assert!((s.e_plane - t.e_plane).abs() < 0.01, "E {}", s.e_plane);
     assert!((s.var - t.var).abs() < 0.005, "Var {}", s.var);
 }
+
+mod satellite {
+    use super::*;
+    use hilcam::model::satellite::{self as sat, MATERIALS};
+
+    fn medium() -> FoldParams {
+        fold::generate_plane(FoldLevel::Medium.target(), 1).unwrap().fit.params
+    }
+
+    /// Möller–Trumbore, two-sided; true when the segment origin + t·dir (t > eps) hits.
+    fn hits(o: Vec3, d: Vec3, [a, b, c]: [Vec3; 3]) -> bool {
+        let (e1, e2) = (b - a, c - a);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-12 {
+            return false;
+        }
+        let s = o - a;
+        let u = s.dot(p) / det;
+        let q = s.cross(e1);
+        let v = d.dot(q) / det;
+        let t = e2.dot(q) / det;
+        u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 1e-4
+    }
+
+    #[test]
+    fn has_all_materials_and_enough_clean_triangles() {
+        let m = sat::satellite(&medium(), 1, 0.02).unwrap();
+        assert!(m.indices.len() >= 100_000, "{} triangles", m.indices.len());
+        for (k, name) in MATERIALS.iter().enumerate() {
+            assert!(m.material.contains(&(k as u32)), "material {name} missing");
+        }
+        assert_clean(&m);
+        // Bounds: the bus is 1 × 1 × 1.5 m about the origin, the wings span ±4.75 m in Y.
+        let (lo, hi) = m.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+        assert!((hi.y - 4.75).abs() < 1e-3 && (lo.y + 4.75).abs() < 1e-3, "{lo} {hi}");
+    }
+
+    #[test]
+    fn mli_is_folded_near_the_requested_level_and_the_rest_is_not() {
+        let flat = sat::satellite_flat();
+        let m = sat::satellite(&medium(), 1, 0.02).unwrap();
+        // Non-MLI geometry is copied unchanged (same triangles in the same order).
+        let keep = |x: &TriMesh| -> Vec<[Vec3; 3]> {
+            (0..x.indices.len()).filter(|&t| x.material[t] != sat::MLI_GOLD).map(|t| x.triangle(t)).collect()
+        };
+        assert_eq!(keep(&flat), keep(&m));
+        // The +X bus side (no radiator, no boom): MLI triangles whose centroid is nearest +X.
+        let side: Vec<usize> = (0..m.indices.len())
+            .filter(|&t| m.material[t] == sat::MLI_GOLD)
+            .filter(|&t| {
+                let c = m.triangle(t).iter().fold(Vec3::ZERO, |s, p| s + *p) / 3.0 / sat::BUS_HALF;
+                c.x > c.y.abs() && c.x > c.z.abs()
+            })
+            .collect();
+        let sub = TriMesh { indices: side.iter().map(|&t| m.indices[t]).collect(), material: vec![0; side.len()], ..m.clone() };
+        let s = measure(&sub, DVec3::X).unwrap();
+        let t = FoldLevel::Medium.target();
+        assert!((s.e_plane - t.e_plane).abs() < 0.015 && (s.var - t.var).abs() < 0.004, "E {} Var {}", s.e_plane, s.var);
+    }
+
+    #[test]
+    fn wings_shade_the_bus_at_a_low_sun_over_the_wing() {
+        let m = sat::satellite_flat();
+        let wing: Vec<[Vec3; 3]> = (0..m.indices.len())
+            .filter(|&t| [sat::SOLAR_CELL, sat::ARRAY_BACK].contains(&m.material[t]))
+            .map(|t| m.triangle(t))
+            .collect();
+        // Points on the +Y bus face, x < 0 half, away from the boom.
+        let pts: Vec<Vec3> = (0..10)
+            .flat_map(|i| (0..10).map(move |j| Vec3::new(-0.45 + 0.04 * i as f32, 0.5005, -0.6 + 0.05 * j as f32)))
+            .filter(|p| p.z.abs() > 0.1)
+            .collect();
+        let shaded = |sun: Vec3| pts.iter().filter(|&&p| wing.iter().any(|&tri| hits(p, sun, tri))).count();
+        // Sun 72° from +X toward +Y: rays from x < −0.28 cross the wing plane over a panel.
+        let low = shaded(Vec3::new(0.3, 0.95, 0.0).normalize());
+        let high = shaded(Vec3::new(1.0, 0.2, 0.0).normalize());
+        assert!(low * 3 > pts.len(), "only {low} of {} points shaded", pts.len());
+        assert_eq!(high, 0);
+    }
+
+    #[test]
+    fn shipped_model_regenerates_byte_identically() {
+        let m = sat::satellite(&medium(), 1, 0.02).unwrap();
+        let mut obj = Vec::new();
+        fold::obj::write_obj(&mut obj, &m, &MATERIALS, Some("satellite.mtl"), "jason_like").unwrap();
+        let mut mtl = Vec::new();
+        fold::obj::write_mtl(&mut mtl, &sat::mtl_entries()).unwrap();
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/satellite");
+        let shipped_obj = std::fs::read(dir.join("satellite.obj")).unwrap();
+        assert!(shipped_obj == obj, "scenes/satellite/satellite.obj differs from the generator's output");
+        assert_eq!(std::fs::read(dir.join("satellite.mtl")).unwrap(), mtl);
+        // And tobj reads it back with every material named.
+        let (models, mats) = tobj::load_obj(dir.join("satellite.obj"), &tobj::GPU_LOAD_OPTIONS).unwrap();
+        let names: Vec<String> = mats.unwrap().into_iter().map(|m| m.name).collect();
+        assert_eq!(names, MATERIALS.map(String::from).to_vec());
+        let tris: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+        assert_eq!(tris, m.indices.len());
+    }
+}
