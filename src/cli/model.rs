@@ -33,6 +33,9 @@ pub struct SatelliteArgs {
     /// Target edge length of the folded MLI (m).
     #[arg(long, default_value_t = 0.02)]
     pub edge_m: f32,
+    /// Also write shaded orthographic previews (`<dir>/satellite_*.png`) into this directory.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
 }
 
 pub fn run(args: ModelArgs) -> anyhow::Result<()> {
@@ -65,6 +68,9 @@ fn write_satellite(a: SatelliteArgs) -> anyhow::Result<()> {
         let n = mesh.material.iter().filter(|&&x| x == m as u32).count();
         println!("  {name:12} {n:7} triangles");
     }
+    if let Some(dir) = &a.preview {
+        write_previews(&mesh, dir)?;
+    }
     // Fold statistics of the MLI on each bus side, against that side's normal.
     for (label, n) in [("+X", DVec3::X), ("+Y", DVec3::Y), ("-Y", -DVec3::Y), ("-Z", -DVec3::Z)] {
         let side = side_faces(&mesh, n);
@@ -90,4 +96,18 @@ fn side_faces(mesh: &crate::geometry::TriMesh, n: DVec3) -> crate::geometry::Tri
         .map(|t| mesh.indices[t])
         .collect::<Vec<_>>();
     crate::geometry::TriMesh { material: vec![MLI_GOLD; indices.len()], indices, positions: mesh.positions.clone() }
+}
+
+/// Oblique whole-satellite view and a close-up of the +X bus side, sun from +X+Y+Z.
+fn write_previews(mesh: &crate::geometry::TriMesh, dir: &std::path::Path) -> anyhow::Result<()> {
+    use crate::fold::preview::{View, preview_view};
+    use glam::Vec3;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let albedo = [0.9, 1.0, 0.35, 0.6, 1.0, 0.8];
+    let light = Vec3::new(0.8, 0.35, 0.5).normalize();
+    let whole = View { dir: Vec3::new(-1.0, -0.45, -0.35), up: Vec3::Z, centre: Vec3::ZERO, half: 5.0, light };
+    preview_view(mesh, whole, &albedo, 1024, &dir.join("satellite_whole.png"))?;
+    let bus = View { dir: Vec3::new(-1.0, -0.25, -0.2), up: Vec3::Z, centre: Vec3::new(0.0, 0.0, 0.2), half: 1.3, light };
+    preview_view(mesh, bus, &albedo, 1024, &dir.join("satellite_bus.png"))?;
+    Ok(())
 }
