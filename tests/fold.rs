@@ -45,8 +45,16 @@ fn generated_planes_hit_the_paper_levels_for_several_seeds() {
                 p.mesh.positions.len(),
                 p.mesh.indices.len()
             );
-            assert!((s.e_plane - target.e_plane).abs() <= 0.002, "{level:?} seed {seed}: E {}", s.e_plane);
-            assert!((s.var - target.var).abs() <= 0.001, "{level:?} seed {seed}: Var {}", s.var);
+            assert!(
+                (s.e_plane - target.e_plane).abs() <= 0.002,
+                "{level:?} seed {seed}: E {}",
+                s.e_plane
+            );
+            assert!(
+                (s.var - target.var).abs() <= 0.001,
+                "{level:?} seed {seed}: Var {}",
+                s.var
+            );
             assert_eq!(s.degenerate, 0);
             assert_clean(&p.mesh);
             let (v, t) = (p.mesh.positions.len() as f64, p.mesh.indices.len() as f64);
@@ -73,7 +81,10 @@ fn flat_plane_measures_one_and_zero() {
     assert_eq!(s.var, 0.0);
     assert_eq!(s.triangles, disk.indices.len());
     // Any scaling of the normal gives the same answer; the opposite normal gives −1.
-    assert_eq!(measure(&disk, DVec3::new(3.0, 0.0, 0.0)).unwrap().e_plane, 1.0);
+    assert_eq!(
+        measure(&disk, DVec3::new(3.0, 0.0, 0.0)).unwrap().e_plane,
+        1.0
+    );
     assert_eq!(measure(&disk, -DVec3::X).unwrap().e_plane, -1.0);
 }
 
@@ -117,8 +128,18 @@ fn corrugation_measures_its_analytic_mean_and_variance() {
     for (a, k) in [(0.02, 50.0), (0.03, 60.0), (0.01, 150.0)] {
         let (mean, var) = corrugation_truth(a * k);
         let s = measure(&corrugation_mesh(a, k, 20_000), DVec3::Z).unwrap();
-        assert!((s.e_plane - mean).abs() < 2e-5, "A k = {}: {} vs {mean}", a * k, s.e_plane);
-        assert!((s.var - var).abs() < 2e-5, "A k = {}: {} vs {var}", a * k, s.var);
+        assert!(
+            (s.e_plane - mean).abs() < 2e-5,
+            "A k = {}: {} vs {mean}",
+            a * k,
+            s.e_plane
+        );
+        assert!(
+            (s.var - var).abs() < 2e-5,
+            "A k = {}: {} vs {var}",
+            a * k,
+            s.var
+        );
         assert!(var > 1e-3, "the case must not be trivially flat");
     }
 }
@@ -129,10 +150,18 @@ fn box_mesh(size: Vec3, mat: impl Fn(usize) -> u32) -> TriMesh {
     let mut m = TriMesh::default();
     for i in 0..8 {
         let s = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
-        m.positions.push(Vec3::new(s(1) * h.x, s(2) * h.y, s(4) * h.z));
+        m.positions
+            .push(Vec3::new(s(1) * h.x, s(2) * h.y, s(4) * h.z));
     }
     // Faces as quads (outward CCW): -x, +x, -y, +y, -z, +z.
-    let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+    let quads = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
     for (f, q) in quads.iter().enumerate() {
         m.indices.push([q[0], q[1], q[2]]);
         m.indices.push([q[0], q[2], q[3]]);
@@ -147,7 +176,10 @@ fn wrap_folds_selected_faces_without_cracks_and_leaves_others_flat() {
     // Faces 0..4 are MLI (material 1), ±z are paint (material 0).
     let boxm = box_mesh(Vec3::new(0.6, 0.8, 1.0), |f| u32::from(f < 4));
     for t in 0..boxm.indices.len() {
-        assert!(boxm.face_normal_area2(t).dot(boxm.triangle(t)[0]) > 0.0, "outward winding");
+        assert!(
+            boxm.face_normal_area2(t).dot(boxm.triangle(t)[0]) > 0.0,
+            "outward winding"
+        );
     }
     let out = wrap_faces(&boxm, &[1], &params, 5, 0.02);
     assert_clean(&out);
@@ -156,7 +188,10 @@ fn wrap_folds_selected_faces_without_cracks_and_leaves_others_flat() {
     // paint faces (z = ±0.5): undisplaced, on the seam, and tiling its whole length.
     let uses = edge_uses(&out);
     let mli = TriMesh {
-        indices: (0..out.indices.len()).filter(|&t| out.material[t] == 1).map(|t| out.indices[t]).collect(),
+        indices: (0..out.indices.len())
+            .filter(|&t| out.material[t] == 1)
+            .map(|t| out.indices[t])
+            .collect(),
         ..out.clone()
     };
     let mut seam_len = 0.0f64;
@@ -166,15 +201,23 @@ fn wrap_folds_selected_faces_without_cracks_and_leaves_others_flat() {
         }
         assert_eq!(c, 1, "edge used {c} times");
         let (a, b) = (out.positions[p as usize], out.positions[q as usize]);
-        assert!(a.z.abs() == 0.5 && b.z == a.z, "open MLI edge off the seam: {a} {b}");
+        assert!(
+            a.z.abs() == 0.5 && b.z == a.z,
+            "open MLI edge off the seam: {a} {b}"
+        );
         let on_rim = |v: Vec3| (v.x.abs() - 0.3).abs() < 1e-6 || (v.y.abs() - 0.4).abs() < 1e-6;
         assert!(on_rim(a) && on_rim(b), "seam vertex moved: {a} {b}");
         seam_len += f64::from((a - b).length());
     }
-    assert!((seam_len - 2.0 * 2.8).abs() < 1e-4, "seam length {seam_len}");
+    assert!(
+        (seam_len - 2.0 * 2.8).abs() < 1e-4,
+        "seam length {seam_len}"
+    );
     assert!(uses.values().all(|&c| c <= 2));
     // Unselected faces are copied unchanged: two triangles each, at z = ±0.5 exactly.
-    let paint: Vec<usize> = (0..out.indices.len()).filter(|&t| out.material[t] == 0).collect();
+    let paint: Vec<usize> = (0..out.indices.len())
+        .filter(|&t| out.material[t] == 0)
+        .collect();
     assert_eq!(paint.len(), 4);
     for t in paint {
         assert!(out.triangle(t).iter().all(|p| p.z.abs() == 0.5));
@@ -229,7 +272,10 @@ fn wrapped_flat_panel_matches_the_plane_statistics_at_the_disk_resolution() {
     let out = wrap_faces(&panel, &[0], &plane.fit.params, 4, 0.016);
     let s = measure(&out, DVec3::X).unwrap();
     let t = FoldLevel::Medium.target();
-    println!("wrapped panel: E {:.4} Var {:.4} ({} triangles)", s.e_plane, s.var, s.triangles);
+    println!(
+        "wrapped panel: E {:.4} Var {:.4} ({} triangles)",
+        s.e_plane, s.var, s.triangles
+    );
     assert!((s.e_plane - t.e_plane).abs() < 0.01, "E {}", s.e_plane);
     assert!((s.var - t.var).abs() < 0.005, "Var {}", s.var);
 }
@@ -239,7 +285,10 @@ mod satellite {
     use hilcam::model::satellite::{self as sat, MATERIALS};
 
     fn medium() -> FoldParams {
-        fold::generate_plane(FoldLevel::Medium.target(), 1).unwrap().fit.params
+        fold::generate_plane(FoldLevel::Medium.target(), 1)
+            .unwrap()
+            .fit
+            .params
     }
 
     /// Möller–Trumbore, two-sided; true when the segment origin + t·dir (t > eps) hits.
@@ -267,8 +316,14 @@ mod satellite {
         }
         assert_clean(&m);
         // Bounds: the bus is 1 × 1 × 1.5 m about the origin, the wings span ±4.75 m in Y.
-        let (lo, hi) = m.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
-        assert!((hi.y - 4.75).abs() < 1e-3 && (lo.y + 4.75).abs() < 1e-3, "{lo} {hi}");
+        let (lo, hi) = m
+            .positions
+            .iter()
+            .fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+        assert!(
+            (hi.y - 4.75).abs() < 1e-3 && (lo.y + 4.75).abs() < 1e-3,
+            "{lo} {hi}"
+        );
     }
 
     #[test]
@@ -277,7 +332,10 @@ mod satellite {
         let m = sat::satellite(&medium(), 1, 0.02).unwrap();
         // Non-MLI geometry is copied unchanged (same triangles in the same order).
         let keep = |x: &TriMesh| -> Vec<[Vec3; 3]> {
-            (0..x.indices.len()).filter(|&t| x.material[t] != sat::MLI_GOLD).map(|t| x.triangle(t)).collect()
+            (0..x.indices.len())
+                .filter(|&t| x.material[t] != sat::MLI_GOLD)
+                .map(|t| x.triangle(t))
+                .collect()
         };
         assert_eq!(keep(&flat), keep(&m));
         // The +X bus side (no radiator, no boom): MLI triangles whose centroid is nearest +X.
@@ -288,10 +346,19 @@ mod satellite {
                 c.x > c.y.abs() && c.x > c.z.abs()
             })
             .collect();
-        let sub = TriMesh { indices: side.iter().map(|&t| m.indices[t]).collect(), material: vec![0; side.len()], ..m.clone() };
+        let sub = TriMesh {
+            indices: side.iter().map(|&t| m.indices[t]).collect(),
+            material: vec![0; side.len()],
+            ..m.clone()
+        };
         let s = measure(&sub, DVec3::X).unwrap();
         let t = FoldLevel::Medium.target();
-        assert!((s.e_plane - t.e_plane).abs() < 0.015 && (s.var - t.var).abs() < 0.004, "E {} Var {}", s.e_plane, s.var);
+        assert!(
+            (s.e_plane - t.e_plane).abs() < 0.015 && (s.var - t.var).abs() < 0.004,
+            "E {} Var {}",
+            s.e_plane,
+            s.var
+        );
     }
 
     #[test]
@@ -303,14 +370,26 @@ mod satellite {
             .collect();
         // Points on the +Y bus face, x < 0 half, away from the boom.
         let pts: Vec<Vec3> = (0..10)
-            .flat_map(|i| (0..10).map(move |j| Vec3::new(-0.45 + 0.04 * i as f32, 0.5005, -0.6 + 0.05 * j as f32)))
+            .flat_map(|i| {
+                (0..10).map(move |j| {
+                    Vec3::new(-0.45 + 0.04 * i as f32, 0.5005, -0.6 + 0.05 * j as f32)
+                })
+            })
             .filter(|p| p.z.abs() > 0.1)
             .collect();
-        let shaded = |sun: Vec3| pts.iter().filter(|&&p| wing.iter().any(|&tri| hits(p, sun, tri))).count();
+        let shaded = |sun: Vec3| {
+            pts.iter()
+                .filter(|&&p| wing.iter().any(|&tri| hits(p, sun, tri)))
+                .count()
+        };
         // Sun 72° from +X toward +Y: rays from x < −0.28 cross the wing plane over a panel.
         let low = shaded(Vec3::new(0.3, 0.95, 0.0).normalize());
         let high = shaded(Vec3::new(1.0, 0.2, 0.0).normalize());
-        assert!(low * 3 > pts.len(), "only {low} of {} points shaded", pts.len());
+        assert!(
+            low * 3 > pts.len(),
+            "only {low} of {} points shaded",
+            pts.len()
+        );
         assert_eq!(high, 0);
     }
 
@@ -318,18 +397,101 @@ mod satellite {
     fn shipped_model_regenerates_byte_identically() {
         let m = sat::satellite(&medium(), 1, 0.02).unwrap();
         let mut obj = Vec::new();
-        fold::obj::write_obj(&mut obj, &m, &MATERIALS, Some("satellite.mtl"), "jason_like").unwrap();
+        fold::obj::write_obj(
+            &mut obj,
+            &m,
+            &MATERIALS,
+            Some("satellite.mtl"),
+            "jason_like",
+        )
+        .unwrap();
         let mut mtl = Vec::new();
         fold::obj::write_mtl(&mut mtl, &sat::mtl_entries()).unwrap();
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/satellite");
         let shipped_obj = std::fs::read(dir.join("satellite.obj")).unwrap();
-        assert!(shipped_obj == obj, "scenes/satellite/satellite.obj differs from the generator's output");
+        assert!(
+            shipped_obj == obj,
+            "scenes/satellite/satellite.obj differs from the generator's output"
+        );
         assert_eq!(std::fs::read(dir.join("satellite.mtl")).unwrap(), mtl);
         // And tobj reads it back with every material named.
-        let (models, mats) = tobj::load_obj(dir.join("satellite.obj"), &tobj::GPU_LOAD_OPTIONS).unwrap();
+        let (models, mats) =
+            tobj::load_obj(dir.join("satellite.obj"), &tobj::GPU_LOAD_OPTIONS).unwrap();
         let names: Vec<String> = mats.unwrap().into_iter().map(|m| m.name).collect();
         assert_eq!(names, MATERIALS.map(String::from).to_vec());
         let tris: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
         assert_eq!(tris, m.indices.len());
     }
+}
+
+#[test]
+fn wrap_is_conforming_between_triangles_of_different_sizes() {
+    // A flat irregular fan in z = 0: triangles with very different edge lengths, so
+    // neighbours cut their shared edge from grids of different N.
+    let rim = [
+        (1.0, 0.0),
+        (0.3, 0.25),
+        (-0.2, 0.9),
+        (-0.7, -0.1),
+        (-0.05, -0.4),
+        (0.6, -0.55),
+    ];
+    let mut m = TriMesh::default();
+    m.positions.push(Vec3::new(0.05, 0.02, 0.0));
+    for (x, y) in rim {
+        m.positions.push(Vec3::new(x, y, 0.0));
+    }
+    for i in 0..rim.len() as u32 {
+        m.indices.push([0, 1 + i, 1 + (i + 1) % rim.len() as u32]);
+        m.material.push(3);
+    }
+    let out = wrap_faces(&m, &[3], &FoldParams::new(1.0, 0.9), 2, 0.013);
+    assert_clean(&out);
+    let mut boundary = 0.0f64;
+    for ((p, q), c) in edge_uses(&out) {
+        assert!(c == 1 || c == 2, "edge used {c} times");
+        if c == 1 {
+            // Open edges lie on the fan's rim (the rim is free film, so it may fold).
+            let (a, b) = (out.positions[p as usize], out.positions[q as usize]);
+            boundary += f64::from((a - b).truncate().length());
+        }
+    }
+    let rim_len: f64 = (0..rim.len())
+        .map(|i| {
+            let (a, b) = (rim[i], rim[(i + 1) % rim.len()]);
+            ((a.0 - b.0) as f64).hypot((a.1 - b.1) as f64)
+        })
+        .sum();
+    // Rim segments are cut at ≤ edge_m, so their projected length sums to the rim length.
+    assert!((boundary - rim_len).abs() < 1e-3, "{boundary} vs {rim_len}");
+    // Every vertex moved only along ±Z.
+    let disp = out
+        .positions
+        .iter()
+        .map(|p| p.z.abs())
+        .fold(0.0f32, f32::max);
+    assert!(disp > 0.005, "nothing folded");
+}
+
+#[test]
+fn custom_targets_fit_and_impossible_ones_are_refused() {
+    use hilcam::fold::{FoldError, FoldTarget};
+    for (e, v) in [(0.99, 0.002), (0.96, 0.012)] {
+        let p = fold::generate_plane(FoldTarget { e_plane: e, var: v }, 7).unwrap();
+        assert!(
+            (p.stats.e_plane - e).abs() <= 0.002 && (p.stats.var - v).abs() <= 0.001,
+            "{:?}",
+            p.stats
+        );
+    }
+    // Var can't exceed E(1 − E) for cosines in [0, 1].
+    let err = fold::generate_plane(
+        FoldTarget {
+            e_plane: 0.98,
+            var: 0.05,
+        },
+        1,
+    )
+    .unwrap_err();
+    assert!(matches!(err, FoldError::InfeasibleTarget { .. }), "{err}");
 }

@@ -107,7 +107,11 @@ fn measure(a: MeasureArgs) -> anyhow::Result<()> {
     let normal = parse_normal(&a.normal)?;
     let mesh = fold::obj::read_obj(&a.mesh)?;
     let stats = fold::measure(&mesh, normal)?;
-    println!("{} (normal {:?})", a.mesh.display(), normal.normalize().to_array());
+    println!(
+        "{} (normal {:?})",
+        a.mesh.display(),
+        normal.normalize().to_array()
+    );
     print!("{}", stats.report());
     if let Some(p) = &a.histogram_png {
         stats.histogram_png(p)?;

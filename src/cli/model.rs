@@ -72,10 +72,18 @@ fn write_satellite(a: SatelliteArgs) -> anyhow::Result<()> {
         write_previews(&mesh, dir)?;
     }
     // Fold statistics of the MLI on each bus side, against that side's normal.
-    for (label, n) in [("+X", DVec3::X), ("+Y", DVec3::Y), ("-Y", -DVec3::Y), ("-Z", -DVec3::Z)] {
+    for (label, n) in [
+        ("+X", DVec3::X),
+        ("+Y", DVec3::Y),
+        ("-Y", -DVec3::Y),
+        ("-Z", -DVec3::Z),
+    ] {
         let side = side_faces(&mesh, n);
         if let Ok(s) = measure(&side, n) {
-            println!("  MLI {label}: E_PLANE {:.4} Var {:.4} ({} triangles)", s.e_plane, s.var, s.triangles);
+            println!(
+                "  MLI {label}: E_PLANE {:.4} Var {:.4} ({} triangles)",
+                s.e_plane, s.var, s.triangles
+            );
         }
     }
     Ok(())
@@ -88,14 +96,22 @@ fn side_faces(mesh: &crate::geometry::TriMesh, n: DVec3) -> crate::geometry::Tri
     let indices = (0..mesh.indices.len())
         .filter(|&t| mesh.material[t] == MLI_GOLD)
         .filter(|&t| {
-            let c = mesh.triangle(t).iter().fold(DVec3::ZERO, |s, p| s + p.as_dvec3()) / 3.0;
+            let c = mesh
+                .triangle(t)
+                .iter()
+                .fold(DVec3::ZERO, |s, p| s + p.as_dvec3())
+                / 3.0;
             let r = c / half;
             let axis = r.abs().max_position();
             n[axis] != 0.0 && r[axis].signum() == n[axis].signum()
         })
         .map(|t| mesh.indices[t])
         .collect::<Vec<_>>();
-    crate::geometry::TriMesh { material: vec![MLI_GOLD; indices.len()], indices, positions: mesh.positions.clone() }
+    crate::geometry::TriMesh {
+        material: vec![MLI_GOLD; indices.len()],
+        indices,
+        positions: mesh.positions.clone(),
+    }
 }
 
 /// Oblique whole-satellite view and a close-up of the +X bus side, sun from +X+Y+Z.
@@ -105,9 +121,21 @@ fn write_previews(mesh: &crate::geometry::TriMesh, dir: &std::path::Path) -> any
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let albedo = [0.9, 1.0, 0.35, 0.6, 1.0, 0.8];
     let light = Vec3::new(0.8, 0.35, 0.5).normalize();
-    let whole = View { dir: Vec3::new(-1.0, -0.45, -0.35), up: Vec3::Z, centre: Vec3::ZERO, half: 5.0, light };
+    let whole = View {
+        dir: Vec3::new(-1.0, -0.45, -0.35),
+        up: Vec3::Z,
+        centre: Vec3::ZERO,
+        half: 5.0,
+        light,
+    };
     preview_view(mesh, whole, &albedo, 1024, &dir.join("satellite_whole.png"))?;
-    let bus = View { dir: Vec3::new(-1.0, -0.25, -0.2), up: Vec3::Z, centre: Vec3::new(0.0, 0.0, 0.2), half: 1.3, light };
+    let bus = View {
+        dir: Vec3::new(-1.0, -0.25, -0.2),
+        up: Vec3::Z,
+        centre: Vec3::new(0.0, 0.0, 0.2),
+        half: 1.3,
+        light,
+    };
     preview_view(mesh, bus, &albedo, 1024, &dir.join("satellite_bus.png"))?;
     Ok(())
 }

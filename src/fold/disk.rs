@@ -23,7 +23,11 @@ pub const RADIUS_M: f64 = 1.0;
 
 /// Vertices on ring `k` (ring 0 is the centre).
 fn ring_count(k: u32) -> u32 {
-    if k == 0 { 1 } else { ((ALPHA * f64::from(k)).round() as u32).max(3) }
+    if k == 0 {
+        1
+    } else {
+        ((ALPHA * f64::from(k)).round() as u32).max(3)
+    }
 }
 
 /// Angle of vertex `i` on ring `k` (radians, not wrapped).
@@ -54,10 +58,20 @@ pub fn reference_disk() -> TriMesh {
         indices.push([0, first[1] + i, first[1] + (i + 1) % m1]);
     }
     for k in 2..=RINGS {
-        zip_rings(k - 1, first[k as usize - 1], k, first[k as usize], &mut indices);
+        zip_rings(
+            k - 1,
+            first[k as usize - 1],
+            k,
+            first[k as usize],
+            &mut indices,
+        );
     }
     let material = vec![0; indices.len()];
-    TriMesh { positions, indices, material }
+    TriMesh {
+        positions,
+        indices,
+        material,
+    }
 }
 
 /// Triangulate the annulus between ring `a` (inner) and ring `b` (outer) by walking both
@@ -67,7 +81,9 @@ fn zip_rings(a: u32, fa: u32, b: u32, fb: u32, out: &mut Vec<[u32; 3]>) {
     let a0 = ring_angle(a, 0);
     // Outer start: the vertex at or just before the inner start angle.
     let step_b = TAU / f64::from(mb);
-    let j0 = ((a0 - ring_angle(b, 0)) / step_b).floor().rem_euclid(f64::from(mb)) as u32;
+    let j0 = ((a0 - ring_angle(b, 0)) / step_b)
+        .floor()
+        .rem_euclid(f64::from(mb)) as u32;
     let ang_b = |j: u32| {
         let base = ring_angle(b, j0);
         let base = base - TAU * ((base - a0) / TAU).ceil().max(0.0);
@@ -118,7 +134,10 @@ mod tests {
             area += 0.5 * f64::from(n.length());
         }
         // Inscribed polygon area ≈ π minus the boundary's chord loss (< 0.1 %).
-        assert!((area / std::f64::consts::PI - 1.0).abs() < 1e-3, "area {area}");
+        assert!(
+            (area / std::f64::consts::PI - 1.0).abs() < 1e-3,
+            "area {area}"
+        );
     }
 
     #[test]

@@ -129,7 +129,11 @@ impl FoldField {
     pub fn new(params: FoldParams, seed: u64) -> Result<Self, FoldError> {
         params.validate()?;
         let theta0 = PI * unit(mix64(seed ^ 0x5eed_f01d));
-        Ok(FoldField { params, seed, theta0 })
+        Ok(FoldField {
+            params,
+            seed,
+            theta0,
+        })
     }
 
     /// How strongly a crease of `rank` is present at the current density.
@@ -181,7 +185,11 @@ pub fn weight(density: f64, rank: f64) -> f64 {
 pub fn crease_at(seed: u64, theta0: f64, params: &FoldParams, i: i64, j: i64) -> Crease {
     let l = params.spacing_m;
     let key = mix64(seed ^ mix64((i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)))
-        ^ mix64((j as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f).wrapping_add(0x1234_5678));
+        ^ mix64(
+            (j as u64)
+                .wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+                .wrapping_add(0x1234_5678),
+        );
     let mut k = mix64(key);
     let mut next = || {
         k = mix64(k.wrapping_add(0x9e37_79b9_7f4a_7c15));

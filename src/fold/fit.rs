@@ -42,7 +42,14 @@ impl<'a> PlaneSampler<'a> {
         shape_params: FoldParams,
         seed: u64,
     ) -> Result<Self, FoldError> {
-        let field = FoldField::new(FoldParams { slope: 1.0, density: 1.0, ..shape_params }, seed)?;
+        let field = FoldField::new(
+            FoldParams {
+                slope: 1.0,
+                density: 1.0,
+                ..shape_params
+            },
+            seed,
+        )?;
         let mut index = std::collections::HashMap::new();
         let mut creases = Vec::new();
         let mut offsets = vec![0];
@@ -65,13 +72,22 @@ impl<'a> PlaneSampler<'a> {
             }
             offsets.push(entries.len());
         }
-        Ok(PlaneSampler { base, normal: normal.normalize(), creases, offsets, entries })
+        Ok(PlaneSampler {
+            base,
+            normal: normal.normalize(),
+            creases,
+            offsets,
+            entries,
+        })
     }
 
     /// Vertex heights for (slope, density), identical to `FoldField::height`.
     pub fn heights(&self, slope: f64, density: f64) -> Vec<f64> {
-        let w: Vec<f64> =
-            self.creases.iter().map(|&(rank, amp)| weight(density, rank) * amp).collect();
+        let w: Vec<f64> = self
+            .creases
+            .iter()
+            .map(|&(rank, amp)| weight(density, rank) * amp)
+            .collect();
         (0..self.base.positions.len())
             .map(|v| {
                 let e = &self.entries[self.offsets[v]..self.offsets[v + 1]];
@@ -90,7 +106,10 @@ impl<'a> PlaneSampler<'a> {
             .zip(heights)
             .map(|(p, &h)| (p.as_dvec3() + self.normal * h).as_vec3())
             .collect();
-        TriMesh { positions, ..self.base.clone() }
+        TriMesh {
+            positions,
+            ..self.base.clone()
+        }
     }
 
     /// (E_PLANE, Var) of the displaced mesh, computed in f64 without building it.
@@ -123,11 +142,15 @@ pub struct FitReport {
 /// Check that a target is one a height field can have: the cosines lie in (0, 1], so
 /// 0 < Var < E·(1 − E).
 pub fn check_target(t: FoldTarget) -> Result<(), FoldError> {
-    let ok = t.e_plane > 0.0 && t.e_plane < 1.0 && t.var > 0.0 && t.var < t.e_plane * (1.0 - t.e_plane);
+    let ok =
+        t.e_plane > 0.0 && t.e_plane < 1.0 && t.var > 0.0 && t.var < t.e_plane * (1.0 - t.e_plane);
     if ok {
         Ok(())
     } else {
-        Err(FoldError::InfeasibleTarget { e_plane: t.e_plane, var: t.var })
+        Err(FoldError::InfeasibleTarget {
+            e_plane: t.e_plane,
+            var: t.var,
+        })
     }
 }
 
@@ -146,10 +169,19 @@ pub fn fit_params(
     // Residuals scaled by the tolerances so both constraints weigh alike.
     let resid = |x: [f64; 2]| {
         let (e, v) = sampler.stats(x[0].exp(), x[1]);
-        ([(e - target.e_plane) / TOL_E, (v - target.var) / TOL_VAR], e, v)
+        (
+            [(e - target.e_plane) / TOL_E, (v - target.var) / TOL_VAR],
+            e,
+            v,
+        )
     };
     let norm = |r: [f64; 2]| r[0].hypot(r[1]);
-    let clamp = |x: [f64; 2]| [x[0].clamp(0.05f64.ln(), 10f64.ln()), x[1].clamp(0.0, 1.0 + super::field::FADE)];
+    let clamp = |x: [f64; 2]| {
+        [
+            x[0].clamp(0.05f64.ln(), 10f64.ln()),
+            x[1].clamp(0.0, 1.0 + super::field::FADE),
+        ]
+    };
 
     // Start from a two-point model: a share p of triangles tilted to cosine c0, the rest
     // flat, gives Var/(1−E) + (1−E) ≈ 1 − c0 and p ≈ (1−E)/(1−c0).
@@ -196,12 +228,23 @@ pub fn fit_params(
             }
             lambda *= 0.5;
         }
-        tracing::debug!(iterations, slope = x[0].exp(), density = x[1], e, v, "fold fit step");
+        tracing::debug!(
+            iterations,
+            slope = x[0].exp(),
+            density = x[1],
+            e,
+            v,
+            "fold fit step"
+        );
         if !accepted {
             break;
         }
     }
-    let params = FoldParams { slope: x[0].exp(), density: x[1], ..shape_params };
+    let params = FoldParams {
+        slope: x[0].exp(),
+        density: x[1],
+        ..shape_params
+    };
     if r[0].abs() > 1.0 || r[1].abs() > 1.0 {
         return Err(FoldError::FitFailed {
             seed,
@@ -212,5 +255,10 @@ pub fn fit_params(
             iterations,
         });
     }
-    Ok(FitReport { params, e_plane: e, var: v, iterations })
+    Ok(FitReport {
+        params,
+        e_plane: e,
+        var: v,
+        iterations,
+    })
 }

@@ -72,7 +72,10 @@ pub fn measure(mesh: &TriMesh, normal: DVec3) -> Result<FoldStats, FoldError> {
         return Err(FoldError::EmptyMesh);
     }
     if degenerate > 0 {
-        tracing::warn!(degenerate, "fold measure: skipped triangles without a normal");
+        tracing::warn!(
+            degenerate,
+            "fold measure: skipped triangles without a normal"
+        );
     }
     let (e_plane, var) = mean_var(&cos);
     let mut histogram = [0; HIST_BINS];
@@ -159,7 +162,11 @@ mod tests {
             material: vec![0],
         };
         let s = measure(&mesh, DVec3::X).unwrap();
-        assert!((s.e_plane - f64::from(a).cos()).abs() < 1e-6, "{}", s.e_plane);
+        assert!(
+            (s.e_plane - f64::from(a).cos()).abs() < 1e-6,
+            "{}",
+            s.e_plane
+        );
         assert_eq!(s.var, 0.0);
     }
 

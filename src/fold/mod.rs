@@ -30,7 +30,6 @@ pub use generate::{FoldPlane, generate_plane};
 pub use measure::{FoldStats, measure};
 pub use wrap::{WrapReport, wrap_faces, wrap_faces_report};
 
-
 use std::str::FromStr;
 
 /// A fold-statistics target: `E_PLANE` (mean cosine) and `Var` (its variance).
@@ -54,9 +53,18 @@ impl FoldLevel {
     /// The paper's `E_PLANE` and `Var` for this level (§3.1, Fig. 4).
     pub fn target(self) -> FoldTarget {
         match self {
-            FoldLevel::Slight => FoldTarget { e_plane: 0.9803, var: 0.0046 },
-            FoldLevel::Medium => FoldTarget { e_plane: 0.9680, var: 0.0077 },
-            FoldLevel::Severe => FoldTarget { e_plane: 0.9435, var: 0.0124 },
+            FoldLevel::Slight => FoldTarget {
+                e_plane: 0.9803,
+                var: 0.0046,
+            },
+            FoldLevel::Medium => FoldTarget {
+                e_plane: 0.9680,
+                var: 0.0077,
+            },
+            FoldLevel::Severe => FoldTarget {
+                e_plane: 0.9435,
+                var: 0.0124,
+            },
         }
     }
 

@@ -29,7 +29,12 @@ pub fn write_obj<W: Write>(
     mtllib: Option<&str>,
     object: &str,
 ) -> std::io::Result<()> {
-    writeln!(w, "# hilcam OBJ: {} vertices, {} triangles", mesh.positions.len(), mesh.indices.len())?;
+    writeln!(
+        w,
+        "# hilcam OBJ: {} vertices, {} triangles",
+        mesh.positions.len(),
+        mesh.indices.len()
+    )?;
     if let Some(lib) = mtllib {
         writeln!(w, "mtllib {lib}")?;
     }
@@ -56,12 +61,19 @@ pub fn write_obj<W: Write>(
 /// Fixed 6 decimals, with negative zero written as zero.
 fn fmt(x: f32) -> String {
     let s = format!("{x:.6}");
-    if s == "-0.000000" { "0.000000".to_string() } else { s }
+    if s == "-0.000000" {
+        "0.000000".to_string()
+    } else {
+        s
+    }
 }
 
 /// Write an MTL file body.
 pub fn write_mtl<W: Write>(w: &mut W, materials: &[MtlEntry]) -> std::io::Result<()> {
-    writeln!(w, "# hilcam MTL: colours for viewers; BRDFs are assigned by name in the scene")?;
+    writeln!(
+        w,
+        "# hilcam MTL: colours for viewers; BRDFs are assigned by name in the scene"
+    )?;
     for m in materials {
         writeln!(w)?;
         if !m.comment.is_empty() {
@@ -77,7 +89,10 @@ pub fn write_mtl<W: Write>(w: &mut W, materials: &[MtlEntry]) -> std::io::Result
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FoldError + '_ {
-    move |source| FoldError::Io { path: path.display().to_string(), source }
+    move |source| FoldError::Io {
+        path: path.display().to_string(),
+        source,
+    }
 }
 
 /// Write an OBJ file (buffered).
@@ -105,8 +120,11 @@ pub fn write_mtl_file(path: &Path, materials: &[MtlEntry]) -> Result<(), FoldErr
 /// Read an OBJ (all models merged; material index = tobj's material id, or 0) with tobj.
 /// Materials are not needed for measuring, so a missing MTL is not an error.
 pub fn read_obj(path: &Path) -> Result<TriMesh, FoldError> {
-    let (models, _materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS)
-        .map_err(|source| FoldError::Obj { path: path.display().to_string(), source })?;
+    let (models, _materials) =
+        tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|source| FoldError::Obj {
+            path: path.display().to_string(),
+            source,
+        })?;
     let mut mesh = TriMesh::default();
     for m in models {
         let part = TriMesh {
@@ -116,7 +134,12 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, FoldError> {
                 .chunks_exact(3)
                 .map(|c| Vec3::new(c[0], c[1], c[2]))
                 .collect(),
-            indices: m.mesh.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            indices: m
+                .mesh
+                .indices
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
             material: vec![m.mesh.material_id.unwrap_or(0) as u32; m.mesh.indices.len() / 3],
         };
         mesh.append(&part);

@@ -59,7 +59,10 @@ pub fn preview_view(
         let n = super::measure::normal_f64(mesh, i).normalize_or_zero();
         let n = if n.dot(d.as_dvec3()) > 0.0 { -n } else { n }; // two-sided
         let lit = n.dot(view.light.as_dvec3()).max(0.0);
-        let a = albedo.get(mesh.material[i] as usize).copied().unwrap_or(1.0);
+        let a = albedo
+            .get(mesh.material[i] as usize)
+            .copied()
+            .unwrap_or(1.0);
         let v = (255.0 * (0.12 + 0.88 * lit) * f64::from(a)).min(255.0) as u8;
         let p = t.map(|k| to_px(mesh.positions[k as usize]));
         rasterise(p, size, |x, y, z| {
@@ -84,14 +87,23 @@ fn rasterise(p: [Vec3; 3], size: u32, mut visit: impl FnMut(u32, u32, f32)) {
         return;
     }
     let lo = p[0].min(p[1]).min(p[2]).floor().max(Vec3::ZERO);
-    let hi = p[0].max(p[1]).max(p[2]).ceil().min(Vec3::splat(size as f32 - 1.0));
+    let hi = p[0]
+        .max(p[1])
+        .max(p[2])
+        .ceil()
+        .min(Vec3::splat(size as f32 - 1.0));
     if lo.x > hi.x || lo.y > hi.y {
         return;
     }
     for y in lo.y as u32..=hi.y as u32 {
         for x in lo.x as u32..=hi.x as u32 {
             let (cx, cy) = (x as f32 + 0.5, y as f32 + 0.5);
-            let w = [edge(p[1], p[2], cx, cy), edge(p[2], p[0], cx, cy), edge(p[0], p[1], cx, cy)].map(|w| w / area);
+            let w = [
+                edge(p[1], p[2], cx, cy),
+                edge(p[2], p[0], cx, cy),
+                edge(p[0], p[1], cx, cy),
+            ]
+            .map(|w| w / area);
             if w.iter().all(|&w| w >= 0.0) {
                 visit(x, y, w[0] * p[0].z + w[1] * p[1].z + w[2] * p[2].z);
             }
@@ -103,4 +115,3 @@ fn rasterise(p: [Vec3; 3], size: u32, mut visit: impl FnMut(u32, u32, f32)) {
 pub fn preview_png(mesh: &TriMesh, size: u32, path: &std::path::Path) -> Result<(), FoldError> {
     preview_view(mesh, View::fold_plane(), &[], size, path)
 }
-

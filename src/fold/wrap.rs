@@ -83,7 +83,11 @@ pub fn wrap_faces_report(
         tracing::error!(edge_m, "wrap: edge_m must be > 0, mesh left unfolded");
         return (mesh.clone(), report);
     }
-    let selected: Vec<bool> = mesh.material.iter().map(|m| materials.contains(m)).collect();
+    let selected: Vec<bool> = mesh
+        .material
+        .iter()
+        .map(|m| materials.contains(m))
+        .collect();
     report.selected_triangles = selected.iter().filter(|&&s| s).count();
 
     // 1. Weld by exact position.
@@ -92,7 +96,11 @@ pub fn wrap_faces_report(
         .positions
         .iter()
         .enumerate()
-        .map(|(i, p)| *by_pos.entry(p.to_array().map(f32::to_bits)).or_insert(i as u32))
+        .map(|(i, p)| {
+            *by_pos
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert(i as u32)
+        })
         .collect();
     let tri = |t: usize| mesh.indices[t].map(|v| canon[v as usize]);
     let pos = |v: u32| mesh.positions[v as usize].as_dvec3();
@@ -107,7 +115,7 @@ pub fn wrap_faces_report(
         }
         let [a, b, c] = tri(t).map(pos);
         let n = (b - a).cross(c - a);
-        if !(n.length() > 0.0) {
+        if n.length() <= 0.0 || !n.is_finite() {
             continue; // degenerate: copied through below
         }
         let n = n.normalize();
@@ -149,12 +157,19 @@ pub fn wrap_faces_report(
         p0.is_some() && ts.iter().all(|&t| plane_of[t] == p0)
     };
     let mut pinned_vertex: HashMap<u32, bool> = HashMap::new();
-    let mut pinned_edges: Vec<(u32, u32)> = edge_tris.keys().copied().filter(|e| !edge_free(e)).collect();
+    let mut pinned_edges: Vec<(u32, u32)> = edge_tris
+        .keys()
+        .copied()
+        .filter(|e| !edge_free(e))
+        .collect();
     pinned_edges.sort_unstable(); // deterministic order for the taper lists
     for &(p, q) in &pinned_edges {
         pinned_vertex.insert(p, true);
         pinned_vertex.insert(q, true);
-        let mut ps: Vec<usize> = edge_tris[&(p, q)].iter().filter_map(|&t| plane_of[t]).collect();
+        let mut ps: Vec<usize> = edge_tris[&(p, q)]
+            .iter()
+            .filter_map(|&t| plane_of[t])
+            .collect();
         ps.dedup();
         for id in ps {
             planes[id].pinned.push((pos(p), pos(q)));
@@ -162,15 +177,18 @@ pub fn wrap_faces_report(
     }
     // Vertices touched by an unselected triangle, or by two planes, stay put as well.
     let mut vertex_plane: HashMap<u32, Option<usize>> = HashMap::new();
-    for t in 0..mesh.indices.len() {
+    for (t, &pl) in plane_of.iter().enumerate() {
         for v in tri(t) {
-            let prev = *vertex_plane.entry(v).or_insert(plane_of[t]);
-            if plane_of[t].is_none() || prev != plane_of[t] {
+            let prev = *vertex_plane.entry(v).or_insert(pl);
+            if pl.is_none() || prev != pl {
                 pinned_vertex.insert(v, true);
             }
         }
     }
-    report.pinned_edges = pinned_edges.iter().filter(|e| edge_tris[e].iter().any(|&t| selected[t])).count();
+    report.pinned_edges = pinned_edges
+        .iter()
+        .filter(|e| edge_tris[e].iter().any(|&t| selected[t]))
+        .count();
     for p in &mut planes {
         p.pinned.dedup();
         if p.pinned.len() > MAX_TAPER_EDGES {
@@ -178,16 +196,23 @@ pub fn wrap_faces_report(
         }
     }
     if report.untapered_planes > 0 {
-        tracing::warn!(planes = report.untapered_planes, "wrap: planes with too many pinned edges fold without taper");
+        tracing::warn!(
+            planes = report.untapered_planes,
+            "wrap: planes with too many pinned edges fold without taper"
+        );
     }
 
     // 3–4. Subdivide and displace.
-    let mut out = TriMesh { positions: mesh.positions.clone(), indices: Vec::new(), material: Vec::new() };
+    let mut out = TriMesh {
+        positions: mesh.positions.clone(),
+        indices: Vec::new(),
+        material: Vec::new(),
+    };
     let mut vkey: HashMap<VKey, u32> = HashMap::new();
     let taper_len = TAPER_WIDTHS * params.width_m;
     let seg = |p: u32, q: u32| ((pos(p).distance(pos(q)) / f64::from(edge_m)).ceil() as u32).max(1);
-    for t in 0..mesh.indices.len() {
-        let Some(pid) = plane_of[t] else {
+    for (t, &pl) in plane_of.iter().enumerate() {
+        let Some(pid) = pl else {
             out.indices.push(mesh.indices[t]);
             out.material.push(mesh.material[t]);
             continue;
@@ -210,11 +235,21 @@ pub fn wrap_faces_report(
                     (pos(a) * (1.0 - s) + pos(b) * s, !edge_free(&(a, b)))
                 }
                 VKey::Inner(..) => {
-                    let (u, w) = (f64::from(i) / f64::from(n_grid), f64::from(j) / f64::from(n_grid));
-                    (corners[0] * (1.0 - u - w) + corners[1] * u + corners[2] * w, false)
+                    let (u, w) = (
+                        f64::from(i) / f64::from(n_grid),
+                        f64::from(j) / f64::from(n_grid),
+                    );
+                    (
+                        corners[0] * (1.0 - u - w) + corners[1] * u + corners[2] * w,
+                        false,
+                    )
                 }
             };
-            let h = if pinned { 0.0 } else { height(plane, p, taper_len) };
+            let h = if pinned {
+                0.0
+            } else {
+                height(plane, p, taper_len)
+            };
             let id = match (key, pinned) {
                 (VKey::Corner(c), true) => c, // unmoved: share with unselected neighbours
                 _ => {
@@ -274,7 +309,11 @@ fn grid_key(v: [u32; 3], counts: [u32; 3], n: u32, i: u32, j: u32) -> VKey {
         } else {
             c - (f64::from(n - f) * f64::from(c) / f64::from(n) - 0.5).ceil() as u32
         };
-        let (a, b, k) = if from < to { (from, to, k) } else { (to, from, c - k) };
+        let (a, b, k) = if from < to {
+            (from, to, k)
+        } else {
+            (to, from, c - k)
+        };
         if k == 0 {
             VKey::Corner(a)
         } else if k == c {
@@ -297,7 +336,10 @@ fn grid_key(v: [u32; 3], counts: [u32; 3], n: u32, i: u32, j: u32) -> VKey {
 /// Field height at flat point `p` of a plane, faded near its pinned edges.
 fn height(plane: &Plane, p: DVec3, taper_len: f64) -> f64 {
     let q = p.as_vec3();
-    let uv = DVec2::new(f64::from(q.dot(plane.frame.t)), f64::from(q.dot(plane.frame.b)));
+    let uv = DVec2::new(
+        f64::from(q.dot(plane.frame.t)),
+        f64::from(q.dot(plane.frame.b)),
+    );
     let h = plane.field.height(uv);
     if h == 0.0 || plane.pinned.len() > MAX_TAPER_EDGES {
         return h;
@@ -332,6 +374,14 @@ fn compact(mesh: TriMesh) -> TriMesh {
             positions.push(mesh.positions[i]);
         }
     }
-    let indices = mesh.indices.iter().map(|t| t.map(|v| remap[v as usize])).collect();
-    TriMesh { positions, indices, material: mesh.material }
+    let indices = mesh
+        .indices
+        .iter()
+        .map(|t| t.map(|v| remap[v as usize]))
+        .collect();
+    TriMesh {
+        positions,
+        indices,
+        material: mesh.material,
+    }
 }

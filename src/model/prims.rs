@@ -14,12 +14,18 @@ pub struct Place {
 
 impl Place {
     pub fn at(at: Vec3) -> Self {
-        Place { rot: Mat3::IDENTITY, at }
+        Place {
+            rot: Mat3::IDENTITY,
+            at,
+        }
     }
     /// Local +Z mapped onto `axis` (unit), with `at` as origin.
     pub fn along(axis: Vec3, at: Vec3) -> Self {
         let f = crate::sampling::Frame::from_normal(axis.normalize());
-        Place { rot: Mat3::from_cols(f.t, f.b, f.n), at }
+        Place {
+            rot: Mat3::from_cols(f.t, f.b, f.n),
+            at,
+        }
     }
     pub fn apply(&self, p: Vec3) -> Vec3 {
         self.rot * p + self.at
@@ -38,8 +44,10 @@ pub fn quad_grid(m: &mut TriMesh, corner: Vec3, u: Vec3, v: Vec3, nu: u32, nv: u
     let idx = |i: u32, j: u32| base + j * (nu + 1) + i;
     for j in 0..nv {
         for i in 0..nu {
-            m.indices.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
-            m.indices.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
+            m.indices
+                .push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
+            m.indices
+                .push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
             m.material.extend([mat, mat]);
         }
     }
@@ -51,9 +59,17 @@ pub fn cuboid(m: &mut TriMesh, place: Place, half: Vec3, mat: impl Fn(usize) -> 
     let base = m.positions.len() as u32;
     for i in 0..8u32 {
         let s = |b: u32| if i & b != 0 { 1.0 } else { -1.0 };
-        m.positions.push(place.apply(Vec3::new(s(1) * half.x, s(2) * half.y, s(4) * half.z)));
+        m.positions
+            .push(place.apply(Vec3::new(s(1) * half.x, s(2) * half.y, s(4) * half.z)));
     }
-    let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+    let quads = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
     for (f, q) in quads.iter().enumerate() {
         m.indices.push([base + q[0], base + q[1], base + q[2]]);
         m.indices.push([base + q[0], base + q[2], base + q[3]]);
@@ -64,21 +80,34 @@ pub fn cuboid(m: &mut TriMesh, place: Place, half: Vec3, mat: impl Fn(usize) -> 
 /// A cylinder (or cone frustum) along local +Z from z = 0 to `len`, radii `r0` → `r1`,
 /// `seg` around, `rings` along, with end caps when `caps`.
 #[allow(clippy::too_many_arguments)]
-pub fn cylinder(m: &mut TriMesh, place: Place, r0: f32, r1: f32, len: f32, seg: u32, rings: u32, caps: bool, mat: u32) {
+pub fn cylinder(
+    m: &mut TriMesh,
+    place: Place,
+    r0: f32,
+    r1: f32,
+    len: f32,
+    seg: u32,
+    rings: u32,
+    caps: bool,
+    mat: u32,
+) {
     let base = m.positions.len() as u32;
     for j in 0..=rings {
         let t = j as f32 / rings as f32;
         let r = r0 + (r1 - r0) * t;
         for i in 0..seg {
             let a = TAU * i as f32 / seg as f32;
-            m.positions.push(place.apply(Vec3::new(r * a.cos(), r * a.sin(), len * t)));
+            m.positions
+                .push(place.apply(Vec3::new(r * a.cos(), r * a.sin(), len * t)));
         }
     }
     let idx = |i: u32, j: u32| base + j * seg + i % seg;
     for j in 0..rings {
         for i in 0..seg {
-            m.indices.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
-            m.indices.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
+            m.indices
+                .push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
+            m.indices
+                .push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
             m.material.extend([mat, mat]);
         }
     }
@@ -87,7 +116,11 @@ pub fn cylinder(m: &mut TriMesh, place: Place, r0: f32, r1: f32, len: f32, seg: 
             let c = m.positions.len() as u32;
             m.positions.push(place.apply(Vec3::new(0.0, 0.0, z)));
             for i in 0..seg {
-                let t = if flip { [c, idx(i + 1, j), idx(i, j)] } else { [c, idx(i, j), idx(i + 1, j)] };
+                let t = if flip {
+                    [c, idx(i + 1, j), idx(i, j)]
+                } else {
+                    [c, idx(i, j), idx(i + 1, j)]
+                };
                 m.indices.push(t);
                 m.material.push(mat);
             }
@@ -97,19 +130,41 @@ pub fn cylinder(m: &mut TriMesh, place: Place, r0: f32, r1: f32, len: f32, seg: 
 
 /// A cylinder between two points.
 pub fn strut(m: &mut TriMesh, a: Vec3, b: Vec3, r: f32, seg: u32, rings: u32, mat: u32) {
-    cylinder(m, Place::along(b - a, a), r, r, (b - a).length(), seg, rings, true, mat);
+    cylinder(
+        m,
+        Place::along(b - a, a),
+        r,
+        r,
+        (b - a).length(),
+        seg,
+        rings,
+        true,
+        mat,
+    );
 }
 
 /// A paraboloid dish z = ρ²/(4f), aperture `diameter`, opening toward local +Z (normals
 /// +Z-ward), as one thin two-sided sheet: `radial` rings × `angular` segments.
-pub fn dish(m: &mut TriMesh, place: Place, diameter: f32, focal: f32, radial: u32, angular: u32, mat: u32) {
+pub fn dish(
+    m: &mut TriMesh,
+    place: Place,
+    diameter: f32,
+    focal: f32,
+    radial: u32,
+    angular: u32,
+    mat: u32,
+) {
     let base = m.positions.len() as u32;
     m.positions.push(place.apply(Vec3::ZERO));
     for j in 1..=radial {
         let rho = 0.5 * diameter * j as f32 / radial as f32;
         for i in 0..angular {
             let a = TAU * i as f32 / angular as f32;
-            m.positions.push(place.apply(Vec3::new(rho * a.cos(), rho * a.sin(), rho * rho / (4.0 * focal))));
+            m.positions.push(place.apply(Vec3::new(
+                rho * a.cos(),
+                rho * a.sin(),
+                rho * rho / (4.0 * focal),
+            )));
         }
     }
     let ring = |j: u32, i: u32| base + 1 + (j - 1) * angular + i % angular;
@@ -119,8 +174,10 @@ pub fn dish(m: &mut TriMesh, place: Place, diameter: f32, focal: f32, radial: u3
     }
     for j in 1..radial {
         for i in 0..angular {
-            m.indices.push([ring(j, i), ring(j + 1, i), ring(j + 1, i + 1)]);
-            m.indices.push([ring(j, i), ring(j + 1, i + 1), ring(j, i + 1)]);
+            m.indices
+                .push([ring(j, i), ring(j + 1, i), ring(j + 1, i + 1)]);
+            m.indices
+                .push([ring(j, i), ring(j + 1, i + 1), ring(j, i + 1)]);
             m.material.extend([mat, mat]);
         }
     }
