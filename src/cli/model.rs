@@ -27,7 +27,7 @@ pub struct SatelliteArgs {
     /// Fold level of the MLI: slight, medium, severe, or none.
     #[arg(long, default_value = "medium")]
     pub level: String,
-    /// Fold seed (the fold parameters are fitted on the reference plane with this seed).
+    /// Fold seed (the fold parameters are fitted at --edge-m on a reference panel with it).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Target edge length of the folded MLI (m).
@@ -49,8 +49,12 @@ fn write_satellite(a: SatelliteArgs) -> anyhow::Result<()> {
         satellite::satellite_flat()
     } else {
         let level: FoldLevel = a.level.parse()?;
-        let plane = fold::generate_plane(level.target(), a.seed)?;
-        satellite::satellite(&plane.fit.params, a.seed, a.edge_m)?
+        let fit = fold::fit_for_edge(level.target(), a.seed, a.edge_m)?;
+        println!(
+            "fold params fitted at edge {} m: {:?}",
+            a.edge_m, fit.params
+        );
+        satellite::satellite(&fit.params, a.seed, a.edge_m)?
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let obj = a.out.join("satellite.obj");

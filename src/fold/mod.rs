@@ -26,7 +26,7 @@ pub mod wrap;
 
 pub use field::{FoldField, FoldParams};
 pub use fit::{FitReport, fit_params};
-pub use generate::{FoldPlane, generate_plane};
+pub use generate::{FoldPlane, fit_for_edge, generate_plane};
 pub use measure::{FoldStats, measure};
 pub use wrap::{WrapReport, wrap_faces, wrap_faces_report};
 

@@ -127,9 +127,13 @@ pub fn wrap_faces_report(
         ];
         let id = *plane_key.entry(key).or_insert_with(|| {
             let h = key.iter().fold(seed, |h, &k| mix64(h ^ k as u64));
-            let frame = Frame::from_normal(n.as_vec3());
+            // Chart and displacement from the quantised normal: independent of which
+            // triangle comes first and free of −0.0 (which flips `Frame::from_normal`).
+            let nq = (DVec3::new(key[0] as f64, key[1] as f64, key[2] as f64) * 1e-5).normalize()
+                + DVec3::ZERO;
+            let frame = Frame::from_normal(nq.as_vec3());
             planes.push(Plane {
-                normal: n,
+                normal: nq,
                 frame,
                 field: FoldField::new(*params, h).expect("validated above"),
                 pinned: Vec::new(),
