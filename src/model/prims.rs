@@ -182,3 +182,72 @@ pub fn dish(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    fn edge_uses(m: &TriMesh) -> HashMap<(u32, u32), u32> {
+        let mut e = HashMap::new();
+        for t in &m.indices {
+            for k in 0..3 {
+                let (p, q) = (t[k], t[(k + 1) % 3]);
+                *e.entry((p.min(q), p.max(q))).or_insert(0) += 1;
+            }
+        }
+        e
+    }
+
+    #[test]
+    fn capped_cylinder_is_closed_and_outward() {
+        let mut m = TriMesh::default();
+        cylinder(&mut m, Place::at(Vec3::ZERO), 0.5, 0.3, 2.0, 24, 5, true, 0);
+        assert!(edge_uses(&m).values().all(|&c| c == 2));
+        // Outward: the signed volume (divergence theorem) is positive and matches the
+        // frustum's, up to the polygon's inscribed-area factor.
+        let vol: f32 = (0..m.indices.len())
+            .map(|i| {
+                let [a, b, c] = m.triangle(i);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        let poly = 24.0 / (2.0 * std::f32::consts::PI) * (TAU / 24.0).sin();
+        let exact = std::f32::consts::PI / 3.0 * 2.0 * (0.25 + 0.15 + 0.09) * poly;
+        assert!(
+            (vol - exact).abs() < 1e-4 * exact.abs().max(1.0),
+            "{vol} vs {exact}"
+        );
+    }
+
+    #[test]
+    fn dish_faces_its_opening_and_lies_on_the_paraboloid() {
+        let mut m = TriMesh::default();
+        dish(&mut m, Place::at(Vec3::ZERO), 1.2, 0.45, 10, 32, 0);
+        for i in 0..m.indices.len() {
+            assert!(m.face_normal_area2(i).z > 0.0, "triangle {i}");
+        }
+        for p in &m.positions {
+            let rho2 = p.x * p.x + p.y * p.y;
+            assert!((p.z - rho2 / 1.8).abs() < 1e-6);
+        }
+        assert_eq!(m.indices.len(), 32 + 2 * 9 * 32);
+    }
+
+    #[test]
+    fn cuboid_is_closed_with_outward_faces() {
+        let mut m = TriMesh::default();
+        cuboid(
+            &mut m,
+            Place::at(Vec3::new(1.0, 2.0, 3.0)),
+            Vec3::new(0.1, 0.2, 0.3),
+            |f| f as u32,
+        );
+        assert!(edge_uses(&m).values().all(|&c| c == 2));
+        for i in 0..12 {
+            let [a, ..] = m.triangle(i);
+            let n = m.face_normal_area2(i);
+            assert!(n.dot(a - Vec3::new(1.0, 2.0, 3.0)) > 0.0);
+        }
+    }
+}
