@@ -539,3 +539,67 @@ fn fitting_at_the_wrap_edge_length_hits_the_level_on_a_wrapped_panel() {
         );
     }
 }
+
+#[test]
+fn cli_generate_then_measure_round_trips_the_statistics() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("plane.obj");
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
+            .args(["--log", "warn"])
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    run(&[
+        "fold",
+        "generate",
+        "--level",
+        "severe",
+        "--seed",
+        "4",
+        "--out",
+        obj.to_str().unwrap(),
+    ]);
+    let text = run(&[
+        "fold",
+        "measure",
+        obj.to_str().unwrap(),
+        "--normal",
+        "2,0,0",
+    ]);
+    let value = |key: &str| -> f64 {
+        let line = text.lines().find(|l| l.starts_with(key)).unwrap();
+        line.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    // The OBJ keeps 6 decimals, so the re-read statistics match the level to 4 decimals.
+    assert!((value("E_PLANE") - 0.9435).abs() <= 0.002, "{text}");
+    assert!((value("Var") - 0.0124).abs() <= 0.001, "{text}");
+    assert_eq!(
+        value("triangles") as usize,
+        fold::disk::reference_disk().indices.len()
+    );
+    assert!(text.contains("normal angle histogram"));
+    // Bad input is an error naming the problem, not a panic.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
+        .args([
+            "fold",
+            "generate",
+            "--e-plane",
+            "0.98",
+            "--var",
+            "0.05",
+            "--out",
+        ])
+        .arg(dir.path().join("x.obj"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("outside what a height field can have"));
+}
