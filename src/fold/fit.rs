@@ -228,6 +228,37 @@ pub fn fit_params(
             }
             lambda *= 0.5;
         }
+        // Newton failed to descend (a kink where creases fade in, or a poor start):
+        // Levenberg–Marquardt steps, (JᵀJ + μ·diag JᵀJ) δ = −Jᵀr, with growing μ.
+        if !accepted {
+            let a = [
+                jac[0][0] * jac[0][0] + jac[1][0] * jac[1][0],
+                jac[0][0] * jac[0][1] + jac[1][0] * jac[1][1],
+                jac[0][1] * jac[0][1] + jac[1][1] * jac[1][1],
+            ];
+            let g = [
+                jac[0][0] * r[0] + jac[1][0] * r[1],
+                jac[0][1] * r[0] + jac[1][1] * r[1],
+            ];
+            for mu in [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4] {
+                let (d0, d1) = (a[0] * (1.0 + mu), a[2] * (1.0 + mu));
+                let det = d0 * d1 - a[1] * a[1];
+                if det.abs() < 1e-300 {
+                    continue;
+                }
+                let dx = [
+                    -(d1 * g[0] - a[1] * g[1]) / det,
+                    -(d0 * g[1] - a[1] * g[0]) / det,
+                ];
+                let xn = clamp([x[0] + dx[0], x[1] + dx[1]]);
+                let (rn, en, vn) = resid(xn);
+                if norm(rn) < norm(r) {
+                    (x, r, e, v) = (xn, rn, en, vn);
+                    accepted = true;
+                    break;
+                }
+            }
+        }
         tracing::debug!(
             iterations,
             slope = x[0].exp(),
