@@ -122,7 +122,7 @@ impl FoldStats {
         s
     }
 
-    /// The histogram as a bar-chart PNG (log-free, linear share), `HIST_BINS` bars.
+    /// The histogram as a bar-chart PNG, `HIST_BINS` bars, heights ∝ sqrt(count).
     pub fn histogram_png(&self, path: &std::path::Path) -> Result<(), FoldError> {
         let (bar_w, h) = (24u32, 200u32);
         let w = bar_w * HIST_BINS as u32;
