@@ -13,9 +13,9 @@
 //! 4. Each new vertex moves along its plane normal by the field height. Vertices on
 //!    *pinned* edges stay put: edges shared with an unselected face, and edges between
 //!    selected faces that are not coplanar (box corners); so do original vertices that
-//!    an unselected face or a second plane touches (vertex-only contacts). The height fades in with a
-//!    smoothstep over `TAPER_WIDTHS`·width from the plane's pinned edges, so folds do
-//!    not end in a wall. Hence: no cracks anywhere, flat seams at corners. A curved
+//!    an unselected face or a second plane touches (vertex-only contacts). The height
+//!    fades in with a smoothstep over `TAPER_WIDTHS`·width from the plane's pinned
+//!    edges, so folds do not end in a wall. Hence: no cracks anywhere, flat seams at corners. A curved
 //!    (faceted) selected region folds inside each facet only, since all its edges are
 //!    pinned. Pinned edges shared with an unselected face keep their subdivision points
 //!    on the straight edge (T-junctions there are geometrically closed up to f32 rounding).
