@@ -10,6 +10,8 @@
 //! - [`camera`]: pinhole camera at the real pixel geometry; pose → render frame.
 //! - [`scene`]: TOML scene files, OBJ/MTL loading, material mapping.
 //! - [`geometry`]: triangles and the obvhs BVH (the only module that imports obvhs).
+//! - [`fold`]: fold (wrinkled MLI) planes: generate, measure E_PLANE/Var, wrap onto meshes.
+//! - [`model`]: procedural models (the Jason-like satellite), written as OBJ + MTL.
 //! - [`bsdf`]: BRDF models (Lambert, Blinn-Phong, improved Blinn-Phong, Cook-Torrance).
 //! - [`sampling`]: deterministic random numbers keyed by (seed, frame, pixel, sample).
 //! - [`integrator`]: the path-tracing estimator for one camera sample, no threading.
@@ -31,10 +33,12 @@ pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod film;
+pub mod fold;
 pub mod frame;
 pub mod geometry;
 pub mod integrator;
 pub mod metrics;
+pub mod model;
 pub mod plot;
 pub mod pose;
 pub mod render;

@@ -9,6 +9,9 @@ pub mod send;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+pub mod fold;
+pub mod model;
+
 #[derive(Parser, Debug)]
 #[command(name = "hilcam", version, about = "Hardware-in-the-loop camera simulator for spacecraft navigation")]
 pub struct Cli {
@@ -33,6 +36,10 @@ pub enum Command {
     Recv(recv::RecvArgs),
     /// Tabulate and plot the BRDF models (gold polyimide) and their directional albedo.
     Brdf(brdf::BrdfArgs),
+    /// Fold planes: generate at the paper's levels, measure E_PLANE / Var.
+    Fold(fold::FoldArgs),
+    /// Generate the shipped models (the Jason-like satellite).
+    Model(model::ModelArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -51,6 +58,8 @@ pub fn main() -> ExitCode {
         Command::Send(args) => send::run(args),
         Command::Recv(args) => recv::run(args),
         Command::Brdf(args) => brdf::run(args),
+        Command::Fold(args) => fold::run(args),
+        Command::Model(args) => model::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
