@@ -120,10 +120,18 @@ impl Trajectory {
         };
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
         let mut col = [usize::MAX; 17];
-        let all: Vec<&str> = REQUIRED_COLUMNS.iter().chain(&OPTIONAL_COLUMNS).copied().collect();
+        let all: Vec<&str> = REQUIRED_COLUMNS
+            .iter()
+            .chain(&OPTIONAL_COLUMNS)
+            .copied()
+            .collect();
         for (i, n) in names.iter().enumerate() {
             let Some(k) = all.iter().position(|a| a == n) else {
-                return Err(err(hline, i + 1, format!("unknown column `{n}` (expected {})", all.join(","))));
+                return Err(err(
+                    hline,
+                    i + 1,
+                    format!("unknown column `{n}` (expected {})", all.join(",")),
+                ));
             };
             if col[k] != usize::MAX {
                 return Err(err(hline, i + 1, format!("column `{n}` appears twice")));
@@ -138,14 +146,25 @@ impl Trajectory {
         let has = |k: usize| col[k] != usize::MAX;
         for t in [11, 14] {
             if (has(t) || has(t + 1) || has(t + 2)) && !(has(t) && has(t + 1) && has(t + 2)) {
-                return Err(err(hline, 0, format!("optional columns `{}` must come as a complete triple", all[t..t + 3].join(","))));
+                return Err(err(
+                    hline,
+                    0,
+                    format!(
+                        "optional columns `{}` must come as a complete triple",
+                        all[t..t + 3].join(",")
+                    ),
+                ));
             }
         }
         let mut out: Vec<TrajectorySample> = Vec::new();
         for (line, text) in rows {
             let fields: Vec<&str> = text.split(',').map(str::trim).collect();
             if fields.len() != names.len() {
-                return Err(err(line, 0, format!("{} fields, header has {}", fields.len(), names.len())));
+                return Err(err(
+                    line,
+                    0,
+                    format!("{} fields, header has {}", fields.len(), names.len()),
+                ));
             }
             let mut v = [0.0f64; 17];
             for (k, slot) in v.iter_mut().enumerate() {
@@ -153,14 +172,27 @@ impl Trajectory {
                     continue;
                 }
                 let f = fields[col[k]];
-                *slot = f.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
-                    err(line, col[k] + 1, format!("`{}`: `{f}` is not a finite number", all[k]))
-                })?;
+                *slot = f
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| {
+                        err(
+                            line,
+                            col[k] + 1,
+                            format!("`{}`: `{f}` is not a finite number", all[k]),
+                        )
+                    })?;
             }
-            if let Some(prev) = out.last() {
-                if v[0] <= prev.time_s {
-                    return Err(err(line, col[0] + 1, format!("time_s {} does not increase (previous {})", v[0], prev.time_s)));
-                }
+            if let Some(prev) = out.last().filter(|p| v[0] <= p.time_s) {
+                return Err(err(
+                    line,
+                    col[0] + 1,
+                    format!(
+                        "time_s {} does not increase (previous {})",
+                        v[0], prev.time_s
+                    ),
+                ));
             }
             if v[0] < 0.0 {
                 return Err(err(line, col[0] + 1, "time_s is negative".into()));
@@ -203,8 +235,16 @@ impl Trajectory {
             vals.extend(x.position.to_array());
             vals.extend([q.w, q.x, q.y, q.z]);
             vals.extend(x.sun_dir.to_array());
-            assert_eq!(x.velocity.is_some(), has_v, "velocity present in some samples only");
-            assert_eq!(x.angular_rate.is_some(), has_w, "rate present in some samples only");
+            assert_eq!(
+                x.velocity.is_some(),
+                has_v,
+                "velocity present in some samples only"
+            );
+            assert_eq!(
+                x.angular_rate.is_some(),
+                has_w,
+                "rate present in some samples only"
+            );
             vals.extend(x.velocity.map(|v| v.to_array()).into_iter().flatten());
             vals.extend(x.angular_rate.map(|v| v.to_array()).into_iter().flatten());
             for (i, v) in vals.iter().enumerate() {
@@ -219,7 +259,10 @@ impl Trajectory {
     ///
     /// # Errors
     /// [`TrajectoryError::Io`] naming the file.
-    pub fn save(path: impl AsRef<Path>, samples: &[TrajectorySample]) -> Result<(), TrajectoryError> {
+    pub fn save(
+        path: impl AsRef<Path>,
+        samples: &[TrajectorySample],
+    ) -> Result<(), TrajectoryError> {
         let path = path.as_ref();
         std::fs::write(path, Self::to_csv(samples)).map_err(|source| TrajectoryError::Io {
             path: path.to_path_buf(),
@@ -241,16 +284,28 @@ mod tests {
     #[test]
     fn errors_name_file_line_and_column() {
         let text = "# c\ntime_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n0,0,0,5,1,0,0,0,0,0,-1\n1,0,0,x,1,0,0,0,0,0,-1\n";
-        let e = Trajectory::parse(text, Path::new("t.csv")).unwrap_err().to_string();
-        assert_eq!(e, "t.csv:4:4: `pz`: `x` is not a finite number");
-        let text = "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n1,0,0,5,1,0,0,0,0,0,-1\n1,0,0,5,1,0,0,0,0,0,-1\n";
-        let e = Trajectory::parse(text, Path::new("t.csv")).unwrap_err().to_string();
-        assert!(e.starts_with("t.csv:3:1: time_s 1 does not increase"), "{e}");
-        let e = Trajectory::parse("time_s,px,py\n", Path::new("t.csv")).unwrap_err().to_string();
-        assert_eq!(e, "t.csv:1:0: missing required column `pz`");
-        let e = Trajectory::parse("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,vx\n", Path::new("t.csv"))
+        let e = Trajectory::parse(text, Path::new("t.csv"))
             .unwrap_err()
             .to_string();
+        assert_eq!(e, "t.csv:4:4: `pz`: `x` is not a finite number");
+        let text = "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n1,0,0,5,1,0,0,0,0,0,-1\n1,0,0,5,1,0,0,0,0,0,-1\n";
+        let e = Trajectory::parse(text, Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:3:1: time_s 1 does not increase"),
+            "{e}"
+        );
+        let e = Trajectory::parse("time_s,px,py\n", Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "t.csv:1:0: missing required column `pz`");
+        let e = Trajectory::parse(
+            "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,vx\n",
+            Path::new("t.csv"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("complete triple"), "{e}");
     }
 

@@ -11,9 +11,11 @@ use common::*;
 use hilcam::pose::Message;
 use hilcam::pose::can::{CanIds, encode_message};
 use hilcam::trajectory::Trajectory;
-use hilcam::transport::send::{MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking};
+use hilcam::transport::send::{
+    MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking,
+};
 use hilcam::transport::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
-use hilcam::transport::{InputEvent, InputCounters};
+use hilcam::transport::{InputCounters, InputEvent};
 use socketcan::Socket;
 use std::io::Write;
 use std::sync::Arc;
@@ -28,10 +30,15 @@ fn have(iface: &str) -> bool {
         return true;
     }
     if let Ok(why) = std::env::var("HILCAM_VCAN_DEFERRED") {
-        let _ = writeln!(std::io::stderr(), "NOT RUN HERE: no {iface} on this host; {why}");
+        let _ = writeln!(
+            std::io::stderr(),
+            "NOT RUN HERE: no {iface} on this host; {why}"
+        );
         return false;
     }
-    let why = format!("no {iface}: this kernel has no vcan; run scripts/test.sh (it uses scripts/vcan-vm.sh)");
+    let why = format!(
+        "no {iface}: this kernel has no vcan; run scripts/test.sh (it uses scripts/vcan-vm.sh)"
+    );
     if std::env::var("CI").is_ok_and(|v| v == "true") {
         panic!("{why}");
     }
@@ -58,12 +65,22 @@ async fn receiver(iface: &str, ids: CanIds) -> Rx {
     // by sending heartbeats until one arrives.
     let mut w = SocketCanWriter::open(iface, ids, false).unwrap();
     let ok = wait_for_with(|| {
-        w.send(&Message::Heartbeat { seq: 0, t_ns: 0, status: 0 }).unwrap();
+        w.send(&Message::Heartbeat {
+            seq: 0,
+            t_ns: 0,
+            status: 0,
+        })
+        .unwrap();
         get(&c.heartbeats) > 0
     })
     .await;
     assert!(ok, "receiver on {iface} never saw a heartbeat");
-    Rx { rx, c, stop: Some(stop), task }
+    Rx {
+        rx,
+        c,
+        stop: Some(stop),
+        task,
+    }
 }
 
 async fn wait_for_with(mut f: impl FnMut() -> bool) -> bool {
@@ -118,11 +135,17 @@ async fn vcan_groups_fd_frames_corruption_and_error_frames() {
     for p in &got {
         let w = traj[p.seq as usize].to_pose(p.seq);
         assert_eq!(p.t_ns, w.t_ns);
-        assert!((p.position - w.position).abs().max_element() <= w.position.abs().max_element() * 6e-8);
+        assert!(
+            (p.position - w.position).abs().max_element() <= w.position.abs().max_element() * 6e-8
+        );
         assert!(p.angular_rate.is_some() == w.angular_rate.is_some());
     }
     assert_eq!(get(&r.c.groups_crc), 1);
-    assert!(wait_for(|| get(&r.c.can_bus_off) == 1).await, "{}", r.c.to_prometheus());
+    assert!(
+        wait_for(|| get(&r.c.can_bus_off) == 1).await,
+        "{}",
+        r.c.to_prometheus()
+    );
     assert_eq!(get(&r.c.can_error_frames), 1);
     r.finish().await;
 }
@@ -133,18 +156,32 @@ async fn vcan_interface_down_and_up_is_recovered() {
         return;
     }
     let ip = |state: &str| {
-        let s = std::process::Command::new("ip").args(["link", "set", "vcan1", state]).status().unwrap();
+        let s = std::process::Command::new("ip")
+            .args(["link", "set", "vcan1", state])
+            .status()
+            .unwrap();
         assert!(s.success(), "ip link set vcan1 {state}");
     };
     let ids = CanIds::new(0x200, false).unwrap();
     let mut r = receiver("vcan1", ids).await;
     ip("down");
-    assert!(wait_for(|| get(&r.c.device_errors) >= 1).await, "{}", r.c.to_prometheus());
+    assert!(
+        wait_for(|| get(&r.c.device_errors) >= 1).await,
+        "{}",
+        r.c.to_prometheus()
+    );
     ip("up");
-    assert!(wait_for(|| get(&r.c.reconnects) >= 1).await, "{}", r.c.to_prometheus());
+    assert!(
+        wait_for(|| get(&r.c.reconnects) >= 1).await,
+        "{}",
+        r.c.to_prometheus()
+    );
     let mut w = SocketCanWriter::open("vcan1", ids, false).unwrap();
     let traj = Trajectory::load(root().join("scenes/trajectories/approach.csv")).unwrap();
-    let opts = SendOptions { rate_hz: None, speed: f64::INFINITY };
+    let opts = SendOptions {
+        rate_hz: None,
+        speed: f64::INFINITY,
+    };
     let mut ev = Vec::new();
     // Frames sent while the reopened socket was still binding may be lost;
     // resend until poses arrive, then check a full clean replay.
@@ -157,7 +194,11 @@ async fn vcan_interface_down_and_up_is_recovered() {
     collect_until(&mut r.rx, &mut ev, |e| !poses(e).is_empty()).await;
     let before = get(&r.c.accepted);
     send_trajectory_blocking(&traj[..100], &opts, &mut w, &AtomicBool::new(false)).unwrap();
-    assert!(wait_for(|| get(&r.c.accepted) >= before + 100).await, "{}", r.c.to_prometheus());
+    assert!(
+        wait_for(|| get(&r.c.accepted) >= before + 100).await,
+        "{}",
+        r.c.to_prometheus()
+    );
     r.finish().await;
 }
 
@@ -174,18 +215,33 @@ async fn vcan_hilcam_send_cli_classic_and_fd() {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
             // Paced (400 poses/s): vcan has no bit rate, so an unpaced sender
             // outruns a receiver on the emulated one-CPU VM.
-            .args(["send", "--can", "vcan0", "--speed", "200", "--can-base", &format!("{base:#x}")])
+            .args([
+                "send",
+                "--can",
+                "vcan0",
+                "--speed",
+                "200",
+                "--can-base",
+                &format!("{base:#x}"),
+            ])
             .args(fd.then_some("--can-fd"))
             .arg("--trajectory")
             .arg(&traj)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let mut ev = Vec::new();
         collect_until(&mut r.rx, &mut ev, |e| poses(e).len() >= want.len()).await;
         let got = poses(&ev);
         assert_eq!(got.len(), want.len(), "fd={fd} {}", r.c.to_prometheus());
-        assert_eq!(got.last().unwrap().t_ns, want.last().unwrap().to_pose(0).t_ns);
+        assert_eq!(
+            got.last().unwrap().t_ns,
+            want.last().unwrap().to_pose(0).t_ns
+        );
         r.finish().await;
     }
 }
@@ -203,11 +259,27 @@ async fn vcan_python_can_socketcan_example() {
     let n = 20;
     let out = std::process::Command::new(&py)
         .arg(root().join("examples/send_can.py"))
-        .args(["--interface", "socketcan", "--channel", "vcan0", "--base-id", "0x600", "--count", &n.to_string(), "--speed", "inf", "--trajectory"])
+        .args([
+            "--interface",
+            "socketcan",
+            "--channel",
+            "vcan0",
+            "--base-id",
+            "0x600",
+            "--count",
+            &n.to_string(),
+            "--speed",
+            "inf",
+            "--trajectory",
+        ])
         .arg(&traj)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let mut ev = Vec::new();
     collect_until(&mut r.rx, &mut ev, |e| poses(e).len() >= n).await;
     let got = poses(&ev);

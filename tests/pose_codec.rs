@@ -10,13 +10,20 @@ use proptest::prelude::*;
 
 fn unhex(s: &str) -> Vec<u8> {
     let s: String = s.split_whitespace().collect();
-    (0..s.len()).step_by(2).map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap()).collect()
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+        .collect()
 }
 
 const POSE_FRAME: &str = "a55a010154000100000015cd5b07000000000000000000000000000000000000 0000000000000000000000002440000000000000f03f00000000000000000000 0000000000000000000000000000000000000000000000000000000000000000 00000000f0bfd32e98c0";
 
 fn literal_pose() -> Pose {
-    Pose { seq: 1, t_ns: 123_456_789, ..Pose::ahead(10.0) }
+    Pose {
+        seq: 1,
+        t_ns: 123_456_789,
+        ..Pose::ahead(10.0)
+    }
 }
 
 #[test]
@@ -25,11 +32,18 @@ fn serial_literals_decode_and_encode_bit_exactly() {
         (POSE_FRAME.to_string(), Message::Pose(literal_pose())),
         (
             "a5 5a 01 03 04 00 07 00 00 00 00 ca 9a 3b 00 00 00 00 2a 00 00 00 11 76 4b 3c".into(),
-            Message::Heartbeat { seq: 7, t_ns: 1_000_000_000, status: 42 },
+            Message::Heartbeat {
+                seq: 7,
+                t_ns: 1_000_000_000,
+                status: 42,
+            },
         ),
         (
             "a5 5a 01 02 00 00 08 00 00 00 00 f9 02 95 00 00 00 00 39 de ac 1b".into(),
-            Message::Trigger { seq: 8, t_ns: 2_500_000_000 },
+            Message::Trigger {
+                seq: 8,
+                t_ns: 2_500_000_000,
+            },
         ),
     ];
     for (hex, msg) in cases {
@@ -111,7 +125,10 @@ const GROUP: [(u32, &str); 6] = [
 ];
 
 fn group_frames() -> Vec<CanFrame> {
-    GROUP.iter().map(|(id, h)| CanFrame::new(*id, false, &unhex(h)).unwrap()).collect()
+    GROUP
+        .iter()
+        .map(|(id, h)| CanFrame::new(*id, false, &unhex(h)).unwrap())
+        .collect()
 }
 
 #[test]
@@ -123,7 +140,9 @@ fn can_group_literal_decodes_and_encodes() {
     for f in &frames[..5] {
         assert_eq!(a.push(f), None);
     }
-    let Some(CanEvent::Message(Message::Pose(p))) = a.push(&frames[5]) else { panic!() };
+    let Some(CanEvent::Message(Message::Pose(p))) = a.push(&frames[5]) else {
+        panic!()
+    };
     // Position (0,0,10) and the unit quaternion/sun are exact in f32/Q23/Q15 up to 1 step.
     assert_eq!(p.position, DVec3::new(0.0, 0.0, 10.0));
     assert_eq!(p.t_ns, 123_456_789);
@@ -148,26 +167,56 @@ fn can_fd_literal() {
 fn can_groups_with_missing_mixed_duplicate_or_corrupt_frames_are_dropped() {
     let ids = CanIds::default();
     let g1 = group_frames();
-    let g2 = can::encode_group(ids, &Pose { seq: 2, ..literal_pose() });
+    let g2 = can::encode_group(
+        ids,
+        &Pose {
+            seq: 2,
+            ..literal_pose()
+        },
+    );
     let run = |frames: &[CanFrame]| {
         let mut a = CanAssembler::new(ids);
         let mut evs: Vec<CanEvent> = frames.iter().filter_map(|f| a.push(f)).collect();
         evs.extend(a.flush());
         evs
     };
-    let ok = CanEvent::Message(Message::Pose(Pose { seq: 2, ..can::decode_fd(
-        can::encode_fd(ids, &Pose { seq: 2, ..literal_pose() }, false).data()).unwrap() }));
+    let ok = CanEvent::Message(Message::Pose(Pose {
+        seq: 2,
+        ..can::decode_fd(
+            can::encode_fd(
+                ids,
+                &Pose {
+                    seq: 2,
+                    ..literal_pose()
+                },
+                false,
+            )
+            .data(),
+        )
+        .unwrap()
+    }));
     // Missing frame 3 of group 1, then group 2 complete.
-    let mut s: Vec<CanFrame> = g1.iter().enumerate().filter(|(i, _)| *i != 3).map(|(_, f)| *f).collect();
+    let mut s: Vec<CanFrame> = g1
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != 3)
+        .map(|(_, f)| *f)
+        .collect();
     s.extend(&g2);
-    assert_eq!(run(&s), vec![CanEvent::Dropped(GroupDrop::MissingFrame), ok]);
+    assert_eq!(
+        run(&s),
+        vec![CanEvent::Dropped(GroupDrop::MissingFrame), ok]
+    );
     // A frame of group 2 in the middle of group 1.
     let mut s = g1[..3].to_vec();
     s.push(g2[3]);
     s.extend(&g1[3..]);
     let evs = run(&s);
     assert_eq!(evs[0], CanEvent::Dropped(GroupDrop::MixedSequence));
-    assert!(!evs.iter().any(|e| matches!(e, CanEvent::Message(_))), "{evs:?}");
+    assert!(
+        !evs.iter().any(|e| matches!(e, CanEvent::Message(_))),
+        "{evs:?}"
+    );
     // Duplicate frame.
     let mut s = g1[..2].to_vec();
     s.push(g1[1]);
@@ -179,7 +228,10 @@ fn can_groups_with_missing_mixed_duplicate_or_corrupt_frames_are_dropped() {
     s[2] = CanFrame::new(s[2].id, false, &d).unwrap();
     assert_eq!(run(&s), vec![CanEvent::Dropped(GroupDrop::Crc)]);
     // Wrong DLC.
-    assert_eq!(run(&[CanFrame::new(0x300, false, &[1, 0]).unwrap()]), vec![CanEvent::Dropped(GroupDrop::BadLength(2))]);
+    assert_eq!(
+        run(&[CanFrame::new(0x300, false, &[1, 0]).unwrap()]),
+        vec![CanEvent::Dropped(GroupDrop::BadLength(2))]
+    );
     // Other traffic is ignored, not an error.
     let mut a = CanAssembler::new(ids);
     assert_eq!(a.push(&CanFrame::new(0x123, false, &[0; 8]).unwrap()), None);
@@ -191,7 +243,14 @@ fn can_groups_with_missing_mixed_duplicate_or_corrupt_frames_are_dropped() {
 fn can_trigger_heartbeat_and_ids() {
     let ids = CanIds::new(0x1ABC_DE00, true).unwrap();
     let mut a = CanAssembler::new(ids);
-    for msg in [Message::Trigger { seq: 0, t_ns: 77 }, Message::Heartbeat { seq: 5, t_ns: 0, status: 3 }] {
+    for msg in [
+        Message::Trigger { seq: 0, t_ns: 77 },
+        Message::Heartbeat {
+            seq: 5,
+            t_ns: 0,
+            status: 3,
+        },
+    ] {
         let f = can::encode_message(ids, &msg, false);
         assert_eq!(f.len(), 1);
         assert_eq!(a.push(&f[0]), Some(CanEvent::Message(msg)));
@@ -205,17 +264,30 @@ fn slcan_lines() {
     let f = CanFrame::new(0x301, false, &[0x01, 0xAB]).unwrap();
     assert_eq!(slcan::encode_frame(&f), "t301201AB\r");
     assert_eq!(slcan::decode_line(b"t301201AB"), Ok(SlcanItem::Frame(f)));
-    assert_eq!(slcan::decode_line(b"t301201AB1234"), Ok(SlcanItem::Frame(f)), "timestamp");
+    assert_eq!(
+        slcan::decode_line(b"t301201AB1234"),
+        Ok(SlcanItem::Frame(f)),
+        "timestamp"
+    );
     let e = CanFrame::new(0x1ABCDE01, true, &[]).unwrap();
     assert_eq!(slcan::encode_frame(&e), "T1ABCDE010\r");
     let fd = CanFrame::new_fd(0x310, false, &[7; 10], true).unwrap();
     assert_eq!(fd.data().len(), 12);
     let line = slcan::encode_frame(&fd);
     assert!(line.starts_with("b3109"), "{line}");
-    assert_eq!(slcan::decode_line(line.trim_end().as_bytes()), Ok(SlcanItem::Frame(fd)));
+    assert_eq!(
+        slcan::decode_line(line.trim_end().as_bytes()),
+        Ok(SlcanItem::Frame(fd))
+    );
     assert_eq!(slcan::decode_line(b""), Ok(SlcanItem::Ack));
-    assert_eq!(slcan::decode_line(b"r3010"), Ok(SlcanItem::Remote { id: 0x301 }));
-    assert_eq!(slcan::decode_line(b"x"), Err(SlcanError::UnknownCommand(b'x')));
+    assert_eq!(
+        slcan::decode_line(b"r3010"),
+        Ok(SlcanItem::Remote { id: 0x301 })
+    );
+    assert_eq!(
+        slcan::decode_line(b"x"),
+        Err(SlcanError::UnknownCommand(b'x'))
+    );
     assert_eq!(slcan::decode_line(b"t3012G1AB"), Err(SlcanError::BadHex));
     assert_eq!(slcan::decode_line(b"t3019"), Err(SlcanError::BadFrame));
     assert_eq!(slcan::decode_line(b"t3012AB"), Err(SlcanError::BadFrame));
@@ -233,7 +305,9 @@ fn slcan_lines() {
 
 fn unit_quat() -> impl Strategy<Value = DQuat> {
     (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64)
-        .prop_filter("non-degenerate", |(w, x, y, z)| w * w + x * x + y * y + z * z > 0.01)
+        .prop_filter("non-degenerate", |(w, x, y, z)| {
+            w * w + x * x + y * y + z * z > 0.01
+        })
         .prop_map(|(w, x, y, z)| DQuat::from_xyzw(x, y, z, w).normalize())
 }
 
@@ -244,7 +318,9 @@ fn unit_vec() -> impl Strategy<Value = DVec3> {
 }
 
 fn opt_vec(scale: f64) -> impl Strategy<Value = Option<DVec3>> {
-    proptest::option::of((-scale..scale, -scale..scale, -scale..scale).prop_map(|(x, y, z)| DVec3::new(x, y, z)))
+    proptest::option::of(
+        (-scale..scale, -scale..scale, -scale..scale).prop_map(|(x, y, z)| DVec3::new(x, y, z)),
+    )
 }
 
 prop_compose! {

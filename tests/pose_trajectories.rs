@@ -9,7 +9,11 @@ use hilcam::trajectory::{Trajectory, TrajectorySample};
 const HALF_FOV: f64 = 10.0 * std::f64::consts::PI / 180.0;
 
 fn load(name: &str) -> Vec<TrajectorySample> {
-    Trajectory::load(format!("{}/scenes/trajectories/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+    Trajectory::load(format!(
+        "{}/scenes/trajectories/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap()
 }
 
 fn off_boresight(p: DVec3) -> f64 {
@@ -22,7 +26,10 @@ fn approach_goes_from_1_km_to_10_m_with_target_in_view() {
     let r: Vec<f64> = s.iter().map(|x| x.position.length()).collect();
     assert!((r[0] - 1000.0).abs() < 1e-6, "{}", r[0]);
     assert!((r[r.len() - 1] - 10.0).abs() < 1e-6);
-    assert!(r.windows(2).all(|w| w[1] < w[0]), "range decreases monotonically");
+    assert!(
+        r.windows(2).all(|w| w[1] < w[0]),
+        "range decreases monotonically"
+    );
     for x in &s {
         assert!((x.attitude.length() - 1.0).abs() < 1e-12);
         assert!((x.sun_dir.length() - 1.0).abs() < 1e-12);
@@ -54,8 +61,14 @@ fn flyaround_keeps_target_on_boresight_while_sun_moves() {
         max_sun_cam = max_sun_cam.max(x.sun_dir.angle_between(s[0].sun_dir));
         max_sun_body = max_sun_body.max(body_sun(x).angle_between(body_sun(&s[0])));
     }
-    assert!(max_sun_cam > 90f64.to_radians(), "sun sweeps in the camera frame: {max_sun_cam}");
-    assert!(max_sun_body > 45f64.to_radians(), "sun moves over the target body: {max_sun_body}");
+    assert!(
+        max_sun_cam > 90f64.to_radians(),
+        "sun sweeps in the camera frame: {max_sun_cam}"
+    );
+    assert!(
+        max_sun_body > 45f64.to_radians(),
+        "sun moves over the target body: {max_sun_body}"
+    );
 }
 
 #[test]
@@ -68,14 +81,21 @@ fn flyaround_rates_predict_the_next_sample() {
         let om = w[0].angular_rate.unwrap();
         worst_p = worst_p.max((w[0].position + v * dt - w[1].position).length());
         // dq/dt = ½ ω ⊗ q, ω in the camera frame: q(t+dt) ≈ exp(ω dt) ⊗ q(t).
-        let step = if om.length() > 0.0 { DQuat::from_axis_angle(om.normalize(), om.length() * dt) } else { DQuat::IDENTITY };
+        let step = if om.length() > 0.0 {
+            DQuat::from_axis_angle(om.normalize(), om.length() * dt)
+        } else {
+            DQuat::IDENTITY
+        };
         worst_q = worst_q.max((step * w[0].attitude).angle_between(w[1].attitude));
         hold_q = hold_q.max(w[0].attitude.angle_between(w[1].attitude));
     }
     // Second-order residuals only, far below the first-order change itself.
     assert!(worst_p < 1e-3, "position extrapolation error {worst_p} m");
     assert!(worst_q < 1e-5, "attitude extrapolation error {worst_q} rad");
-    assert!(hold_q > 100.0 * worst_q, "rates carry information: {hold_q} vs {worst_q}");
+    assert!(
+        hold_q > 100.0 * worst_q,
+        "rates carry information: {hold_q} vs {worst_q}"
+    );
 }
 
 #[test]

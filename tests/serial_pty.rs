@@ -6,9 +6,9 @@ mod common;
 
 use common::*;
 use glam::DVec3;
+use hilcam::pose::serial::encode_frame;
 use hilcam::pose::validate::Rejection;
 use hilcam::pose::{Message, Pose};
-use hilcam::pose::serial::encode_frame;
 use hilcam::trajectory::Trajectory;
 use hilcam::transport::serial::{SerialConfig, open_port, run_serial};
 use serialport::{DataBits, Parity, SerialPort, StopBits, TTYPort};
@@ -17,7 +17,12 @@ use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
 fn pose(seq: u32, t_ns: u64) -> Pose {
-    Pose { seq, t_ns, position: DVec3::new(0.1, -0.2, 50.0 - seq as f64 * 0.01), ..Pose::ahead(1.0) }
+    Pose {
+        seq,
+        t_ns,
+        position: DVec3::new(0.1, -0.2, 50.0 - seq as f64 * 0.01),
+        ..Pose::ahead(1.0)
+    }
 }
 
 #[test]
@@ -38,14 +43,25 @@ fn line_settings_are_applied() {
         assert_eq!(p.stop_bits().unwrap(), stop);
         assert_eq!(p.data_bits().unwrap(), DataBits::Eight);
     }
-    let e = open_port("/dev/does-not-exist", 9600, DataBits::Eight, Parity::None, StopBits::One).unwrap_err();
+    let e = open_port(
+        "/dev/does-not-exist",
+        9600,
+        DataBits::Eight,
+        Parity::None,
+        StopBits::One,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("/dev/does-not-exist"), "{e}");
 }
 
 /// Writes heartbeats until the receiver has seen one, so later writes are not
 /// raced against the receiver opening the device.
 async fn handshake(w: &mut TTYPort, c: &hilcam::transport::InputCounters) {
-    let hb = encode_frame(&Message::Heartbeat { seq: 0, t_ns: 0, status: 0 });
+    let hb = encode_frame(&Message::Heartbeat {
+        seq: 0,
+        t_ns: 0,
+        status: 0,
+    });
     let ok = wait_for_with(|| {
         let _ = w.write_all(&hb);
         get(&c.heartbeats) > 0
@@ -70,7 +86,12 @@ async fn partial_writes_garbage_and_bad_poses_at_4_mbaud() {
     let (tx, mut rx) = mpsc::channel(4096);
     let c = counters();
     let (stop_tx, stop_rx) = oneshot::channel::<()>();
-    let task = tokio::spawn(run_serial(SerialConfig::new(pty_name(&slave), 4_000_000), tx, c.clone(), stop_rx));
+    let task = tokio::spawn(run_serial(
+        SerialConfig::new(pty_name(&slave), 4_000_000),
+        tx,
+        c.clone(),
+        stop_rx,
+    ));
     handshake(&mut master, &c).await;
 
     // 200 valid poses; between them garbage without the sync byte (so every
@@ -98,11 +119,23 @@ async fn partial_writes_garbage_and_bad_poses_at_4_mbaud() {
     }
     bytes.extend(encode_frame(&Message::Trigger { seq: 1, t_ns: 5 }));
     let chunks: Vec<Vec<u8>> = bytes.chunks(37).map(|c| c.to_vec()).collect();
-    let writer = write_all_slowly(master.try_clone_native().unwrap(), chunks, Duration::from_micros(200));
+    let writer = write_all_slowly(
+        master.try_clone_native().unwrap(),
+        chunks,
+        Duration::from_micros(200),
+    );
     let mut ev = Vec::new();
-    let done = collect_until(&mut rx, &mut ev, |e| e.iter().any(|x| matches!(x, hilcam::transport::InputEvent::Trigger { .. }))).await;
+    let done = collect_until(&mut rx, &mut ev, |e| {
+        e.iter()
+            .any(|x| matches!(x, hilcam::transport::InputEvent::Trigger { .. }))
+    })
+    .await;
     writer.join().unwrap();
-    assert!(done, "trigger never arrived; counters:\n{}", c.to_prometheus());
+    assert!(
+        done,
+        "trigger never arrived; counters:\n{}",
+        c.to_prometheus()
+    );
     let got = poses(&ev);
     assert_eq!(got.len(), 200, "{}", c.to_prometheus());
     for (i, p) in got.iter().enumerate() {
@@ -131,7 +164,9 @@ async fn unplug_and_replug_without_restart() {
     let task = tokio::spawn(run_serial(cfg, tx, c.clone(), stop_rx));
     handshake(&mut master, &c).await;
     for i in 0..10 {
-        master.write_all(&encode_frame(&Message::Pose(pose(i, 100 + i as u64)))).unwrap();
+        master
+            .write_all(&encode_frame(&Message::Pose(pose(i, 100 + i as u64))))
+            .unwrap();
     }
     let mut ev = Vec::new();
     assert!(collect_until(&mut rx, &mut ev, |e| poses(e).len() == 10).await);
@@ -140,23 +175,43 @@ async fn unplug_and_replug_without_restart() {
     std::fs::remove_file(&link).unwrap();
     drop(master);
     drop(slave);
-    assert!(wait_for(|| get(&c.device_errors) >= 2).await, "{}", c.to_prometheus());
+    assert!(
+        wait_for(|| get(&c.device_errors) >= 2).await,
+        "{}",
+        c.to_prometheus()
+    );
 
     // Replug: a new device appears at the same path.
     let (mut master, slave) = pty_pair();
     std::os::unix::fs::symlink(pty_name(&slave), &link).unwrap();
-    assert!(wait_for(|| get(&c.reconnects) == 1).await, "{}", c.to_prometheus());
+    assert!(
+        wait_for(|| get(&c.reconnects) == 1).await,
+        "{}",
+        c.to_prometheus()
+    );
     let hb_before = get(&c.heartbeats);
-    let hb = encode_frame(&Message::Heartbeat { seq: 1, t_ns: 0, status: 0 });
-    assert!(wait_for_with(|| {
-        let _ = master.write_all(&hb);
-        get(&c.heartbeats) > hb_before
-    })
-    .await);
+    let hb = encode_frame(&Message::Heartbeat {
+        seq: 1,
+        t_ns: 0,
+        status: 0,
+    });
+    assert!(
+        wait_for_with(|| {
+            let _ = master.write_all(&hb);
+            get(&c.heartbeats) > hb_before
+        })
+        .await
+    );
     for i in 10..20 {
-        master.write_all(&encode_frame(&Message::Pose(pose(i, 100 + i as u64)))).unwrap();
+        master
+            .write_all(&encode_frame(&Message::Pose(pose(i, 100 + i as u64))))
+            .unwrap();
     }
-    assert!(collect_until(&mut rx, &mut ev, |e| poses(e).len() == 20).await, "{}", c.to_prometheus());
+    assert!(
+        collect_until(&mut rx, &mut ev, |e| poses(e).len() == 20).await,
+        "{}",
+        c.to_prometheus()
+    );
     assert_eq!(poses(&ev)[19], pose(19, 119));
     stop_tx.send(()).unwrap();
     task.await.unwrap();
@@ -171,7 +226,12 @@ async fn receive_trajectory_from(
     let (tx, mut rx) = mpsc::channel(8192);
     let c = counters();
     let (stop_tx, stop_rx) = oneshot::channel::<()>();
-    let task = tokio::spawn(run_serial(SerialConfig::new(cable.b.clone(), 115_200), tx, c.clone(), stop_rx));
+    let task = tokio::spawn(run_serial(
+        SerialConfig::new(cable.b.clone(), 115_200),
+        tx,
+        c.clone(),
+        stop_rx,
+    ));
     // Let the receiver open its end before the sender starts writing.
     assert!(wait_for(|| std::fs::metadata(&cable.b).is_ok()).await);
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -195,7 +255,15 @@ async fn pyserial_example_sends_the_trajectory() {
         |port| {
             std::process::Command::new(&py)
                 .arg(root().join("examples/send_serial.py"))
-                .args(["--port", port, "--count", &n.to_string(), "--speed", "inf", "--trajectory"])
+                .args([
+                    "--port",
+                    port,
+                    "--count",
+                    &n.to_string(),
+                    "--speed",
+                    "inf",
+                    "--trajectory",
+                ])
                 .arg(&traj)
                 .stdout(std::process::Stdio::piped())
                 .stderr(std::process::Stdio::piped())
@@ -205,7 +273,11 @@ async fn pyserial_example_sends_the_trajectory() {
         n,
     )
     .await;
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(got.len(), n);
     for (k, p) in got.iter().enumerate() {
         // Bit-exact: the Python encoder (own CRC-32C) and the Rust decoder agree.
@@ -224,7 +296,10 @@ async fn pyserial_example_sends_the_trajectory() {
         .arg(&traj)
         .output()
         .unwrap();
-    let rust: String = encode_frame(&Message::Pose(want[0].to_pose(0))).iter().map(|b| format!("{b:02x}")).collect();
+    let rust: String = encode_frame(&Message::Pose(want[0].to_pose(0)))
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
     assert_eq!(String::from_utf8_lossy(&hex.stdout).trim(), rust);
 }
 
@@ -239,7 +314,16 @@ async fn hilcam_send_serial_replays_at_fixed_rate() {
     let (got, out) = receive_trajectory_from(
         |port| {
             std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
-                .args(["send", "--serial", port, "--speed", "inf", "--rate", &rate.to_string(), "--trajectory"])
+                .args([
+                    "send",
+                    "--serial",
+                    port,
+                    "--speed",
+                    "inf",
+                    "--rate",
+                    &rate.to_string(),
+                    "--trajectory",
+                ])
                 .arg(&traj)
                 .stdout(std::process::Stdio::piped())
                 .stderr(std::process::Stdio::piped())
@@ -249,10 +333,19 @@ async fn hilcam_send_serial_replays_at_fixed_rate() {
         2 * want.len() - 1,
     )
     .await;
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(got.len(), 2 * want.len() - 1);
     for (k, p) in got.iter().take(n).enumerate() {
         assert_eq!(p.seq, k as u32);
-        assert_eq!(p.position, want[k / 2].position, "send {k} holds sample {}", k / 2);
+        assert_eq!(
+            p.position,
+            want[k / 2].position,
+            "send {k} holds sample {}",
+            k / 2
+        );
     }
 }

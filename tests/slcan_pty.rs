@@ -73,10 +73,17 @@ async fn receiver_configures_adapter_and_decodes_groups() {
             text.push('\x07'); // a NACK
         }
     }
-    text.push_str(&encode_frame(&encode_message(ids, &Message::Trigger { seq: 0, t_ns: 1 }, false)[0]));
+    text.push_str(&encode_frame(
+        &encode_message(ids, &Message::Trigger { seq: 0, t_ns: 1 }, false)[0],
+    ));
     adapter.write_all(text.as_bytes()).unwrap();
     let mut ev = Vec::new();
-    assert!(collect_until(&mut rx, &mut ev, |e| e.iter().any(|x| matches!(x, hilcam::transport::InputEvent::Trigger { .. }))).await);
+    assert!(
+        collect_until(&mut rx, &mut ev, |e| e
+            .iter()
+            .any(|x| matches!(x, hilcam::transport::InputEvent::Trigger { .. })))
+        .await
+    );
     let got = poses(&ev);
     assert_eq!(got.len(), 49, "{}", c.to_prometheus());
     assert!(got.iter().all(|p| p.seq != 8));
@@ -106,7 +113,10 @@ fn slcan_sender_writes_what_an_adapter_expects() {
     )
     .unwrap();
     let mut w = SlcanWriter::open(port, "pty", Some(1_000_000), CanIds::default(), false).unwrap();
-    let opts = SendOptions { rate_hz: None, speed: f64::INFINITY };
+    let opts = SendOptions {
+        rate_hz: None,
+        speed: f64::INFINITY,
+    };
     let stats = send_trajectory_blocking(&sample, &opts, &mut w, &AtomicBool::new(false)).unwrap();
     assert_eq!(stats.poses, 20);
     // 20 poses × 6 frames (approach has no velocity/rate columns) after "C S8 O".
@@ -125,10 +135,10 @@ fn slcan_sender_writes_what_an_adapter_expects() {
         raw.extend_from_slice(&buf[..n]);
         dec.push(&buf[..n]);
         while let Some(item) = dec.next_item() {
-            if let Ok(SlcanItem::Frame(f)) = item {
-                if let Some(hilcam::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f) {
-                    got.push(p);
-                }
+            if let Ok(SlcanItem::Frame(f)) = item
+                && let Some(hilcam::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f)
+            {
+                got.push(p);
             }
         }
     }
@@ -153,7 +163,17 @@ async fn python_can_slcan_example_sends_the_group() {
     let n = 25;
     let child = std::process::Command::new(&py)
         .arg(root().join("examples/send_can.py"))
-        .args(["--interface", "slcan", "--channel", &cable.a, "--count", &n.to_string(), "--speed", "inf", "--trajectory"])
+        .args([
+            "--interface",
+            "slcan",
+            "--channel",
+            &cable.a,
+            "--count",
+            &n.to_string(),
+            "--speed",
+            "inf",
+            "--trajectory",
+        ])
         .arg(&traj)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -162,17 +182,26 @@ async fn python_can_slcan_example_sends_the_group() {
     let mut ev = Vec::new();
     collect_until(&mut rx, &mut ev, |e| poses(e).len() >= n).await;
     let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let got = poses(&ev);
     assert_eq!(got.len(), n, "{}", c.to_prometheus());
     for (k, p) in got.iter().enumerate() {
         let w = want[k].to_pose(k as u32);
         assert_eq!(p.t_ns, w.t_ns);
-        assert!((p.position - w.position).abs().max_element() <= w.position.abs().max_element() * 6e-8);
+        assert!(
+            (p.position - w.position).abs().max_element() <= w.position.abs().max_element() * 6e-8
+        );
         assert!((p.attitude.normalize() - w.attitude.normalize()).length() < 1e-6);
         assert_eq!(p.velocity.is_some(), w.velocity.is_some());
     }
-    assert_eq!(get(&c.groups_crc) + get(&c.groups_missing_frame) + get(&c.groups_mixed), 0);
+    assert_eq!(
+        get(&c.groups_crc) + get(&c.groups_missing_frame) + get(&c.groups_mixed),
+        0
+    );
     stop_tx.send(()).unwrap();
     task.await.unwrap().unwrap();
 }

@@ -61,26 +61,39 @@ pub fn run(args: SendArgs) -> anyhow::Result<()> {
     let samples = Trajectory::load(&args.trajectory)?;
     let ids = CanIds::new(args.can_base, args.can_extended)?;
     let target = match (&args.serial, &args.can, &args.slcan) {
-        (Some(p), _, _) => SendTarget::Serial { path: p.clone(), baud: args.baud },
+        (Some(p), _, _) => SendTarget::Serial {
+            path: p.clone(),
+            baud: args.baud,
+        },
         (_, Some(i), _) => SendTarget::Can { iface: i.clone() },
-        (_, _, Some(p)) => SendTarget::Slcan { path: p.clone(), baud: args.baud, bitrate: Some(args.bitrate) },
+        (_, _, Some(p)) => SendTarget::Slcan {
+            path: p.clone(),
+            baud: args.baud,
+            bitrate: Some(args.bitrate),
+        },
         _ => unreachable!("clap requires one target"),
     };
     let writer = open_target(&target, ids, args.can_fd)?;
-    let opts = SendOptions { rate_hz: args.rate, speed: args.speed };
+    let opts = SendOptions {
+        rate_hz: args.rate,
+        speed: args.speed,
+    };
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .context("tokio runtime")?;
-    let stats = rt.block_on(send_trajectory(
-        samples.into(),
-        opts,
-        writer,
-        async {
-            let _ = tokio::signal::ctrl_c().await;
-        },
-    ))?;
-    tracing::info!(poses = stats.poses, elapsed_s = stats.elapsed.as_secs_f64(), "send finished");
-    println!("sent {} poses in {:.3} s", stats.poses, stats.elapsed.as_secs_f64());
+    let stats = rt.block_on(send_trajectory(samples.into(), opts, writer, async {
+        let _ = tokio::signal::ctrl_c().await;
+    }))?;
+    tracing::info!(
+        poses = stats.poses,
+        elapsed_s = stats.elapsed.as_secs_f64(),
+        "send finished"
+    );
+    println!(
+        "sent {} poses in {:.3} s",
+        stats.poses,
+        stats.elapsed.as_secs_f64()
+    );
     Ok(())
 }

@@ -161,8 +161,15 @@ impl Default for CanIds {
 }
 
 fn flags_of(p: &Pose) -> u8 {
-    (if p.velocity.is_some() { FLAG_VELOCITY } else { 0 })
-        | (if p.angular_rate.is_some() { FLAG_ANGULAR_RATE } else { 0 })
+    (if p.velocity.is_some() {
+        FLAG_VELOCITY
+    } else {
+        0
+    }) | (if p.angular_rate.is_some() {
+        FLAG_ANGULAR_RATE
+    } else {
+        0
+    })
 }
 
 /// Length of the compact block for `flags`, or `None` for unknown flag bits.

@@ -119,7 +119,9 @@ fn expected_pose_len(flags: u8) -> usize {
 fn length_ok(ty: u8, len: u16) -> bool {
     let len = len as usize;
     match ty {
-        TYPE_POSE => [0, 1, 2].iter().any(|k| len == POSE_BASE_LEN + k * POSE_OPT_LEN),
+        TYPE_POSE => [0, 1, 2]
+            .iter()
+            .any(|k| len == POSE_BASE_LEN + k * POSE_OPT_LEN),
         TYPE_TRIGGER => len == 0,
         TYPE_HEARTBEAT => len == 4,
         _ => false,
@@ -238,8 +240,15 @@ pub fn encode_frame_into(msg: &Message, out: &mut Vec<u8>) {
     w.u64(t_ns);
     match *msg {
         Message::Pose(p) => {
-            let flags = if p.velocity.is_some() { FLAG_VELOCITY } else { 0 }
-                | if p.angular_rate.is_some() { FLAG_ANGULAR_RATE } else { 0 };
+            let flags = if p.velocity.is_some() {
+                FLAG_VELOCITY
+            } else {
+                0
+            } | if p.angular_rate.is_some() {
+                FLAG_ANGULAR_RATE
+            } else {
+                0
+            };
             w.u8(flags);
             w.0.extend_from_slice(&[0; 3]);
             w.dvec3_f64(p.position);
@@ -355,7 +364,10 @@ impl SerialDecoder {
                 if matches!(reason, Malformed::Crc { .. }) {
                     self.stats.crc_failures += 1;
                 }
-                Some(DecodeEvent::Discarded { bytes: skip, reason })
+                Some(DecodeEvent::Discarded {
+                    bytes: skip,
+                    reason,
+                })
             }
         }
     }

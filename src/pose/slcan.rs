@@ -144,7 +144,10 @@ pub fn encode_frame(f: &CanFrame) -> String {
         (true, true, true) => 'B',
     };
     let dlc = if f.fd {
-        FD_LENGTHS.iter().position(|&l| l == d.len()).expect("legal FD length")
+        FD_LENGTHS
+            .iter()
+            .position(|&l| l == d.len())
+            .expect("legal FD length")
     } else {
         d.len()
     };

@@ -118,8 +118,7 @@ pub fn check_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, Rejection> {
         return Err(Rejection::TooFar);
     }
     if p.velocity.is_some_and(|v| v.length() > lim.max_speed_mps)
-        || p
-            .angular_rate
+        || p.angular_rate
             .is_some_and(|w| w.length() > lim.max_angular_rate_rps)
     {
         return Err(Rejection::RateLimit);

@@ -168,14 +168,23 @@ mod tests {
         InputCounters::inc(&c.accepted);
         c.reject(Rejection::TooFar);
         c.reject(Rejection::TooFar);
-        c.serial_discard(5, Malformed::Crc { got: 0, computed: 1 });
+        c.serial_discard(
+            5,
+            Malformed::Crc {
+                got: 0,
+                computed: 1,
+            },
+        );
         let text = c.to_prometheus();
         assert!(text.contains("hilcam_input_accepted_total 1\n"));
         assert!(text.contains("hilcam_input_rejected_total{reason=\"too_far\"} 2\n"));
         assert!(text.contains("hilcam_input_rejected_total{reason=\"non_finite\"} 0\n"));
         assert!(text.contains("hilcam_input_discarded_bytes_total 5\n"));
         assert!(text.contains("hilcam_input_crc_failures_total 1\n"));
-        assert_eq!(text.matches("# TYPE hilcam_input_rejected_total").count(), 1);
+        assert_eq!(
+            text.matches("# TYPE hilcam_input_rejected_total").count(),
+            1
+        );
         let mut n = 0;
         c.for_each(|_, _, _| n += 1);
         assert_eq!(n, 20 + Rejection::ALL.len());

@@ -115,7 +115,10 @@ impl EventSink {
                 }
                 Err(r) => {
                     c.reject(r);
-                    self.warn(format_args!("pose seq {} t_ns {} rejected: {r}", p.seq, p.t_ns));
+                    self.warn(format_args!(
+                        "pose seq {} t_ns {} rejected: {r}",
+                        p.seq, p.t_ns
+                    ));
                     return;
                 }
             },

@@ -20,8 +20,8 @@ pub mod slcan;
 pub mod socketcan;
 
 pub use counters::InputCounters;
-pub use events::InputEvent;
 pub(crate) use events::EventSink;
+pub use events::InputEvent;
 
 use std::time::Duration;
 

@@ -208,10 +208,11 @@ pub enum SendTarget {
 fn open_for_sending(path: &str, baud: u32) -> Result<serialport::TTYPort, SendError> {
     use serialport::{DataBits, Parity, SerialPort, StopBits};
     let mut p = open_port(path, baud, DataBits::Eight, Parity::None, StopBits::One)?;
-    p.set_timeout(Duration::from_secs(5)).map_err(|e| SendError::Io {
-        device: path.to_string(),
-        source: e.into(),
-    })?;
+    p.set_timeout(Duration::from_secs(5))
+        .map_err(|e| SendError::Io {
+            device: path.to_string(),
+            source: e.into(),
+        })?;
     Ok(p)
 }
 
@@ -220,13 +221,21 @@ fn open_for_sending(path: &str, baud: u32) -> Result<serialport::TTYPort, SendEr
 ///
 /// # Errors
 /// Open failures naming the device.
-pub fn open_target(t: &SendTarget, ids: CanIds, fd: bool) -> Result<Box<dyn MessageWriter>, SendError> {
+pub fn open_target(
+    t: &SendTarget,
+    ids: CanIds,
+    fd: bool,
+) -> Result<Box<dyn MessageWriter>, SendError> {
     Ok(match t {
         SendTarget::Serial { path, baud } => {
             let p = open_for_sending(path, *baud)?;
             Box::new(SerialWriter::new(p, path.clone()))
         }
-        SendTarget::Slcan { path, baud, bitrate } => {
+        SendTarget::Slcan {
+            path,
+            baud,
+            bitrate,
+        } => {
             let p = open_for_sending(path, *baud)?;
             Box::new(SlcanWriter::open(p, path.clone(), *bitrate, ids, fd)?)
         }
@@ -284,9 +293,15 @@ pub fn send_trajectory_blocking(
     stop: &AtomicBool,
 ) -> Result<SendStats, SendError> {
     if opts.speed.is_nan() || opts.speed <= 0.0 {
-        return Err(SendError::Options(format!("speed must be > 0, got {}", opts.speed)));
+        return Err(SendError::Options(format!(
+            "speed must be > 0, got {}",
+            opts.speed
+        )));
     }
-    if opts.rate_hz.is_some_and(|r| r.is_nan() || r <= 0.0 || r.is_infinite()) {
+    if opts
+        .rate_hz
+        .is_some_and(|r| r.is_nan() || r <= 0.0 || r.is_infinite())
+    {
         return Err(SendError::Options("rate must be a positive number".into()));
     }
     let (Some(first), Some(last)) = (samples.first(), samples.last()) else {
@@ -392,8 +407,13 @@ mod tests {
     fn fixed_rate_holds_latest_sample() {
         let log = Arc::new(std::sync::Mutex::new(Vec::new()));
         let s = samples(5, 0.5);
-        let opts = SendOptions { rate_hz: Some(3.0), speed: f64::INFINITY };
-        let st = send_trajectory_blocking(&s, &opts, &mut Record(log.clone()), &AtomicBool::new(false)).unwrap();
+        let opts = SendOptions {
+            rate_hz: Some(3.0),
+            speed: f64::INFINITY,
+        };
+        let st =
+            send_trajectory_blocking(&s, &opts, &mut Record(log.clone()), &AtomicBool::new(false))
+                .unwrap();
         // Ticks at 0, 1/3, 2/3, … ≤ 2 s after the first sample: 7 sends.
         assert_eq!(st.poses, 7);
         let z: Vec<f64> = log
@@ -407,16 +427,26 @@ mod tests {
             .collect();
         // Sample k covers [0.5k, 0.5k + 0.5): ticks 0,.33 → 0; .67 → 1; 1.0,1.33 → 2; 1.67 → 3; 2.0 → 4.
         assert_eq!(z, vec![100.0, 100.0, 99.0, 98.0, 98.0, 97.0, 96.0]);
-        let bad = SendOptions { rate_hz: None, speed: 0.0 };
-        assert!(send_trajectory_blocking(&s, &bad, &mut Record(log), &AtomicBool::new(false)).is_err());
+        let bad = SendOptions {
+            rate_hz: None,
+            speed: 0.0,
+        };
+        assert!(
+            send_trajectory_blocking(&s, &bad, &mut Record(log), &AtomicBool::new(false)).is_err()
+        );
     }
 
     #[tokio::test]
     async fn shutdown_stops_a_paced_replay() {
         let log = Arc::new(std::sync::Mutex::new(Vec::new()));
         let s: Arc<[TrajectorySample]> = samples(1000, 1.0).into();
-        let opts = SendOptions { rate_hz: None, speed: 1.0 };
-        let st = send_trajectory(s, opts, Box::new(Record(log.clone())), async {}).await.unwrap();
+        let opts = SendOptions {
+            rate_hz: None,
+            speed: 1.0,
+        };
+        let st = send_trajectory(s, opts, Box::new(Record(log.clone())), async {})
+            .await
+            .unwrap();
         // Shutdown was already resolved: at most the first (due at once) pose went out.
         assert!(st.poses <= 1, "{st:?}");
         assert_eq!(log.lock().unwrap().len() as u64, st.poses);

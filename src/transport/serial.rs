@@ -6,7 +6,9 @@
 //! unplug, pty closed) the loop counts a device error and reopens the same path
 //! with backoff until it is back, without restarting hilcam.
 
-use super::{Backoff, EventSink, InputCounters, InputEvent, run_blocking_until, sleep_unless_stopped};
+use super::{
+    Backoff, EventSink, InputCounters, InputEvent, run_blocking_until, sleep_unless_stopped,
+};
 use crate::pose::serial::{DecodeEvent, SerialDecoder};
 use crate::pose::validate::PoseLimits;
 use serialport::{DataBits, Parity, SerialPort, StopBits};
@@ -113,7 +115,13 @@ pub(crate) fn open_with_retry(
         if stop.load(Ordering::Relaxed) || sink.closed() {
             return None;
         }
-        match open_port(&cfg.path, cfg.baud, cfg.data_bits, cfg.parity, cfg.stop_bits) {
+        match open_port(
+            &cfg.path,
+            cfg.baud,
+            cfg.data_bits,
+            cfg.parity,
+            cfg.stop_bits,
+        ) {
             Ok(port) => {
                 *opened += 1;
                 if *opened > 1 {

@@ -132,7 +132,10 @@ fn slcan_loop(cfg: &SlcanConfig, init: &str, mut sink: EventSink, stop: &AtomicB
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 Err(e) => {
                     InputCounters::inc(&sink.counters.device_errors);
-                    sink.warn(format_args!("slcan device {} read error: {e}", cfg.serial.path));
+                    sink.warn(format_args!(
+                        "slcan device {} read error: {e}",
+                        cfg.serial.path
+                    ));
                     break;
                 }
             }

@@ -43,7 +43,9 @@ fn open_socket(iface: &str) -> std::io::Result<socketcan::tokio::CanFdSocket> {
     let s = socketcan::tokio::CanFdSocket::open(iface)?;
     s.set_error_filter_accept_all()?;
     // SO_RCVBUFFORCE (root) else SO_RCVBUF (capped by net.core.rmem_max).
-    if s.set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUFFORCE, RCVBUF_BYTES).is_err() {
+    if s.set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUFFORCE, RCVBUF_BYTES)
+        .is_err()
+    {
         let _ = s.set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUF, RCVBUF_BYTES);
     }
     Ok(s)
@@ -93,7 +95,9 @@ pub fn to_socketcan(f: &CanFrame) -> CanAnyFrame {
     let id: socketcan::Id = if f.extended {
         socketcan::ExtendedId::new(f.id).expect("checked").into()
     } else {
-        socketcan::StandardId::new(f.id as u16).expect("checked").into()
+        socketcan::StandardId::new(f.id as u16)
+            .expect("checked")
+            .into()
     };
     if f.fd {
         let flags = if f.brs {

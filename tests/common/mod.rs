@@ -54,7 +54,13 @@ impl NullModem {
         let ma2 = ma.try_clone_native().unwrap();
         let mb2 = mb.try_clone_native().unwrap();
         let threads = vec![pump(ma, mb2, stop.clone()), pump(mb, ma2, stop.clone())];
-        NullModem { a, b, _slaves: (sa, sb), stop, threads }
+        NullModem {
+            a,
+            b,
+            _slaves: (sa, sb),
+            stop,
+            threads,
+        }
     }
 }
 
@@ -144,7 +150,11 @@ pub fn counters() -> Arc<InputCounters> {
 }
 
 /// Writes `chunks` to `w` from a thread, pausing `gap` between them.
-pub fn write_all_slowly(mut w: TTYPort, chunks: Vec<Vec<u8>>, gap: Duration) -> std::thread::JoinHandle<()> {
+pub fn write_all_slowly(
+    mut w: TTYPort,
+    chunks: Vec<Vec<u8>>,
+    gap: Duration,
+) -> std::thread::JoinHandle<()> {
     w.set_timeout(PATIENCE).unwrap();
     std::thread::spawn(move || {
         for c in chunks {
