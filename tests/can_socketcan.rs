@@ -1,5 +1,6 @@
 //! SocketCAN on real virtual CAN interfaces. This is the one test binary that
-//! needs `vcan0` (and `vcan1`); `scripts/test.sh` runs it inside the vcan VM
+//! needs `vcan0` (and `vcan1`); its tests are ignored by a plain `cargo test`
+//! and `scripts/test.sh` runs them with `--include-ignored`, inside the vcan VM
 //! (`scripts/vcan-vm.sh`) when the host kernel has no CAN, natively otherwise.
 //!
 //! Each test uses its own CAN base id, so tests running in parallel on the
@@ -17,34 +18,20 @@ use hilcam::transport::send::{
 use hilcam::transport::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
 use hilcam::transport::{InputCounters, InputEvent};
 use socketcan::Socket;
-use std::io::Write;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
-/// Whether `iface` exists; otherwise prints why the test does not run here
-/// (and fails in CI unless the VM run is the one that covers it).
+/// Fails with the reason when `iface` is missing: these tests are `#[ignore]`d
+/// by default and only run when asked for (`--include-ignored`), where a
+/// missing interface is an error, not a silent pass.
 fn have(iface: &str) -> bool {
-    if std::path::Path::new("/sys/class/net").join(iface).exists() {
-        return true;
-    }
-    if let Ok(why) = std::env::var("HILCAM_VCAN_DEFERRED") {
-        let _ = writeln!(
-            std::io::stderr(),
-            "NOT RUN HERE: no {iface} on this host; {why}"
-        );
-        return false;
-    }
-    let why = format!(
+    assert!(
+        std::path::Path::new("/sys/class/net").join(iface).exists(),
         "no {iface}: this kernel has no vcan; run scripts/test.sh (it uses scripts/vcan-vm.sh)"
     );
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("{why}");
-    }
-    // Straight to stderr: libtest captures eprintln! of passing tests.
-    let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
-    false
+    true
 }
 
 struct Rx {
@@ -101,6 +88,7 @@ impl Rx {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_groups_fd_frames_corruption_and_error_frames() {
     if !have("vcan0") {
         return;
@@ -151,6 +139,7 @@ async fn vcan_groups_fd_frames_corruption_and_error_frames() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_interface_down_and_up_is_recovered() {
     if !have("vcan1") {
         return;
@@ -203,6 +192,7 @@ async fn vcan_interface_down_and_up_is_recovered() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_hilcam_send_cli_classic_and_fd() {
     if !have("vcan0") {
         return;
@@ -247,6 +237,7 @@ async fn vcan_hilcam_send_cli_classic_and_fd() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_python_can_socketcan_example() {
     if !have("vcan0") {
         return;
