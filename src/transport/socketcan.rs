@@ -142,6 +142,7 @@ pub async fn run_socketcan(
         wait = Duration::ZERO;
         if opened > 1 {
             InputCounters::inc(&sink.counters.reconnects);
+            sink.reconnected();
             tracing::info!(iface = %cfg.iface, "CAN interface reopened");
         } else {
             tracing::info!(iface = %cfg.iface, "CAN interface open");
