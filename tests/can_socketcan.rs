@@ -6,9 +6,8 @@
 //! Each test uses its own CAN base id, so tests running in parallel on the
 //! same interface see each other's frames only as foreign traffic.
 
-mod common;
+mod pose_common;
 
-use common::*;
 use hilcam::pose::Message;
 use hilcam::pose::can::{CanIds, encode_message};
 use hilcam::trajectory::Trajectory;
@@ -17,6 +16,7 @@ use hilcam::transport::send::{
 };
 use hilcam::transport::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
 use hilcam::transport::{InputCounters, InputEvent};
+use pose_common::*;
 use socketcan::Socket;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
