@@ -159,14 +159,12 @@ impl Trajectory {
                     .filter(|x| x.is_finite())
                     .ok_or_else(|| err(line, col[k] + 1, format!("`{}`: `{f}` is not a finite number", all[k])))?;
             }
-            if let Some(prev) = out.last() {
-                if v[0] <= prev.time_s {
-                    return Err(err(
-                        line,
-                        col[0] + 1,
-                        format!("time_s {} does not increase (previous {})", v[0], prev.time_s),
-                    ));
-                }
+            if let Some(prev) = out.last().filter(|p| v[0] <= p.time_s) {
+                return Err(err(
+                    line,
+                    col[0] + 1,
+                    format!("time_s {} does not increase (previous {})", v[0], prev.time_s),
+                ));
             }
             if v[0] < 0.0 {
                 return Err(err(line, col[0] + 1, "time_s is negative".into()));

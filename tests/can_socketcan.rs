@@ -1,41 +1,35 @@
 //! SocketCAN on real virtual CAN interfaces. This is the one test binary that
-//! needs `vcan0` (and `vcan1`); `scripts/test.sh` runs it inside the vcan VM
+//! needs `vcan0` (and `vcan1`); its tests are ignored by a plain `cargo test`
+//! and `scripts/test.sh` runs them with `--include-ignored`, inside the vcan VM
 //! (`scripts/vcan-vm.sh`) when the host kernel has no CAN, natively otherwise.
 //!
 //! Each test uses its own CAN base id, so tests running in parallel on the
 //! same interface see each other's frames only as foreign traffic.
 
-mod common;
+mod pose_common;
 
-use common::*;
 use hilcam::pose::Message;
 use hilcam::pose::can::{CanIds, encode_message};
 use hilcam::trajectory::Trajectory;
 use hilcam::transport::send::{MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking};
 use hilcam::transport::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
 use hilcam::transport::{InputCounters, InputEvent};
+use pose_common::*;
 use socketcan::Socket;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
-/// Whether `iface` exists; otherwise prints why the test does not run here
-/// (and fails in CI unless the VM run is the one that covers it).
+/// Fails with the reason when `iface` is missing: these tests are `#[ignore]`d
+/// by default and only run when asked for (`--include-ignored`), where a
+/// missing interface is an error, not a silent pass.
 fn have(iface: &str) -> bool {
-    if std::path::Path::new("/sys/class/net").join(iface).exists() {
-        return true;
-    }
-    if let Ok(why) = std::env::var("HILCAM_VCAN_DEFERRED") {
-        eprintln!("NOT RUN HERE: no {iface} on this host; {why}");
-        return false;
-    }
-    let why = format!("no {iface}: this kernel has no vcan; run scripts/test.sh (it uses scripts/vcan-vm.sh)");
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("{why}");
-    }
-    eprintln!("SKIPPED: {why}");
-    false
+    assert!(
+        std::path::Path::new("/sys/class/net").join(iface).exists(),
+        "no {iface}: this kernel has no vcan; run scripts/test.sh (it uses scripts/vcan-vm.sh)"
+    );
+    true
 }
 
 struct Rx {
@@ -82,6 +76,7 @@ impl Rx {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_groups_fd_frames_corruption_and_error_frames() {
     if !have("vcan0") {
         return;
@@ -126,6 +121,7 @@ async fn vcan_groups_fd_frames_corruption_and_error_frames() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_interface_down_and_up_is_recovered() {
     if !have("vcan1") {
         return;
@@ -160,6 +156,7 @@ async fn vcan_interface_down_and_up_is_recovered() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_hilcam_send_cli_classic_and_fd() {
     if !have("vcan0") {
         return;
@@ -170,8 +167,11 @@ async fn vcan_hilcam_send_cli_classic_and_fd() {
         let ids = CanIds::new(base, false).unwrap();
         let mut r = receiver("vcan0", ids).await;
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
-            .args(["send", "--can", "vcan0", "--speed", "inf", "--can-base", &format!("{base:#x}"), "--trajectory"])
+            // Paced (400 poses/s): vcan has no bit rate, so an unpaced sender
+            // outruns a receiver on the emulated one-CPU VM.
+            .args(["send", "--can", "vcan0", "--speed", "200", "--can-base", &format!("{base:#x}")])
             .args(fd.then_some("--can-fd"))
+            .arg("--trajectory")
             .arg(&traj)
             .output()
             .unwrap();
@@ -186,6 +186,7 @@ async fn vcan_hilcam_send_cli_classic_and_fd() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs vcan0/vcan1: scripts/test.sh runs it in the vcan VM (or natively where vcan exists)"]
 async fn vcan_python_can_socketcan_example() {
     if !have("vcan0") {
         return;

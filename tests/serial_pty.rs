@@ -2,15 +2,15 @@
 //! writes, garbage between frames, bad poses, unplug and replug, and the
 //! pyserial example and `hilcam send --serial` as senders.
 
-mod common;
+mod pose_common;
 
-use common::*;
 use glam::DVec3;
 use hilcam::pose::serial::encode_frame;
 use hilcam::pose::validate::Rejection;
 use hilcam::pose::{Message, Pose};
 use hilcam::trajectory::Trajectory;
 use hilcam::transport::serial::{SerialConfig, open_port, run_serial};
+use pose_common::*;
 use serialport::{DataBits, Parity, SerialPort, StopBits, TTYPort};
 use std::io::Write;
 use std::time::Duration;

@@ -1,9 +1,8 @@
 //! slcan over pseudo-terminals: the receiver talking to a scripted "adapter",
 //! hilcam's own slcan sender, and the python-can slcan interface.
 
-mod common;
+mod pose_common;
 
-use common::*;
 use hilcam::pose::Message;
 use hilcam::pose::can::{CanIds, encode_message};
 use hilcam::pose::slcan::{SlcanDecoder, SlcanItem, encode_frame};
@@ -11,6 +10,7 @@ use hilcam::trajectory::Trajectory;
 use hilcam::transport::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
 use hilcam::transport::serial::SerialConfig;
 use hilcam::transport::slcan::{SlcanConfig, run_slcan};
+use pose_common::*;
 use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
 use std::sync::atomic::AtomicBool;
@@ -130,10 +130,10 @@ fn slcan_sender_writes_what_an_adapter_expects() {
         raw.extend_from_slice(&buf[..n]);
         dec.push(&buf[..n]);
         while let Some(item) = dec.next_item() {
-            if let Ok(SlcanItem::Frame(f)) = item {
-                if let Some(hilcam::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f) {
-                    got.push(p);
-                }
+            if let Ok(SlcanItem::Frame(f)) = item
+                && let Some(hilcam::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f)
+            {
+                got.push(p);
             }
         }
     }

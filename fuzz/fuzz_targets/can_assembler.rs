@@ -1,9 +1,9 @@
 #![no_main]
 //! Arbitrary frame sequences on hilcam's ids: no panic; every pose that comes
 //! out either passes validation or is rejected with a reason (never panics).
+use hilcam_fuzz::pose::Message;
 use hilcam_fuzz::pose::can::{CanAssembler, CanEvent, CanFrame, CanIds};
 use hilcam_fuzz::pose::validate::{PoseLimits, PoseValidator};
-use hilcam_fuzz::pose::Message;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

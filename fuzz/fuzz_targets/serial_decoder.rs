@@ -5,7 +5,9 @@ use hilcam_fuzz::pose::serial::{self, DecodeEvent, MAX_FRAME_LEN, SerialDecoder}
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let Some((&step, rest)) = data.split_first() else { return };
+    let Some((&step, rest)) = data.split_first() else {
+        return;
+    };
     let step = (step as usize % 64) + 1;
     let mut d = SerialDecoder::new();
     for chunk in rest.chunks(step) {

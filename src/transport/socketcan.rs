@@ -5,7 +5,9 @@
 //! error and counted, and recovery is the driver's automatic restart
 //! (`ip link set can0 type can restart-ms 100`): the socket stays open and
 //! frames flow again once the controller is back. If the socket itself fails
-//! (interface down or removed) it is reopened with backoff.
+//! (interface down or removed; also polled in sysfs every 200 ms, since a
+//! raw socket does not reliably wake its reader for that) it is reopened with
+//! backoff once the interface is up again.
 
 use super::{Backoff, EventSink, InputCounters, InputEvent};
 use crate::pose::can::{CanAssembler, CanEvent, CanFrame, CanIds};
@@ -14,6 +16,35 @@ use socketcan::{CanAnyFrame, EmbeddedFrame, Frame, SocketOptions};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
+
+/// Receive buffer asked of the kernel: ~4000 frames of slack when the task is
+/// briefly descheduled at high frame rates (the default holds ~200).
+const RCVBUF_BYTES: i32 = 4 << 20;
+/// How often an idle receiver checks that the interface is still up (the
+/// socket alone does not reliably report `ip link set … down`).
+const LINK_CHECK: Duration = Duration::from_millis(200);
+
+/// Whether `iface` exists and is administratively up (`IFF_UP` in sysfs).
+pub fn iface_up(iface: &str) -> bool {
+    std::fs::read_to_string(format!("/sys/class/net/{iface}/flags"))
+        .ok()
+        .and_then(|f| u32::from_str_radix(f.trim().trim_start_matches("0x"), 16).ok())
+        .is_some_and(|flags| flags & 1 != 0)
+}
+
+/// Opens the FD-capable raw socket with error frames and a large buffer.
+fn open_socket(iface: &str) -> std::io::Result<socketcan::tokio::CanFdSocket> {
+    if !iface_up(iface) {
+        return Err(std::io::Error::new(std::io::ErrorKind::NotConnected, "interface missing or down"));
+    }
+    let s = socketcan::tokio::CanFdSocket::open(iface)?;
+    s.set_error_filter_accept_all()?;
+    // SO_RCVBUFFORCE (root) else SO_RCVBUF (capped by net.core.rmem_max).
+    if s.set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUFFORCE, RCVBUF_BYTES).is_err() {
+        let _ = s.set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUF, RCVBUF_BYTES);
+    }
+    Ok(s)
+}
 
 /// Linux `CAN_ERR_BUSOFF` error class bit.
 const CAN_ERR_BUSOFF: u32 = 0x0000_0040;
@@ -84,9 +115,7 @@ pub async fn run_socketcan(
     let mut wait = Duration::ZERO;
     tokio::pin!(shutdown);
     loop {
-        let sock = match socketcan::tokio::CanFdSocket::open(&cfg.iface)
-            .and_then(|s| s.set_error_filter_accept_all().map(|_| s))
-        {
+        let sock = match open_socket(&cfg.iface) {
             Ok(s) => s,
             Err(e) => {
                 InputCounters::inc(&sink.counters.device_errors);
@@ -102,14 +131,22 @@ pub async fn run_socketcan(
         wait = Duration::ZERO;
         if opened > 1 {
             InputCounters::inc(&sink.counters.reconnects);
+            sink.reconnected();
             tracing::info!(iface = %cfg.iface, "CAN interface reopened");
         } else {
             tracing::info!(iface = %cfg.iface, "CAN interface open");
         }
+        let mut link_check = tokio::time::interval(LINK_CHECK);
         loop {
             let r = tokio::select! {
                 _ = &mut shutdown => return,
                 r = sock.read_frame() => r,
+                _ = link_check.tick() => {
+                    if iface_up(&cfg.iface) {
+                        continue;
+                    }
+                    Err(std::io::Error::new(std::io::ErrorKind::NotConnected, "interface went down"))
+                }
             };
             if sink.closed() {
                 return;
