@@ -1,5 +1,7 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
+pub mod sensor;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -21,6 +23,8 @@ pub struct Cli {
 pub enum Command {
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
+    /// Apply a camera preset's sensor model to a radiance image (.pfm).
+    Sensor(sensor::SensorArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -34,6 +38,7 @@ pub fn main() -> ExitCode {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())
         }
+        Command::Sensor(args) => sensor::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
