@@ -43,6 +43,7 @@ pub fn run(args: SensorArgs) -> anyhow::Result<()> {
     let mut last = None;
     for i in 0..args.frames.max(1) {
         let seed = args.seed.wrapping_add(i as u64);
+        let start = std::time::Instant::now();
         let out = match ae.as_mut() {
             Some(ae) => {
                 let (out, upd) = sensor.apply_auto(&img, seed, ae)?;
@@ -54,9 +55,10 @@ pub fn run(args: SensorArgs) -> anyhow::Result<()> {
             }
             None => sensor.apply(&img, seed)?,
         };
+        let ms = start.elapsed().as_secs_f64() * 1e3;
         let s = &out.stats;
         println!(
-            "frame {i}: mean {:.1} e⁻ expected, mean DN {:.2}, full well {} px, ADC clipped {} high / {} low",
+            "frame {i}: {ms:.1} ms, mean {:.1} e⁻ expected, mean DN {:.2}, full well {} px, ADC clipped {} high / {} low",
             s.mean_expected_e, s.mean_dn, s.full_well_pixels, s.adc_high_clipped, s.adc_low_clipped
         );
         last = Some(out);

@@ -4,6 +4,49 @@
 use super::config::DetectorConfig;
 use super::noise;
 use crate::sampling::Rng;
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// Fixed-pattern maps up to this many pixels (8 bytes each) are computed once and
+/// cached; larger arrays (the 81-Mpixel paper camera) recompute them per frame.
+pub const FPN_CACHE_MAX_PIXELS: usize = 1 << 24;
+
+/// The sensor's fixed pattern: two standard normal values per pixel (PRNU, DSNU), a pure
+/// function of (`fpn_seed`, pixel). Cached or computed on the fly, with the same values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FixedPattern {
+    seed: u64,
+    map: Option<Arc<Vec<[f32; 2]>>>,
+}
+
+impl FixedPattern {
+    pub fn new(seed: u64, pixels: usize) -> Self {
+        let map = (pixels <= FPN_CACHE_MAX_PIXELS).then(|| {
+            Arc::new(
+                (0..pixels as u64)
+                    .into_par_iter()
+                    .map(|p| Self::compute(seed, p))
+                    .collect(),
+            )
+        });
+        FixedPattern { seed, map }
+    }
+
+    #[inline]
+    fn compute(seed: u64, pixel: u64) -> [f32; 2] {
+        let (a, b) = noise::normal_pair(&mut noise::fixed_pattern_rng(seed, pixel));
+        [a as f32, b as f32]
+    }
+
+    /// The (PRNU, DSNU) normal values of `pixel`.
+    #[inline]
+    pub fn z(&self, pixel: u64) -> [f32; 2] {
+        match &self.map {
+            Some(m) => m[pixel as usize],
+            None => Self::compute(self.seed, pixel),
+        }
+    }
+}
 
 /// The detector's per-pixel parameters, resolved from the config once per frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -16,7 +59,8 @@ pub struct Detector {
     /// Rms dark-charge non-uniformity over the integration time, e⁻.
     pub dsnu_e: f64,
     pub prnu: f64,
-    pub fpn_seed: u64,
+    /// Present when PRNU or DSNU is configured.
+    pub fixed_pattern: Option<FixedPattern>,
     pub shot_noise: bool,
     pub full_well_e: Option<f64>,
     pub read_noise_e: f64,
@@ -37,15 +81,21 @@ pub struct PixelCharge {
 
 impl Detector {
     /// Resolve the config for one integration time; `e_per_radiance_s` comes from
-    /// [`super::optics::electrons_per_radiance_second`].
-    pub fn new(cfg: &DetectorConfig, e_per_radiance_s: f64, integration_time_s: f64) -> Self {
+    /// [`super::optics::electrons_per_radiance_second`]; `fixed_pattern` from
+    /// [`FixedPattern::new`] (needed only when PRNU or DSNU is configured).
+    pub fn new(
+        cfg: &DetectorConfig,
+        e_per_radiance_s: f64,
+        integration_time_s: f64,
+        fixed_pattern: Option<FixedPattern>,
+    ) -> Self {
         let t = integration_time_s;
         Detector {
             e_per_radiance: e_per_radiance_s * t,
             dark_e: cfg.dark_current_e_per_s.unwrap_or(0.0) * t,
             dsnu_e: cfg.dsnu_e_per_s.unwrap_or(0.0) * t,
             prnu: cfg.prnu.unwrap_or(0.0),
-            fpn_seed: cfg.fpn_seed,
+            fixed_pattern,
             shot_noise: cfg.shot_noise,
             full_well_e: cfg.full_well_e,
             read_noise_e: cfg.read_noise_e.unwrap_or(0.0),
@@ -59,10 +109,10 @@ impl Detector {
     pub fn expected(&self, radiance: f64, pixel: u64) -> f64 {
         let mut photo = radiance.max(0.0) * self.e_per_radiance;
         let mut dark = self.dark_e;
-        if self.prnu > 0.0 || self.dsnu_e > 0.0 {
-            let (z1, z2) = noise::normal_pair(&mut noise::fixed_pattern_rng(self.fpn_seed, pixel));
-            photo *= (1.0 + self.prnu * z1).max(0.0);
-            dark = (dark + self.dsnu_e * z2).max(0.0);
+        if let Some(fp) = &self.fixed_pattern {
+            let [z1, z2] = fp.z(pixel);
+            photo *= (1.0 + self.prnu * z1 as f64).max(0.0);
+            dark = (dark + self.dsnu_e * z2 as f64).max(0.0);
         }
         photo + dark
     }
@@ -96,5 +146,20 @@ impl Detector {
             full,
             read_e: e + self.read_noise_e * z_read,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cached_and_recomputed_fixed_pattern_agree() {
+        let cached = FixedPattern::new(7, 1000);
+        let live = FixedPattern { seed: 7, map: None };
+        for p in [0u64, 1, 500, 999] {
+            assert_eq!(cached.z(p), live.z(p));
+        }
+        assert_ne!(cached.z(0), FixedPattern::new(8, 1).z(0));
     }
 }

@@ -78,6 +78,7 @@ pub struct Sensor {
     /// Photo-electrons per second per unit radiance (None without a detector).
     e_per_radiance_s: Option<f64>,
     adc: Option<Adc>,
+    fixed_pattern: Option<detector::FixedPattern>,
 }
 
 /// One converted frame.
@@ -175,6 +176,14 @@ impl Sensor {
             psf,
             e_per_radiance_s: optics::electrons_per_radiance_second(cfg, camera),
             adc: cfg.adc.as_ref().map(Adc::new),
+            fixed_pattern: cfg.detector.as_ref().and_then(|d| {
+                (d.prnu.unwrap_or(0.0) > 0.0 || d.dsnu_e_per_s.unwrap_or(0.0) > 0.0).then(|| {
+                    detector::FixedPattern::new(
+                        d.fpn_seed,
+                        camera.width as usize * camera.height as usize,
+                    )
+                })
+            }),
         })
     }
 
@@ -300,7 +309,7 @@ impl Sensor {
         }
         let adc = self.adc.expect("validated: DN output has an ADC");
         let det = match (&self.cfg.detector, self.e_per_radiance_s) {
-            (Some(d), Some(k)) => Some(Detector::new(d, k, t_s)),
+            (Some(d), Some(k)) => Some(Detector::new(d, k, t_s, self.fixed_pattern.clone())),
             _ => None,
         };
         let scale = self.radiance_scale;
