@@ -14,6 +14,8 @@ pub const DEAD_BAND: f64 = 0.02;
 pub struct AutoExposure {
     cfg: AutoExposureConfig,
     adc: Adc,
+    /// DN a saturated pixel reads: the ADC maximum, or the full well's DN if lower.
+    saturation_dn: f64,
     t_s: f64,
 }
 
@@ -32,11 +34,18 @@ pub struct ExposureUpdate {
 
 impl AutoExposure {
     /// Start at `initial_s` (the detector's configured integration time), clamped into
-    /// `[min_s, max_s]`.
-    pub fn new(cfg: &AutoExposureConfig, adc: Adc, initial_s: f64) -> Self {
+    /// `[min_s, max_s]`. `full_well_e` (if any) sets the saturation level with the ADC.
+    pub fn new(
+        cfg: &AutoExposureConfig,
+        adc: Adc,
+        full_well_e: Option<f64>,
+        initial_s: f64,
+    ) -> Self {
+        let fw_dn = full_well_e.map_or(f64::INFINITY, |fw| adc.offset_dn + fw / adc.gain_e_per_dn);
         AutoExposure {
             cfg: cfg.clone(),
             adc,
+            saturation_dn: fw_dn.min(adc.max_dn as f64),
             t_s: if cfg.enabled {
                 initial_s.clamp(cfg.min_s, cfg.max_s)
             } else {
@@ -52,16 +61,20 @@ impl AutoExposure {
 
     /// Measure a frame taken with [`Self::integration_time_s`] and choose the next
     /// integration time. A black frame (percentile at the offset) lengthens it by
-    /// `max_step`; a saturated one shortens it by the ratio to the target, at most
-    /// `max_step`. Disabled: measures but keeps the time.
+    /// `max_step`; a saturated one (percentile at the saturation level, where the true
+    /// brightness is unknown) shortens it by `max_step`; otherwise the time scales by
+    /// target / measured, limited to `max_step`. Disabled: measures but keeps the time.
     pub fn update(&mut self, pixels: &Pixels) -> ExposureUpdate {
         let target = self.cfg.target_fraction * self.adc.usable_range_dn();
-        let measured = (percentile_dn(pixels, self.cfg.percentile) - self.adc.offset_dn).max(0.0);
+        let p = percentile_dn(pixels, self.cfg.percentile);
+        let measured = (p - self.adc.offset_dn).max(0.0);
         let prev = self.t_s;
         if self.cfg.enabled {
             let step = self.cfg.max_step;
             let ratio = if measured < 0.5 {
                 step
+            } else if p >= self.saturation_dn - 0.5 {
+                1.0 / step
             } else {
                 (target / measured).clamp(1.0 / step, step)
             };

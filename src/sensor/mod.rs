@@ -217,7 +217,12 @@ impl Sensor {
     pub fn auto_exposure(&self) -> Option<AutoExposure> {
         let ae = self.cfg.auto_exposure.as_ref()?;
         let det = self.cfg.detector.as_ref()?;
-        Some(AutoExposure::new(ae, self.adc?, det.integration_time_s))
+        Some(AutoExposure::new(
+            ae,
+            self.adc?,
+            det.full_well_e,
+            det.integration_time_s,
+        ))
     }
 
     /// The image-space optics alone: transmittance, cos⁴ vignetting, then the PSF.
