@@ -791,6 +791,19 @@ fn config_errors_name_the_field_or_file() {
         e.contains("bad.toml") && e.contains("cos5") && e.contains("line 8"),
         "{e}"
     );
+    // Typos inside inline tables are caught too.
+    for bad in [
+        "psf = { kind = \"airy\", wavelength = 0.6 }",
+        "psf = { kind = \"box\", sigma_px = 1.0 }",
+        "distortion = { k1 = 0.1, k4 = 0.0 }",
+    ] {
+        std::fs::write(
+            &f,
+            format!("[camera]\nwidth = 8\nheight = 8\npitch_um = 5.5\nfocal_mm = 16.0\n\n[sensor.optics]\nf_number = 2.0\n{bad}\n"),
+        )
+        .unwrap();
+        assert!(CameraPreset::load(&f).is_err(), "{bad} accepted");
+    }
     // Size mismatch between the image and the camera.
     let s = Sensor::new(&c, &SensorConfig::default()).unwrap();
     assert!(matches!(
