@@ -89,9 +89,7 @@ pub fn poisson_inversion(lambda: f64, u: f64) -> f64 {
 #[inline]
 pub fn poisson_normal(lambda: f64, z: f64) -> f64 {
     let sd = (lambda - 5.0 / 36.0).max(0.0).sqrt();
-    (lambda + sd * z + (z * z - 1.0) / 6.0 + 0.5)
-        .floor()
-        .max(0.0)
+    super::adc::floor(lambda + sd * z + (z * z - 1.0) / 6.0 + 0.5).max(0.0)
 }
 
 #[cfg(test)]
