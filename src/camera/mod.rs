@@ -5,6 +5,7 @@
 //! `((col + 0.5) − W/2 − cx, (row + 0.5) − H/2 − cy) × pitch` on the focal plane, where
 //! `(cx, cy)` is the principal point's offset from the array centre, in pixels.
 
+pub mod distortion;
 pub mod view;
 
 use serde::Deserialize;

@@ -5,6 +5,7 @@ pub mod brdf;
 pub mod recv;
 pub mod render;
 pub mod send;
+pub mod sensor;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -30,6 +31,8 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
+    /// Apply a camera preset's sensor model to a radiance image (.pfm).
+    Sensor(sensor::SensorArgs),
     /// Replay a trajectory file as live pose messages (serial, SocketCAN or slcan).
     Send(send::SendArgs),
     /// Receive a frame stream: verify CRCs, save frames, print rate, gaps and latency.
@@ -55,6 +58,7 @@ pub fn main() -> ExitCode {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
             Ok(())
         }
+        Command::Sensor(args) => sensor::run(args),
         Command::Send(args) => send::run(args),
         Command::Recv(args) => recv::run(args),
         Command::Brdf(args) => brdf::run(args),
