@@ -23,6 +23,11 @@
 //! attitude = [1.0, 0.0, 0.0, 0.0]   # w, x, y, z: body → camera
 //! sun = [0.0, 0.0, -1.0]            # toward the sun
 //!
+//! [[wrap]]                     # optional: wrinkle a material's faces (MLI folds)
+//! material = "mli_gold"
+//! level = "medium"             # or e_plane = 0.968, var = 0.0077
+//! edge_m = 0.02
+//!
 //! [render]
 //! spp = 4
 //! depth = 2
@@ -35,6 +40,7 @@ use super::obj::load_obj;
 use super::{Material, Scene, SceneParts};
 use crate::bsdf::BsdfSpec;
 use crate::camera::CameraModel;
+use crate::fold::{FoldLevel, FoldTarget, fit_for_edge, wrap_faces_report};
 use crate::geometry::{BvhLayout, TriMesh};
 use crate::integrator::{RenderSettings, SamplerKind};
 use crate::pose::Pose;
@@ -75,6 +81,28 @@ struct SceneFile {
     pose: PoseSection,
     #[serde(default)]
     render: RenderSection,
+    /// Fold (wrinkle) every face of a material at load time.
+    #[serde(default)]
+    wrap: Vec<Spanned<WrapEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WrapEntry {
+    material: String,
+    /// slight | medium | severe (the paper's levels), or give e_plane and var.
+    level: Option<String>,
+    e_plane: Option<f64>,
+    var: Option<f64>,
+    /// Target edge length of the subdivided faces, metres.
+    #[serde(default = "default_edge")]
+    edge_m: f32,
+    #[serde(default)]
+    seed: u64,
+}
+
+fn default_edge() -> f32 {
+    0.02
 }
 
 #[derive(Deserialize)]
@@ -284,6 +312,23 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             *mat = map[*mat as usize];
         }
         mesh.append(&m);
+    }
+
+    for w in &file.wrap {
+        let e = w.get_ref();
+        let fail = |m: String| field(w.span(), "wrap", m);
+        let Some(mat) = index_of(&e.material) else {
+            return Err(fail(format!("material `{}` is not in [materials]", e.material)));
+        };
+        let target = match (&e.level, e.e_plane, e.var) {
+            (Some(l), None, None) => l.parse::<FoldLevel>().map_err(|x| fail(x.to_string()))?.target(),
+            (None, Some(e_plane), Some(var)) => FoldTarget { e_plane, var },
+            _ => return Err(fail("give either level or both e_plane and var".into())),
+        };
+        let fit = fit_for_edge(target, e.seed, e.edge_m).map_err(|x| fail(x.to_string()))?;
+        let (wrapped, report) = wrap_faces_report(&mesh, &[mat], &fit.params, e.seed, e.edge_m);
+        tracing::info!(material = %e.material, e_plane = fit.e_plane, var = fit.var, triangles = wrapped.indices.len(), ?report, "folded");
+        mesh = wrapped;
     }
 
     // Camera: inline table or a camera file's [camera] table.
