@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import math
 import os
 import re
@@ -87,10 +88,10 @@ def ensure_llvm() -> str | None:
     if shutil.which("apt-get") and os.geteuid() == 0:
         log("vs_mitsuba: no libLLVM >= 16 found; apt-get install libllvm19 (benchmark only)")
         env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-        r = subprocess.run(["apt-get", "install", "-y", "-qq", "libllvm19"], env=env)
+        r = subprocess.run(["apt-get", "install", "-y", "-qq", "libllvm19"], env=env, check=False)
         if r.returncode != 0:
-            subprocess.run(["apt-get", "update", "-qq"], env=env)
-            subprocess.run(["apt-get", "install", "-y", "-qq", "libllvm19"], env=env)
+            subprocess.run(["apt-get", "update", "-qq"], env=env, check=False)
+            subprocess.run(["apt-get", "install", "-y", "-qq", "libllvm19"], env=env, check=False)
     return find_llvm()
 
 
@@ -110,6 +111,7 @@ def bootstrap() -> None:
     probe = subprocess.run(
         [str(py), "-c", "import mitsuba, drjit, numpy, matplotlib"],
         capture_output=True,
+        check=False,
     )
     if probe.returncode != 0:
         log(f"vs_mitsuba: pip install {' '.join(PINNED)} into {VENV}")
@@ -143,7 +145,7 @@ class Camera:
     def focal_px(self) -> float:
         return self.focal_mm * 1e3 / self.pitch_um
 
-    def scaled(self, width: int | None, height: int | None) -> "Camera":
+    def scaled(self, width: int | None, height: int | None) -> Camera:
         """Same field of view at another resolution (src/cli/render.rs `scaled_camera`)."""
         if width is None and height is None:
             return self
@@ -160,7 +162,7 @@ class MeshPart:
     positions: list  # [(x, y, z)] in the OBJ's own coordinates
     faces: list  # [(i, j, k)] 0-based
     material: str
-    to_world: "list[list[float]]"  # 4×4, OBJ → body frame
+    to_world: list[list[float]]  # 4×4, OBJ → body frame
 
 
 @dataclass
@@ -200,7 +202,12 @@ class HilcamScene:
         out += ["[sun]", f"irradiance = {self.sun_irradiance!r}", "[background]", f"radiance = {self.background!r}"]
         out += ["[camera]", f"width = {c.width}", f"height = {c.height}", f"pitch_um = {c.pitch_um!r}",
                 f"focal_mm = {c.focal_mm!r}", f"principal_point_px = {v(list(c.pp))}"]  # fmt: skip
-        out += ["[pose]", f"position = {v(list(self.position))}", f"attitude = {v(list(self.attitude))}", f"sun = {v(list(self.sun))}"]
+        out += [
+            "[pose]",
+            f"position = {v(list(self.position))}",
+            f"attitude = {v(list(self.attitude))}",
+            f"sun = {v(list(self.sun))}",
+        ]
         out += ["[render]", f"spp = {self.spp}", f"depth = {self.depth}"]
         return "\n".join(out) + "\n"
 
@@ -384,15 +391,14 @@ def mitsuba_scene(mi, sc: HilcamScene, cam: Camera, depth: int, sampler: str, sp
             f"{sc.path}: [background] radiance = {sc.background}: hilcam's background is seen only by "
             "escaping rays (no light sampling); the benchmark only exports black backgrounds"
         )
-    centre, (X, Y, Z) = camera_axes_body(sc)
+    centre, (_, Y, Z) = camera_axes_body(sc)
     T = mi.ScalarTransform4f
     to_world = T().look_at(
         origin=centre,
         target=[centre[i] + Z[i] for i in range(3)],
         up=[-Y[i] for i in range(3)],
     )
-    sun = quat_to_mat(sc.attitude)
-    sun_body = matvec(transpose(sun), sc.sun)
+    sun_body = matvec(transpose(quat_to_mat(sc.attitude)), sc.sun)  # Rᵀ s
     n = math.sqrt(sum(v * v for v in sun_body))
     fov = math.degrees(2.0 * math.atan(cam.width * cam.pitch_um * 1e-6 / 2.0 / (cam.focal_mm * 1e-3)))
     # Bounds of the target for the clip planes (hilcam has none; keep them out of the way).
@@ -488,7 +494,7 @@ class Hilcam:
             "--spp", str(spp), "--depth", str(self.depth), "--sampler", self.sampler, "--seed", str(seed),
             "--width", str(self.cam.width), "--height", str(self.cam.height),
         ]  # fmt: skip
-        r = subprocess.run(cmd, capture_output=True, text=True)
+        r = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if r.returncode != 0:
             raise RuntimeError(f"hilcam failed: {' '.join(cmd)}\n{r.stderr}")
         m = SUMMARY.search(r.stdout)
@@ -541,7 +547,9 @@ def interior(img, margin: int = 2):
     for dy in range(-margin, margin + 1):
         for dx in range(-margin, margin + 1):
             sh = np.zeros_like(m)
-            sh[max(0, dy) : h + min(0, dy), max(0, dx) : w + min(0, dx)] = m[max(0, -dy) : h + min(0, -dy), max(0, -dx) : w + min(0, -dx)]
+            sh[max(0, dy) : h + min(0, dy), max(0, dx) : w + min(0, dx)] = m[
+                max(0, -dy) : h + min(0, -dy), max(0, -dx) : w + min(0, -dx)
+            ]
             out &= sh
     return out
 
@@ -631,7 +639,13 @@ def verify(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Pat
         rho = next(iter({sc.materials[p.material] for p in sc.parts}))
         analytic = rho * sc.sun_irradiance * cos / math.pi
         for who, img in (("hilcam", a), ("Mitsuba", b)):
-            checks.append(Check(f"{tag}: {who} interior mean {img[inner].mean():.3f} vs analytic {analytic:.3f} (ratio − 1)", float(img[inner].mean() / analytic - 1), 1e-3))
+            checks.append(
+                Check(
+                    f"{tag}: {who} interior mean {img[inner].mean():.3f} vs analytic {analytic:.3f} (ratio − 1)",
+                    float(img[inner].mean() / analytic - 1),
+                    1e-3,
+                )
+            )
     return checks
 
 
@@ -680,7 +694,7 @@ def interp_time(points: list[tuple[float, float]], err: float) -> float | None:
     """Time at which a (time, error) curve reaches `err`: log-log linear interpolation
     between the two measured points that bracket it; None outside the measured range."""
     pts = sorted(points, key=lambda p: p[0])
-    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+    for (t0, e0), (t1, e1) in itertools.pairwise(pts):
         lo, hi = min(e0, e1), max(e0, e1)
         if lo <= err <= hi and e0 != e1:
             u = (math.log(err) - math.log(e0)) / (math.log(e1) - math.log(e0))
@@ -694,7 +708,9 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
     h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, tmp)
     m = Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, args.sampler, 1, tmp / "meshes"))
 
-    log(f"\n== {scene_path.name}: {cam.width}x{cam.height}, depth {depth}, hilcam sampler {args.hilcam_sampler}, Mitsuba sampler {args.sampler}")
+    log(
+        f"\n== {scene_path.name}: {cam.width}x{cam.height}, depth {depth}, hilcam sampler {args.hilcam_sampler}, Mitsuba sampler {args.sampler}"
+    )
     t0 = time.perf_counter()
     ref_h, th = h.render(args.ref_spp, seed=1_000_003)
     ref_m, tm = m.render(args.ref_spp, seed=1_000_003)
@@ -719,9 +735,9 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
             for name, r in order:
                 img, t = r.render(spp, seed)
                 raw = rel_rmse(img, ref)
-                rows.append(dict(scene=scene_path.stem, width=cam.width, height=cam.height, depth=depth,
-                                 sampler=args.sampler, renderer=name, spp=spp, rep=rep, time_s=t,
-                                 rel_rmse_raw=raw, rel_rmse=math.sqrt(max(0.0, raw**2 - ref_noise**2))))  # fmt: skip
+                rows.append({"scene": scene_path.stem, "width": cam.width, "height": cam.height, "depth": depth,
+                                 "sampler": args.sampler, "renderer": name, "spp": spp, "rep": rep, "time_s": t,
+                                 "rel_rmse_raw": raw, "rel_rmse": math.sqrt(max(0.0, raw**2 - ref_noise**2))})  # fmt: skip
         cur = [r for r in rows if r["spp"] == spp]
         ht = statistics.median(r["time_s"] for r in cur if r["renderer"] == "hilcam")
         mt = statistics.median(r["time_s"] for r in cur if r["renderer"] == "mitsuba")
@@ -732,6 +748,7 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    log(f"wrote {OUT_DIR / (tag + '.csv')}")
     summary = report(rows, tag)
     plot(rows, summary, tag)
     return rows
@@ -751,8 +768,8 @@ def curve(rows, renderer):
 def report(rows, tag):
     hc, mc = curve(rows, "hilcam"), curve(rows, "mitsuba")
     log(f"\n{tag}  (median of {max(r['rep'] for r in rows) + 1} alternate runs; error = rel. RMSE vs reference over lit pixels)")
-    log(f"| spp | hilcam ms | hilcam err % | Mitsuba ms | Mitsuba err % | time ratio M/h |")
-    log(f"|---:|---:|---:|---:|---:|---:|")
+    log("| spp | hilcam ms | hilcam err % | Mitsuba ms | Mitsuba err % | time ratio M/h |")
+    log("|---:|---:|---:|---:|---:|---:|")
     for (spp, ht, he), (_, mt, me) in zip(hc, mc):
         log(f"| {spp} | {ht * 1e3:.2f} | {he * 100:.2f} | {mt * 1e3:.2f} | {me * 100:.2f} | {mt / ht:.2f} |")
     hp = [(t, e) for _, t, e in hc]
@@ -790,7 +807,7 @@ def plot(rows, summary, tag):
     fig.tight_layout()
     fig.savefig(OUT_DIR / f"{tag}.png", dpi=110)
     plt.close(fig)
-    log(f"wrote {OUT_DIR / (tag + '.csv')} and {OUT_DIR / (tag + '.png')}")
+    log(f"wrote {OUT_DIR / (tag + '.png')}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -817,7 +834,12 @@ def main() -> int:
     ap.add_argument("--height", type=int, default=None)
     ap.add_argument("--ref-spp", type=int, default=1024, help="spp of each half of the reference")
     ap.add_argument("--sampler", choices=["independent", "multijitter"], default="independent", help="Mitsuba's sampler")
-    ap.add_argument("--hilcam-sampler", choices=["cosine", "uniform", "brdf"], default="cosine", help="hilcam's bounce sampler (cosine = Mitsuba's diffuse BSDF sampling)")
+    ap.add_argument(
+        "--hilcam-sampler",
+        choices=["cosine", "uniform", "brdf"],
+        default="cosine",
+        help="hilcam's bounce sampler (cosine = Mitsuba's diffuse BSDF sampling)",
+    )
     ap.add_argument("--verify-spp", type=int, default=1024)
     ap.add_argument("--verify-width", type=int, default=256)
     ap.add_argument("--verify-tol", type=float, default=0.02, help="limit on rel. RMSE between the renderers")
