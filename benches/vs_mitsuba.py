@@ -862,7 +862,7 @@ def main() -> int:
         return 0
     if args.quick:
         args.width, args.spp, args.reps, args.ref_spp = 128, [1, 2, 4, 8, 16], 2, 256
-        args.verify_width, args.verify_spp = 128, 512
+        args.verify_width, args.verify_spp = 128, 1024
     if not args.scenes:
         args.scenes = [ROOT / "scenes" / "sphere.toml", ROOT / "scenes" / "plate.toml"]
 
