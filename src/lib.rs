@@ -16,6 +16,7 @@
 //! - [`sampling`]: deterministic random numbers keyed by (seed, frame, pixel, sample).
 //! - [`integrator`]: the path-tracing estimator for one camera sample, no threading.
 //! - [`render`]: the rayon pixel loop: (scene, camera, pose, settings, seed) → image.
+//! - [`pipeline`]: one frame from pose to pixels (render → sensor), shared by serve and replay.
 //! - [`film`]: radiance images and writing them to files.
 //! - [`sensor`]: entrance-pupil radiance → electrons → digital numbers.
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
@@ -39,6 +40,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod metrics;
 pub mod model;
+pub mod pipeline;
 pub mod plot;
 pub mod pose;
 pub mod render;

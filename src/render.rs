@@ -31,6 +31,18 @@ impl RenderStats {
     }
 }
 
+/// Render one frame through an already placed view (e.g. with lens distortion).
+pub fn render_view(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats) {
+    let (img, stats, _) = render_view_logged::<()>(scene, camera, view, settings, frame);
+    (img, stats)
+}
+
 /// Render one frame.
 pub fn render(
     scene: &Scene,
@@ -51,8 +63,18 @@ pub fn render_logged<L: RayLog + Default + Send>(
     settings: &RenderSettings,
     frame: u64,
 ) -> (RadianceImage, RenderStats, Vec<L>) {
-    let t0 = Instant::now();
     let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
+    render_view_logged(scene, camera, &view, settings, frame)
+}
+
+fn render_view_logged<L: RayLog + Default + Send>(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats, Vec<L>) {
+    let t0 = Instant::now();
     let mut img = RadianceImage::new(camera.width, camera.height, scene.background);
     let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
@@ -78,11 +100,11 @@ pub fn render_logged<L: RayLog + Default + Send>(
                         let v = match settings.sequence {
                             Sequence::Independent => {
                                 let mut rng = Rng::for_sample(settings.seed, frame, pixel, s);
-                                sample(&view, &ctx, col, row, &mut rng, &mut counts, &mut log)
+                                sample(view, &ctx, col, row, &mut rng, &mut counts, &mut log)
                             }
                             Sequence::Sobol => {
                                 let mut rng = SobolStream::new(settings.seed, frame, pixel, s);
-                                sample(&view, &ctx, col, row, &mut rng, &mut counts, &mut log)
+                                sample(view, &ctx, col, row, &mut rng, &mut counts, &mut log)
                             }
                         };
                         if v.is_finite() {

@@ -6,6 +6,7 @@
 //! the f32 ray that is traced has small coordinates whatever the range (0.5 m … 10⁶ m).
 
 use super::CameraModel;
+use super::distortion::Distortion;
 use crate::geometry::Ray;
 use crate::pose::Pose;
 use glam::{DMat3, DVec3, Vec3};
@@ -47,6 +48,9 @@ pub struct View {
     /// Camera frame → render frame.
     cam_to_render: DMat3,
     bounds: TargetBounds,
+    /// Lens distortion: sample positions on the (distorted) focal plane are mapped to the
+    /// ideal pinhole directions that a real lens would image there.
+    distortion: Option<Distortion>,
     /// Unit vector toward the sun, render frame.
     pub sun: Vec3,
 }
@@ -70,15 +74,27 @@ impl View {
             origin,
             cam_to_render: cam_to_body,
             bounds,
+            distortion: None,
             sun,
         }
+    }
+
+    /// The same view through a distorting lens (identity coefficients are ignored).
+    pub fn with_distortion(mut self, d: Option<Distortion>) -> View {
+        self.distortion = d.filter(|d| !d.is_identity());
+        self
     }
 
     /// Direction (camera frame, not normalised: z = 1) through continuous pixel coordinate
     /// `(x, y)` (`x = col + u`, `y = row + v`).
     #[inline]
     pub fn camera_dir(&self, x: f64, y: f64) -> DVec3 {
-        DVec3::new((x - self.pp[0]) * self.inv_focal_px, (y - self.pp[1]) * self.inv_focal_px, 1.0)
+        let (mut u, mut v) = ((x - self.pp[0]) * self.inv_focal_px, (y - self.pp[1]) * self.inv_focal_px);
+        if let Some(d) = &self.distortion {
+            let ideal = d.undistort(glam::DVec2::new(u, v));
+            (u, v) = (ideal.x, ideal.y);
+        }
+        DVec3::new(u, v, 1.0)
     }
 
     /// Continuous pixel coordinate where a camera-frame point projects (pinhole).
@@ -117,6 +133,9 @@ impl View {
     /// the bounds are entirely outside the image or behind the camera.
     pub fn pixel_rect(&self) -> Option<PixelRect> {
         let full = PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height };
+        if self.distortion.is_some() {
+            return Some(full); // the pinhole bound does not hold through a distorting lens
+        }
         let render_to_cam = self.cam_to_render.transpose();
         let c = render_to_cam * (self.bounds.centre - self.origin);
         let r = self.bounds.radius;

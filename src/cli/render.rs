@@ -3,8 +3,8 @@
 use crate::camera::CameraModel;
 use crate::film::write_radiance;
 use crate::integrator::SamplerKind;
+use crate::pipeline::FramePipeline;
 use crate::pose::Pose;
-use crate::render::render;
 use anyhow::{Context, bail};
 use glam::{DQuat, DVec3};
 use std::path::PathBuf;
@@ -47,6 +47,10 @@ pub struct RenderArgs {
     /// Write 16-bit PNG previews instead of 8-bit.
     #[arg(long)]
     pub png16: bool,
+    /// Apply the camera's sensor model (`[sensor]`): write what the camera would send
+    /// (digital numbers, or radiance after the optics) instead of entrance-pupil radiance.
+    #[arg(long)]
+    pub sensor: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -81,8 +85,22 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         Some(s) => parse_pose(s, &scene.pose).context("--pose")?,
         None => scene.pose,
     };
-    let (img, stats) = render(&scene, &camera, &pose, &settings, a.frame);
-    let info = write_radiance(&a.out, &img, None, a.png16)?;
+    let scene = std::sync::Arc::new(scene);
+    let mut pipeline = FramePipeline::new(scene.clone(), camera.clone())?;
+    let (info, stats) = if a.sensor {
+        let f = pipeline.frame(&pose, &settings, a.frame)?;
+        crate::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;
+        println!(
+            "sensor: {:?}, {:.1} ms{}",
+            f.pixels.format(),
+            f.sensor_time.as_secs_f64() * 1e3,
+            f.integration_s.map(|t| format!(", integration {:.3} ms", t * 1e3)).unwrap_or_default()
+        );
+        (crate::film::WriteInfo { preview_scale: None }, f.render)
+    } else {
+        let (img, stats) = pipeline.radiance(&pose, &settings, a.frame);
+        (write_radiance(&a.out, &img, None, a.png16)?, stats)
+    };
     let covered = stats.traced_pixels as f64 / (f64::from(camera.width) * f64::from(camera.height)) * 100.0;
     print!(
         "{}: {}x{} spp {} depth {} {:?}: {:.3} s, {} rays ({:.2} Mrays/s), traced {:.1} % of pixels, BVH {} triangles built in {:.0} ms",

@@ -45,6 +45,7 @@ use crate::geometry::{BvhLayout, TriMesh};
 use crate::integrator::{RenderSettings, SamplerKind};
 use crate::pose::Pose;
 use crate::sampling::Sequence;
+use crate::sensor::{CameraPreset, SensorConfig};
 use glam::{DQuat, DVec3, EulerRot};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -77,6 +78,8 @@ struct SceneFile {
     background: BackgroundSection,
     camera: Option<Spanned<CameraModel>>,
     camera_file: Option<Spanned<PathBuf>>,
+    /// Optics and detector; replaces the camera file's `[sensor]` when given.
+    sensor: Option<Spanned<SensorConfig>>,
     #[serde(default)]
     pose: PoseSection,
     #[serde(default)]
@@ -331,10 +334,13 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         mesh = wrapped;
     }
 
-    // Camera: inline table or a camera file's [camera] table.
-    let camera = match (&file.camera, &file.camera_file) {
-        (Some(c), None) => c.get_ref().clone(),
-        (None, Some(f)) => load_camera_file(&dir.join(f.get_ref())).map_err(|m| field(f.span(), "camera_file", m))?,
+    // Camera: inline table or a camera file's [camera] (and [sensor]) tables.
+    let (camera, file_sensor) = match (&file.camera, &file.camera_file) {
+        (Some(c), None) => (c.get_ref().clone(), SensorConfig::default()),
+        (None, Some(f)) => {
+            let preset = load_camera_file(&dir.join(f.get_ref())).map_err(|m| field(f.span(), "camera_file", m))?;
+            (preset.camera, preset.sensor)
+        }
         (Some(c), Some(_)) => {
             return Err(field(c.span(), "camera", "give either [camera] or camera_file, not both".into()));
         }
@@ -346,6 +352,15 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             });
         }
     };
+    let sensor = match &file.sensor {
+        Some(s) => s.get_ref().clone(),
+        None => file_sensor,
+    };
+    if let Err(e) = sensor.validate(&camera) {
+        let span =
+            file.sensor.as_ref().map(|s| s.span()).or(file.camera_file.as_ref().map(|f| f.span())).unwrap_or(0..0);
+        return Err(field(span, "sensor", e.to_string()));
+    }
     validate_camera(&camera).map_err(|(f, m)| match &file.camera {
         Some(c) => field(c.span(), &format!("camera.{f}"), m),
         None => SceneError::Missing { path: path.to_path_buf(), field: format!("camera.{f}"), message: m },
@@ -377,20 +392,18 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         sun_irradiance: irradiance,
         background: file.background.radiance,
         camera,
+        sensor,
         pose,
         render,
         layout: r.bvh,
     })
 }
 
-/// Read the `[camera]` table of a camera file (which may hold other tables too).
-pub fn load_camera_file(path: &Path) -> Result<CameraModel, String> {
-    let src = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let table: toml::Table = toml::from_str(&src).map_err(|e| format!("{}: {e}", path.display()))?;
-    let cam = table.get("camera").ok_or_else(|| format!("{}: no [camera] table", path.display()))?;
-    let cam: CameraModel = cam.clone().try_into().map_err(|e| format!("{}: [camera]: {e}", path.display()))?;
-    validate_camera(&cam).map_err(|(f, m)| format!("{}: camera.{f}: {m}", path.display()))?;
-    Ok(cam)
+/// Read a camera file: its `[camera]` table and optional `[sensor]` table.
+pub fn load_camera_file(path: &Path) -> Result<CameraPreset, String> {
+    let preset = CameraPreset::load(path).map_err(|e| e.to_string())?;
+    validate_camera(&preset.camera).map_err(|(f, m)| format!("{}: camera.{f}: {m}", path.display()))?;
+    Ok(preset)
 }
 
 fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {

@@ -9,6 +9,7 @@ use crate::camera::{CameraModel, TargetBounds};
 use crate::geometry::{Accel, BvhLayout, TriMesh};
 use crate::integrator::RenderSettings;
 use crate::pose::Pose;
+use crate::sensor::SensorConfig;
 use glam::{DVec3, Vec3};
 
 pub use file::{SceneError, load};
@@ -39,6 +40,8 @@ pub struct Scene {
     /// Radiance of rays that escape, W·sr⁻¹·m⁻².
     pub background: f32,
     pub camera: CameraModel,
+    /// The camera's optics and detector (all effects off by default).
+    pub sensor: SensorConfig,
     pub pose: Pose,
     pub render: RenderSettings,
 }
@@ -51,6 +54,7 @@ pub struct SceneParts {
     pub sun_irradiance: f64,
     pub background: f64,
     pub camera: CameraModel,
+    pub sensor: SensorConfig,
     pub pose: Pose,
     pub render: RenderSettings,
     pub layout: BvhLayout,
@@ -59,7 +63,8 @@ pub struct SceneParts {
 impl Scene {
     /// Re-centre the mesh on its bounds, compute normals and bounds, build the BVH.
     pub fn build(parts: SceneParts) -> Scene {
-        let SceneParts { mut mesh, materials, sun_irradiance, background, camera, pose, render, layout } = parts;
+        let SceneParts { mut mesh, materials, sun_irradiance, background, camera, sensor, pose, render, layout } =
+            parts;
         let (lo, hi) = mesh.positions.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
             let p = p.as_dvec3();
             (lo.min(p), hi.max(p))
@@ -85,6 +90,7 @@ impl Scene {
             sun_irradiance: sun_irradiance as f32,
             background: background as f32,
             camera,
+            sensor,
             pose,
             render,
         }

@@ -36,6 +36,7 @@ pub fn camera(width: u32, height: u32, pitch_um: f64, focal_mm: f64) -> CameraMo
 
 pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Pose, render: RenderSettings) -> Scene {
     Scene::build(SceneParts {
+        sensor: Default::default(),
         mesh,
         materials,
         sun_irradiance: 593.1,

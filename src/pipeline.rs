@@ -1,0 +1,92 @@
+//! One frame from pose to pixels: render (radiance) → sensor (optics, detector, ADC).
+//!
+//! The single path every producer of frames goes through — `hilcam serve`, offline
+//! replay and `hilcam render --sensor` — so a frame rendered live and the same frame
+//! replayed offline are the same bytes. Synchronous; callers choose the thread.
+
+use crate::camera::{CameraModel, View};
+use crate::film::{Pixels, RadianceImage};
+use crate::integrator::RenderSettings;
+use crate::pose::Pose;
+use crate::render::{RenderStats, render_view};
+use crate::sampling::mix64;
+use crate::scene::Scene;
+use crate::sensor::{AutoExposure, Sensor, SensorError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// A frame's pixels and what it took to make them.
+#[derive(Clone, Debug)]
+pub struct RenderedFrame {
+    pub pixels: Pixels,
+    pub width: u32,
+    pub height: u32,
+    pub settings: RenderSettings,
+    pub render: RenderStats,
+    /// Time spent in the sensor model.
+    pub sensor_time: Duration,
+    /// Integration time the sensor used (None without a detector).
+    pub integration_s: Option<f64>,
+}
+
+/// Render + sensor for one camera. Holds the auto-exposure state between frames.
+pub struct FramePipeline {
+    scene: Arc<Scene>,
+    camera: CameraModel,
+    sensor: Sensor,
+    auto_exposure: Option<AutoExposure>,
+}
+
+impl FramePipeline {
+    /// The scene's camera and sensor at a possibly different resolution (`camera`).
+    pub fn new(scene: Arc<Scene>, camera: CameraModel) -> Result<Self, SensorError> {
+        let sensor = Sensor::new(&camera, &scene.sensor)?;
+        let auto_exposure = sensor.auto_exposure();
+        Ok(FramePipeline { scene, camera, sensor, auto_exposure })
+    }
+
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    pub fn scene(&self) -> &Arc<Scene> {
+        &self.scene
+    }
+
+    pub fn sensor(&self) -> &Sensor {
+        &self.sensor
+    }
+
+    /// Seed of the sensor noise for frame `index`: derived from the render seed but in its
+    /// own domain, so it never repeats the renderer's random streams.
+    pub fn sensor_seed(settings: &RenderSettings, index: u64) -> u64 {
+        mix64(settings.seed ^ mix64(index ^ 0x5e45_0e0a_11ce_0001))
+    }
+
+    /// Render the radiance only (no sensor).
+    pub fn radiance(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> (RadianceImage, RenderStats) {
+        let view = View::new(&self.camera, pose, self.scene.frame_origin_body, self.scene.bounds)
+            .with_distortion(self.scene.sensor.optics.distortion);
+        render_view(&self.scene, &self.camera, &view, settings, index)
+    }
+
+    /// Render and convert frame `index` at `pose`.
+    pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
+        let (radiance, render) = self.radiance(pose, settings, index);
+        let t0 = Instant::now();
+        let seed = Self::sensor_seed(settings, index);
+        let out = match &mut self.auto_exposure {
+            Some(ae) => self.sensor.apply_auto(&radiance, seed, ae)?.0,
+            None => self.sensor.apply(&radiance, seed)?,
+        };
+        Ok(RenderedFrame {
+            pixels: out.pixels,
+            width: self.camera.width,
+            height: self.camera.height,
+            settings: *settings,
+            render,
+            sensor_time: t0.elapsed(),
+            integration_s: out.integration_time_s,
+        })
+    }
+}
