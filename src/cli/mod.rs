@@ -2,10 +2,12 @@
 
 pub mod bench;
 pub mod brdf;
+pub mod demo;
 pub mod recv;
 pub mod render;
 pub mod send;
 pub mod sensor;
+pub mod serve;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -25,6 +27,10 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// The whole loop with no hardware: pty pose source → server → loopback TCP client.
+    Demo(demo::DemoArgs),
+    /// Run the real-time server: poses in (serial/CAN), frames out (TCP, files).
+    Serve(serve::ServeArgs),
     /// Render one frame of a scene file to an image file.
     Render(render::RenderArgs),
     /// Benchmarks: ratios measured side by side in one run.
@@ -53,6 +59,8 @@ pub fn main() -> ExitCode {
         .init();
     let result: anyhow::Result<()> = match cli.command {
         Command::Render(a) => render::run(a),
+        Command::Demo(a) => demo::run_cli(a),
+        Command::Serve(a) => serve::run_cli(a),
         Command::Bench(a) => bench::run(a),
         Command::Version => {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));

@@ -1,5 +1,243 @@
 //! `hilcam serve`: the real-time loop from pose to frame on the wire (tokio shell over the
 //! synchronous renderer).
+//!
+//! - [`config`]: the TOML configuration.
+//! - [`scheduler`]: latest-pose-wins triggering, the render thread, publishing.
+//! - [`governor`]: the quality ladder that keeps frames inside their budget.
+//! - [`extrapolate`]: poses moved to the exposure mid-time with their rates.
 
+pub mod config;
 pub mod extrapolate;
 pub mod governor;
+pub mod scheduler;
+
+use crate::cli::render::scaled_camera;
+use crate::metrics::{Registry, serve_http, spawn_summary_logger};
+use crate::pipeline::FramePipeline;
+use crate::pose::can::CanIds;
+use crate::sink::{Recorder, RecorderConfig, Sink, StreamConfig, StreamServer, WriteHook};
+use crate::transport::serial::SerialConfig;
+use crate::transport::slcan::SlcanConfig;
+use crate::transport::socketcan::SocketCanConfig;
+use crate::transport::{InputCounters, InputEvent};
+use anyhow::Context;
+use config::{InputKind, ServeConfig};
+use scheduler::{SchedulerConfig, SchedulerSummary, run_scheduler};
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::{mpsc, oneshot, watch};
+
+/// Where a running server can be reached (sent once it is listening).
+#[derive(Clone, Debug)]
+pub struct ServeInfo {
+    pub stream: SocketAddr,
+    pub metrics: Option<SocketAddr>,
+}
+
+/// What a run did.
+#[derive(Clone, Debug)]
+pub struct ServeReport {
+    pub scheduler: SchedulerSummary,
+    /// Pose arrival → last byte written to a client, milliseconds (p50, p95, p99).
+    pub latency_ms: Option<(f64, f64, f64)>,
+    pub poses_accepted: u64,
+    pub poses_rejected: u64,
+    /// Frames dropped per stream client (slow readers).
+    pub client_drops: u64,
+}
+
+/// Options for embedding the server (tests, demo).
+#[derive(Default)]
+pub struct Embed {
+    /// Use these inputs instead of opening the configured device.
+    pub inputs: Option<mpsc::Receiver<InputEvent>>,
+    /// Told the bound addresses once listening.
+    pub ready: Option<oneshot::Sender<ServeInfo>>,
+    /// Stop after this many frames.
+    pub max_frames: Option<u64>,
+}
+
+async fn stopped(mut rx: watch::Receiver<bool>) {
+    while !*rx.borrow() {
+        if rx.changed().await.is_err() {
+            return;
+        }
+    }
+}
+
+/// Copy the transports' atomic counters into the registry (as deltas, so they stay counters).
+fn mirror_input_counters(registry: &Registry, counters: &InputCounters, seen: &Mutex<HashMap<String, u64>>) {
+    let mut seen = seen.lock().expect("counter mirror lock");
+    counters.for_each(|name, labels, v| {
+        let key = format!("{name}{{{labels}}}");
+        let last = seen.entry(key).or_insert(0);
+        if v > *last {
+            let label_pairs: Vec<(&str, String)> = labels
+                .split(',')
+                .filter_map(|kv| kv.split_once('=').map(|(k, v)| (k, v.trim_matches('"').to_string())))
+                .collect();
+            let refs: Vec<(&str, &str)> = label_pairs.iter().map(|(k, v)| (*k, v.as_str())).collect();
+            registry.counter(name, "pose input counter (see docs/protocol.md)", &refs).add(v - *last);
+            *last = v;
+        }
+    });
+}
+
+/// Run the server until `shutdown` resolves (or `embed.max_frames` frames are out).
+pub async fn run(
+    cfg: ServeConfig,
+    mut embed: Embed,
+    shutdown: impl std::future::Future,
+) -> anyhow::Result<ServeReport> {
+    let scene = Arc::new(crate::scene::load(&cfg.scene)?);
+    let camera = scaled_camera(&scene.camera, cfg.width, None);
+    let mut settings = scene.render;
+    let o = &cfg.render;
+    settings.spp = o.spp.unwrap_or(settings.spp);
+    settings.depth = o.depth.unwrap_or(settings.depth);
+    settings.sampler = o.sampler.unwrap_or(settings.sampler);
+    settings.seed = o.seed.unwrap_or(settings.seed);
+    let pipeline = FramePipeline::new(scene.clone(), camera.clone()).context("sensor")?;
+    let registry = Registry::new();
+    let counters = Arc::new(InputCounters::new());
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let mut tasks = Vec::new();
+
+    // Inputs.
+    let inputs = match embed.inputs.take() {
+        Some(rx) => rx,
+        None => {
+            let (tx, rx) = mpsc::channel::<InputEvent>(1024);
+            let i = &cfg.input;
+            let ids = CanIds::new(i.can_base.unwrap_or(CanIds::DEFAULT_BASE), i.can_extended)?;
+            let stop = stopped(stop_rx.clone());
+            let c = counters.clone();
+            match i.kind {
+                InputKind::Serial => {
+                    let sc = SerialConfig::new(i.device.clone().unwrap_or_default(), i.baud.unwrap_or(115_200));
+                    tasks.push(tokio::spawn(crate::transport::serial::run_serial(sc, tx, c, stop)));
+                }
+                InputKind::Slcan => {
+                    let sc = SerialConfig::new(i.device.clone().unwrap_or_default(), i.baud.unwrap_or(115_200));
+                    let cfg = SlcanConfig { serial: sc, bitrate: i.bitrate, listen_only: false, ids };
+                    tasks.push(tokio::spawn(async move {
+                        if let Err(e) = crate::transport::slcan::run_slcan(cfg, tx, c, stop).await {
+                            tracing::error!("{e}");
+                        }
+                    }));
+                }
+                InputKind::Socketcan => {
+                    let mut sc = SocketCanConfig::new(i.iface.clone().unwrap_or_default());
+                    sc.ids = ids;
+                    tasks.push(tokio::spawn(crate::transport::socketcan::run_socketcan(sc, tx, c, stop)));
+                }
+                InputKind::None => drop(tx),
+            }
+            rx
+        }
+    };
+
+    // Sinks.
+    let latency = registry.histogram(
+        "hilcam_frame_latency_seconds",
+        "Pose arrival to the frame's last byte written to a client",
+        &[],
+    );
+    let hook: WriteHook = {
+        let latency = latency.clone();
+        Arc::new(move |w| {
+            if w.pose_arrival_unix_ns != 0 {
+                latency.record(w.latency_ns());
+            }
+        })
+    };
+    let stream_cfg = StreamConfig {
+        bind: cfg.stream.listen,
+        queue_depth: cfg.stream.queue_depth,
+        max_clients: cfg.stream.max_clients,
+        ..StreamConfig::default()
+    };
+    let stream = StreamServer::bind(stream_cfg, registry.clone(), Some(hook)).await?;
+    let stream_addr = stream.local_addr();
+    let mut sinks = vec![Sink::Stream(stream)];
+    if let Some(r) = &cfg.record {
+        sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(&r.dir, r.format), &registry)?));
+    }
+    let sinks = Arc::new(sinks);
+
+    // Observability.
+    let mut metrics_addr = None;
+    if let Some(addr) = cfg.metrics.listen {
+        let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("metrics listen {addr}"))?;
+        metrics_addr = Some(listener.local_addr()?);
+        tasks.push(tokio::spawn(serve_http(listener, registry.clone(), stopped(stop_rx.clone()))));
+    }
+    let seen = Arc::new(Mutex::new(HashMap::new()));
+    {
+        let (registry, counters, seen, mut stop) = (registry.clone(), counters.clone(), seen.clone(), stop_rx.clone());
+        tasks.push(tokio::spawn(async move {
+            let mut t = tokio::time::interval(Duration::from_millis(250));
+            loop {
+                tokio::select! {
+                    _ = t.tick() => mirror_input_counters(&registry, &counters, &seen),
+                    _ = stop.changed() => break,
+                }
+            }
+        }));
+    }
+    let summary_logger = spawn_summary_logger(
+        registry.clone(),
+        Duration::from_secs_f64(cfg.metrics.print_interval_s),
+        stopped(stop_rx.clone()),
+    );
+    tracing::info!(
+        stream = %stream_addr,
+        metrics = ?metrics_addr,
+        camera = format!("{}x{}", camera.width, camera.height),
+        spp = settings.spp,
+        depth = settings.depth,
+        "serving"
+    );
+    if let Some(tx) = embed.ready.take() {
+        let _ = tx.send(ServeInfo { stream: stream_addr, metrics: metrics_addr });
+    }
+
+    let sched_cfg = SchedulerConfig {
+        trigger: cfg.trigger.mode,
+        rate_hz: cfg.trigger.rate_hz,
+        extrapolate: cfg.trigger.extrapolate,
+        budget: cfg.budget(),
+        policy: cfg.governor.policy,
+        settings,
+        max_frames: embed.max_frames,
+    };
+    let summary = run_scheduler(sched_cfg, pipeline, inputs, sinks.clone(), registry.clone(), shutdown).await;
+
+    // Shut down: stop inputs and helpers, then close the sinks (clean close for clients).
+    let _ = stop_tx.send(true);
+    for t in tasks {
+        let _ = t.await;
+    }
+    let _ = summary_logger.await;
+    mirror_input_counters(&registry, &counters, &seen);
+    let mut client_drops = 0;
+    if let Ok(sinks) = Arc::try_unwrap(sinks) {
+        for s in sinks {
+            if let Sink::Stream(st) = &s {
+                client_drops = st.clients().iter().map(|c| c.dropped).sum();
+            }
+            s.close().await;
+        }
+    }
+    let snap = latency.snapshot();
+    let q = |p| snap.quantile(p).map(|ns| ns as f64 / 1e6).unwrap_or(0.0);
+    Ok(ServeReport {
+        scheduler: summary,
+        latency_ms: (snap.count > 0).then(|| (q(0.5), q(0.95), q(0.99))),
+        poses_accepted: counters.accepted.load(std::sync::atomic::Ordering::Relaxed),
+        poses_rejected: counters.rejected_total(),
+        client_drops,
+    })
+}

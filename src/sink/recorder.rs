@@ -13,7 +13,8 @@ use std::sync::Arc;
 use std::sync::mpsc::{self, SyncSender, TrySendError};
 
 /// Image file format, by extension.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum ImageFormat {
     /// 8/16-bit PNG (float frames: a preview scaled to the 99.9th percentile).
     Png,

@@ -1,0 +1,169 @@
+//! `hilcam demo`: the whole loop on one machine with no hardware and no config.
+//!
+//! A built-in pose source replays the shipped fly-around over a real pseudo-terminal
+//! serial pair into the server; the server renders the shipped satellite at the
+//! navigation camera's geometry and streams over loopback TCP to a built-in client,
+//! which writes the frames and a latency summary.
+
+use crate::serve::config::{GovernorConfig, RenderOverrides};
+use crate::serve::config::{InputConfig, InputKind, MetricsSection, ServeConfig, StreamSection, TriggerConfig};
+use crate::serve::governor::Policy;
+use crate::serve::scheduler::TriggerMode;
+use crate::serve::{Embed, run};
+use crate::sink::{ImageFormat, RecvOptions, receive};
+use crate::trajectory::Trajectory;
+use crate::transport::send::{SendOptions, SerialWriter, send_trajectory};
+use anyhow::{Context, bail};
+use serialport::SerialPort;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+#[derive(clap::Args, Debug)]
+pub struct DemoArgs {
+    /// Frames to receive before stopping.
+    #[arg(long, default_value_t = 8)]
+    pub frames: u64,
+    /// Where the client writes the frames.
+    #[arg(long, default_value = "out/demo")]
+    pub out: PathBuf,
+    /// Frame rate of the server (fixed-rate governor keeps each frame in budget).
+    #[arg(long, default_value_t = 2.0)]
+    pub rate: f64,
+}
+
+/// The repository's `scenes/` folder: next to the working directory, or the source tree.
+fn assets_root() -> anyhow::Result<PathBuf> {
+    for root in [PathBuf::from("."), PathBuf::from(env!("CARGO_MANIFEST_DIR"))] {
+        if root.join("scenes/satellite.toml").is_file() {
+            return Ok(root);
+        }
+    }
+    bail!("scenes/satellite.toml not found in the working directory or in {}", env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn run_cli(a: DemoArgs) -> anyhow::Result<()> {
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    rt.block_on(demo(a))
+}
+
+async fn demo(a: DemoArgs) -> anyhow::Result<()> {
+    let root = assets_root()?;
+    std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
+    // A pseudo-terminal pair stands in for the bench's serial cable.
+    let (master, slave) = serialport::TTYPort::pair().context("creating a pseudo-terminal pair")?;
+    let device = slave.name().context("pty has no name")?;
+    println!("demo: serial link {device} (pty), scene scenes/satellite.toml, {} frames at {} Hz", a.frames, a.rate);
+
+    let cfg = ServeConfig {
+        scene: root.join("scenes/satellite.toml"),
+        width: None,
+        input: InputConfig {
+            kind: InputKind::Serial,
+            device: Some(device.clone()),
+            baud: Some(921_600),
+            ..Default::default()
+        },
+        trigger: TriggerConfig { mode: TriggerMode::Rate, rate_hz: Some(a.rate), extrapolate: true },
+        governor: GovernorConfig { policy: Policy::FixedRate, budget_ms: None },
+        render: RenderOverrides::default(),
+        stream: StreamSection { listen: "127.0.0.1:0".parse()?, ..Default::default() },
+        record: None,
+        metrics: MetricsSection { listen: None, print_interval_s: 2.0 },
+    };
+    cfg.validate().map_err(|(f, m)| anyhow::anyhow!("{f}: {m}"))?;
+
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(run(cfg, Embed { ready: Some(ready_tx), ..Default::default() }, stop_rx));
+    let info = match ready_rx.await {
+        Ok(i) => i,
+        Err(_) => return Err(server.await?.err().unwrap_or_else(|| anyhow::anyhow!("server did not start"))),
+    };
+
+    // The client connects first so that it sees every frame from the first on.
+    let opts =
+        RecvOptions { out_dir: Some(a.out.clone()), count: Some(a.frames), format: ImageFormat::Png, progress: None };
+    let client = tokio::spawn(receive(info.stream, opts));
+    tokio::time::sleep(Duration::from_millis(100)).await;
+
+    // The pose source: the fly-around at 30× speed (poses at 60 Hz).
+    let samples: Arc<[_]> = Trajectory::load(root.join("scenes/trajectories/flyaround.csv"))?.into();
+    let (send_stop_tx, send_stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let sender = tokio::spawn(send_trajectory(
+        samples,
+        SendOptions { rate_hz: None, speed: 30.0 },
+        Box::new(SerialWriter::new(master, "demo pty")),
+        send_stop_rx,
+    ));
+
+    let received = tokio::time::timeout(Duration::from_secs(50), client).await;
+    // Stop the server before the pose source, so the pty is not pulled from under it.
+    let _ = stop_tx.send(());
+    let report = server.await??;
+    let _ = send_stop_tx.send(());
+    let sent = sender.await?.context("pose sender")?;
+    drop(slave);
+    let summary = match received {
+        Ok(r) => r??,
+        Err(_) => bail!("no {} frames within 50 s", a.frames),
+    };
+
+    println!("poses sent {} over the pty", sent.poses);
+    super::serve::print_report(&report);
+    println!(
+        "client: {} frames, {:.1} frames/s, sequence gaps {}, CRC errors {}",
+        summary.frames, summary.fps, summary.gaps, summary.payload_crc_errors
+    );
+    let ms = |ns: u64| ns as f64 / 1e6;
+    let l = &summary.pose_to_recv;
+    println!(
+        "client latency pose arrival → frame received: p50 {:.1} ms, p95 {:.1} ms, p99 {:.1} ms",
+        ms(l.p50_ns),
+        ms(l.p95_ns),
+        ms(l.p99_ns)
+    );
+    write_summary(&a.out, &summary)?;
+    let preview = write_preview(&a.out, summary.seqs.last().copied())?;
+    println!(
+        "frames written to {}/ (16-bit PNG holding the sensor's DN; {} is an 8-bit preview; latency summary in summary.txt)",
+        a.out.display(),
+        preview.display()
+    );
+    Ok(())
+}
+
+fn write_summary(dir: &Path, s: &crate::sink::RecvSummary) -> anyhow::Result<()> {
+    let ms = |ns: u64| ns as f64 / 1e6;
+    let l = &s.pose_to_recv;
+    let text = format!(
+        "frames {}\nfps {:.2}\ngaps {}\ncrc_errors {}\npose_to_recv_ms p50 {:.2} p95 {:.2} p99 {:.2} max {:.2}\n",
+        s.frames,
+        s.fps,
+        s.gaps,
+        s.payload_crc_errors,
+        ms(l.p50_ns),
+        ms(l.p95_ns),
+        ms(l.p99_ns),
+        ms(l.max_ns)
+    );
+    std::fs::write(dir.join("summary.txt"), text)?;
+    Ok(())
+}
+
+/// An 8-bit, contrast-stretched copy of the last frame for people to look at (the frames
+/// themselves hold raw 10/12-bit DN, which look black in most viewers).
+fn write_preview(dir: &Path, last: Option<u64>) -> anyhow::Result<PathBuf> {
+    let Some(seq) = last else { bail!("no frame received") };
+    let src = dir.join(crate::sink::recorder::frame_file_name(seq, ImageFormat::Png));
+    let img = image::open(&src).with_context(|| src.display().to_string())?.into_luma16();
+    let mut v: Vec<u16> = img.as_raw().clone();
+    v.sort_unstable();
+    let white = f32::from(v[(v.len() as f64 * 0.999) as usize].max(1));
+    let out = image::GrayImage::from_fn(img.width(), img.height(), |x, y| {
+        image::Luma([((f32::from(img.get_pixel(x, y)[0]) / white).min(1.0).powf(1.0 / 2.2) * 255.0) as u8])
+    });
+    let path = dir.join("preview.png");
+    out.save(&path).with_context(|| path.display().to_string())?;
+    Ok(path)
+}

@@ -1,0 +1,38 @@
+//! `hilcam serve`: run the real-time server from a config file until Ctrl-C.
+
+use crate::serve::config::ServeConfig;
+use crate::serve::{Embed, ServeReport, run};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct ServeArgs {
+    /// Server configuration (TOML; see config/serve-*.toml).
+    #[arg(long, short)]
+    pub config: PathBuf,
+}
+
+pub fn run_cli(a: ServeArgs) -> anyhow::Result<()> {
+    let cfg = ServeConfig::load(&a.config)?;
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    let report = rt.block_on(async {
+        let ctrl_c = async {
+            let _ = tokio::signal::ctrl_c().await;
+            tracing::info!("Ctrl-C: finishing the current frame, closing clients");
+        };
+        run(cfg, Embed::default(), ctrl_c).await
+    })?;
+    print_report(&report);
+    Ok(())
+}
+
+pub fn print_report(r: &ServeReport) {
+    let s = &r.scheduler;
+    println!(
+        "frames {} (late {}, degraded {}, renderer-busy skips {}), poses accepted {} rejected {} superseded {}, client drops {}",
+        s.frames, s.late, s.degraded, s.skipped_busy, r.poses_accepted, r.poses_rejected, s.superseded, r.client_drops
+    );
+    println!("render time p50 {:.1} ms, p99 {:.1} ms", s.render_p50_ms, s.render_p99_ms);
+    if let Some((p50, p95, p99)) = r.latency_ms {
+        println!("latency pose arrival → last byte: p50 {p50:.1} ms, p95 {p95:.1} ms, p99 {p99:.1} ms");
+    }
+}

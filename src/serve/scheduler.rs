@@ -1,0 +1,354 @@
+//! The real-time loop: inputs → latest pose → render (off the tokio workers) → sinks.
+//!
+//! - The latest pose wins: poses that arrive while a frame renders replace each other;
+//!   the ones never rendered are counted as superseded. No backlog can build: at most
+//!   one frame renders and the input channel is bounded.
+//! - Rendering runs on a dedicated thread (which fans out on the rayon pool), so tokio
+//!   workers never block; publishing to the sinks never waits for a client, so the next
+//!   frame renders while the previous one streams.
+//! - The governor picks each frame's quality; every frame carries the quality it was
+//!   rendered at, and flags for late / degraded / extrapolated.
+
+use super::extrapolate::extrapolate;
+use super::governor::{Governor, Policy, Quality};
+use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, unix_ns_now};
+use crate::integrator::RenderSettings;
+use crate::metrics::{Counter, Gauge, Histogram, Registry};
+use crate::pipeline::FramePipeline;
+use crate::pose::Pose;
+use crate::sink::Sink;
+use crate::transport::InputEvent;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+
+/// What starts a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum TriggerMode {
+    /// Every accepted pose (latest wins while a frame renders).
+    #[default]
+    Pose,
+    /// A fixed frame rate from the latest pose.
+    Rate,
+    /// A trigger message from the bench.
+    External,
+}
+
+#[derive(Clone, Debug)]
+pub struct SchedulerConfig {
+    pub trigger: TriggerMode,
+    /// Frames per second in `Rate` mode.
+    pub rate_hz: Option<f64>,
+    /// Move the pose to the exposure mid-time with its rates (`Rate` mode).
+    pub extrapolate: bool,
+    /// Time from the frame's reference instant (pose arrival, tick or trigger) to emit.
+    pub budget: Duration,
+    pub policy: Policy,
+    /// Best quality (the governor may go below it under `FixedRate`).
+    pub settings: RenderSettings,
+    /// Stop after this many frames (demo, tests); None = until shutdown.
+    pub max_frames: Option<u64>,
+}
+
+/// What a run did (also in the metrics registry).
+#[derive(Clone, Debug, Default)]
+pub struct SchedulerSummary {
+    pub frames: u64,
+    pub late: u64,
+    pub degraded: u64,
+    pub superseded: u64,
+    pub skipped_busy: u64,
+    pub poses: u64,
+    pub triggers: u64,
+    pub render_p50_ms: f64,
+    pub render_p99_ms: f64,
+}
+
+struct Job {
+    pose: Pose,
+    arrival_unix_ns: u64,
+    /// Lateness is measured from here (pose arrival, tick or trigger).
+    reference: Instant,
+    settings: RenderSettings,
+    index: u64,
+    flags: FrameFlags,
+}
+
+struct Done {
+    frame: Result<Arc<EncodedFrame>, String>,
+    render_time: Duration,
+    quality: Quality,
+    late: bool,
+    integration_s: Option<f64>,
+}
+
+struct Metrics {
+    frames: Counter,
+    late: Counter,
+    degraded: Counter,
+    superseded: Counter,
+    skipped: Counter,
+    failed: Counter,
+    triggers: Counter,
+    render: Arc<Histogram>,
+    spp: Gauge,
+    depth: Gauge,
+}
+
+impl Metrics {
+    fn new(r: &Registry) -> Self {
+        Metrics {
+            frames: r.counter("hilcam_frames_rendered_total", "Frames rendered and published", &[]),
+            late: r.counter("hilcam_frames_late_total", "Frames emitted after their deadline", &[]),
+            degraded: r.counter("hilcam_frames_degraded_total", "Frames rendered below the configured quality", &[]),
+            superseded: r.counter(
+                "hilcam_poses_superseded_total",
+                "Accepted poses replaced by a newer one before rendering",
+                &[],
+            ),
+            skipped: r.counter(
+                "hilcam_frames_skipped_total",
+                "Frame slots not rendered",
+                &[("reason", "renderer_busy")],
+            ),
+            failed: r.counter("hilcam_frames_failed_total", "Frames whose sensor stage failed", &[]),
+            triggers: r.counter("hilcam_triggers_total", "External trigger messages received", &[]),
+            render: r.histogram("hilcam_render_seconds", "Render + sensor + encode time per frame", &[]),
+            spp: r.gauge("hilcam_frame_spp", "Samples per pixel of the last frame", &[]),
+            depth: r.gauge("hilcam_frame_depth", "Path depth of the last frame", &[]),
+        }
+    }
+}
+
+fn unix_ns_of(t: Instant) -> u64 {
+    let ago = Instant::now().saturating_duration_since(t);
+    unix_ns_now().saturating_sub(ago.as_nanos() as u64)
+}
+
+/// The render thread: owns the pipeline (and its auto-exposure state).
+fn spawn_renderer(
+    mut pipeline: FramePipeline,
+    budget: Duration,
+    jobs: std::sync::mpsc::Receiver<Job>,
+    done: mpsc::Sender<Done>,
+) -> std::thread::JoinHandle<()> {
+    std::thread::Builder::new()
+        .name("hilcam-render".into())
+        .spawn(move || {
+            while let Ok(job) = jobs.recv() {
+                let t0 = Instant::now();
+                let quality = Quality { spp: job.settings.spp, depth: job.settings.depth };
+                let result = pipeline.frame(&job.pose, &job.settings, job.index);
+                let (frame, integration_s) = match result {
+                    Ok(f) => {
+                        let late = job.reference.elapsed() > budget;
+                        let flags = if late { job.flags.with(FrameFlags::LATE) } else { job.flags };
+                        let meta = FrameMeta {
+                            frame_seq: job.index,
+                            pose_seq: job.pose.seq,
+                            pose_t_ns: job.pose.t_ns,
+                            pose_arrival_unix_ns: job.arrival_unix_ns,
+                            emit_unix_ns: 0,
+                            width: f.width,
+                            height: f.height,
+                            format: f.pixels.format(),
+                            bit_depth: 0,
+                            spp: job.settings.spp.min(u32::from(u16::MAX)) as u16,
+                            depth: job.settings.depth.min(u32::from(u16::MAX)) as u16,
+                            integration_s: f.integration_s.unwrap_or(0.0) as f32,
+                            flags,
+                        };
+                        let integration = f.integration_s;
+                        let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
+                            fr.meta.emit_unix_ns = unix_ns_now();
+                            Arc::new(fr.encode())
+                        });
+                        (encoded.map_err(|e| e.to_string()), integration)
+                    }
+                    Err(e) => (Err(e.to_string()), None),
+                };
+                let late = frame.as_ref().map(|f| f.meta.flags.contains(FrameFlags::LATE)).unwrap_or(false);
+                let d = Done { frame, render_time: t0.elapsed(), quality, late, integration_s };
+                if done.blocking_send(d).is_err() {
+                    break;
+                }
+            }
+        })
+        .expect("spawn render thread")
+}
+
+/// Run until `shutdown` resolves, the inputs close (in `Pose`/`External` mode), or
+/// `max_frames` frames are out. The frame in flight is finished and published.
+pub async fn run_scheduler(
+    cfg: SchedulerConfig,
+    pipeline: FramePipeline,
+    mut inputs: mpsc::Receiver<InputEvent>,
+    sinks: Arc<Vec<Sink>>,
+    registry: Arc<Registry>,
+    shutdown: impl std::future::Future,
+) -> SchedulerSummary {
+    let m = Metrics::new(&registry);
+    let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
+    let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
+    let renderer = spawn_renderer(pipeline, cfg.budget, job_rx, done_tx);
+    let best = Quality { spp: cfg.settings.spp, depth: cfg.settings.depth };
+    let mut governor = Governor::new(cfg.policy, cfg.budget, best);
+    let mut ticker = match (cfg.trigger, cfg.rate_hz) {
+        (TriggerMode::Rate, Some(hz)) if hz > 0.0 => {
+            let mut t = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
+            t.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+            Some(t)
+        }
+        _ => None,
+    };
+    tokio::pin!(shutdown);
+
+    let mut s = SchedulerSummary::default();
+    let mut latest: Option<(Pose, Instant)> = None;
+    let mut pending = 0u64; // poses accepted since the last render started
+    let mut want: Option<Instant> = None; // a frame is due; its reference instant
+    let mut busy = false;
+    let mut inputs_open = true;
+    let mut index = 0u64;
+    let mut last_integration = 0.0f64;
+    let mut render_times: Vec<f64> = Vec::new();
+
+    loop {
+        let done_all = cfg.max_frames.is_some_and(|n| index >= n);
+        if done_all && !busy {
+            break;
+        }
+        if !inputs_open && !busy && cfg.trigger != TriggerMode::Rate && want.is_none() {
+            break;
+        }
+        tokio::select! {
+            _ = &mut shutdown => break,
+            ev = inputs.recv(), if inputs_open => match ev {
+                None => inputs_open = false,
+                Some(InputEvent::Pose { pose, arrival }) => {
+                    s.poses += 1;
+                    pending += 1;
+                    latest = Some((pose, arrival));
+                    if cfg.trigger == TriggerMode::Pose {
+                        want = Some(arrival);
+                    }
+                }
+                Some(InputEvent::Trigger { arrival, .. }) => {
+                    s.triggers += 1;
+                    m.triggers.inc();
+                    if cfg.trigger == TriggerMode::External {
+                        if want.is_some() {
+                            s.skipped_busy += 1;
+                            m.skipped.inc();
+                        }
+                        want = Some(arrival);
+                    }
+                }
+                Some(InputEvent::Heartbeat { .. }) => {}
+            },
+            Some(tick) = async { match ticker.as_mut() { Some(t) => Some(t.tick().await), None => None } }, if ticker.is_some() => {
+                if busy || want.is_some() {
+                    s.skipped_busy += 1;
+                    m.skipped.inc();
+                } else {
+                    want = Some(tick.into_std());
+                }
+            }
+            Some(d) = done_rx.recv(), if busy => {
+                busy = false;
+                let t = d.render_time;
+                render_times.push(t.as_secs_f64());
+                m.render.record_duration(t);
+                governor.observe(d.quality, t);
+                if let Some(i) = d.integration_s {
+                    last_integration = i;
+                }
+                match d.frame {
+                    Ok(frame) => {
+                        for sink in sinks.iter() {
+                            sink.publish(&frame);
+                        }
+                        s.frames += 1;
+                        m.frames.inc();
+                        m.spp.set(i64::from(d.quality.spp));
+                        m.depth.set(i64::from(d.quality.depth));
+                        if d.late {
+                            s.late += 1;
+                            m.late.inc();
+                        }
+                        if frame.meta.flags.contains(FrameFlags::DEGRADED) {
+                            s.degraded += 1;
+                            m.degraded.inc();
+                        }
+                    }
+                    Err(e) => {
+                        m.failed.inc();
+                        tracing::error!("frame failed: {e}");
+                    }
+                }
+            }
+        }
+
+        // Start the next frame when one is due, the renderer is free, and a pose exists.
+        if let (Some(reference), false, Some((pose, arrival))) = (want, busy, latest) {
+            if cfg.max_frames.is_some_and(|n| index >= n) {
+                want = None;
+                continue;
+            }
+            want = None;
+            let superseded = pending.saturating_sub(1);
+            s.superseded += superseded;
+            m.superseded.add(superseded);
+            pending = 0;
+            let q = governor.current();
+            let settings = RenderSettings { spp: q.spp, depth: q.depth, ..cfg.settings };
+            let mut flags = FrameFlags::default();
+            if q != best {
+                flags = flags.with(FrameFlags::DEGRADED);
+            }
+            let mut pose = pose;
+            if cfg.extrapolate && cfg.trigger == TriggerMode::Rate {
+                let dt = reference.saturating_duration_since(arrival).as_secs_f64() + last_integration * 0.5;
+                let (p, moved) = extrapolate(&pose, dt);
+                if moved {
+                    pose = p;
+                    flags = flags.with(FrameFlags::EXTRAPOLATED);
+                }
+            }
+            let job = Job { pose, arrival_unix_ns: unix_ns_of(arrival), reference, settings, index, flags };
+            if job_tx.send(job).is_err() {
+                tracing::error!("render thread is gone");
+                break;
+            }
+            index += 1;
+            busy = true;
+        }
+    }
+
+    // Finish the frame in flight, then stop the render thread.
+    if busy && let Some(d) = done_rx.recv().await {
+        if let Ok(frame) = d.frame {
+            for sink in sinks.iter() {
+                sink.publish(&frame);
+            }
+            s.frames += 1;
+            m.frames.inc();
+            s.late += u64::from(d.late);
+        }
+        render_times.push(d.render_time.as_secs_f64());
+    }
+    // Poses still waiting at shutdown were replaced by the newest one, which was not
+    // rendered either; count them so that accepted = rendered-from + superseded + 1.
+    let unrendered = pending.saturating_sub(1);
+    s.superseded += unrendered;
+    m.superseded.add(unrendered);
+    drop(job_tx);
+    let _ = tokio::task::spawn_blocking(move || renderer.join()).await;
+    render_times.sort_by(f64::total_cmp);
+    let pct =
+        |q: f64| render_times.get(((render_times.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(0.0);
+    s.render_p50_ms = pct(0.5) * 1e3;
+    s.render_p99_ms = pct(0.99) * 1e3;
+    s
+}
