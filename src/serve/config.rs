@@ -6,12 +6,14 @@
 //! width = 512                          # optional: scaled camera (same field of view)
 //!
 //! [input]                              # where poses come from
-//! kind = "serial"                      # serial | slcan | socketcan | none
+//! kind = "serial"                      # serial | slcan | socketcan | trajectory | none
 //! device = "/dev/ttyUSB0"              # serial / slcan
 //! baud = 921600
 //! # iface = "can0"                     # socketcan
 //! # can_base = 0x300                   # CAN base id
 //! # bitrate = 1000000                  # slcan: configure the adapter
+//! # file = "../scenes/trajectories/flyaround.csv"   # trajectory: real-time replay
+//! # speed = 1.0                        # trajectory: time scale
 //!
 //! [trigger]
 //! mode = "rate"                        # pose | rate | external
@@ -83,6 +85,9 @@ pub enum InputKind {
     Serial,
     Slcan,
     Socketcan,
+    /// Poses from a trajectory file at its recorded timing (× `speed`), through the same
+    /// path as live poses: real-time replay without a dynamics simulator.
+    Trajectory,
     #[default]
     None,
 }
@@ -99,6 +104,10 @@ pub struct InputConfig {
     #[serde(default)]
     pub can_extended: bool,
     pub bitrate: Option<u32>,
+    /// `trajectory` input: the CSV file (relative to the config file).
+    pub file: Option<PathBuf>,
+    /// `trajectory` input: simulation seconds per wall second (default 1).
+    pub speed: Option<f64>,
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -193,6 +202,9 @@ impl ServeConfig {
             toml::from_str(&text).map_err(|e| ConfigError::Parse { path: path.into(), message: e.to_string() })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         cfg.scene = dir.join(&cfg.scene);
+        if let Some(f) = &mut cfg.input.file {
+            *f = dir.join(&*f);
+        }
         if let Some(r) = &mut cfg.record {
             r.dir = dir.join(&r.dir);
         }
@@ -209,6 +221,12 @@ impl ServeConfig {
             }
             InputKind::Socketcan if i.iface.is_none() => {
                 return Err(("input.iface", "a socketcan input needs `iface`".into()));
+            }
+            InputKind::Trajectory if i.file.is_none() => {
+                return Err(("input.file", "a trajectory input needs `file`".into()));
+            }
+            _ if i.speed.is_some_and(|v| !(v.is_finite() && v > 0.0)) => {
+                return Err(("input.speed", "must be a positive number".into()));
             }
             _ => {}
         }

@@ -85,6 +85,32 @@ fn mirror_input_counters(registry: &Registry, counters: &InputCounters, seen: &M
     });
 }
 
+/// Feed a trajectory's poses at their recorded timing (× `speed`) into the input channel,
+/// as a live link would (counted as accepted; a full channel is counted, as for devices).
+async fn replay_trajectory(
+    samples: Vec<crate::trajectory::TrajectorySample>,
+    speed: f64,
+    tx: mpsc::Sender<InputEvent>,
+    counters: Arc<InputCounters>,
+    stop: impl std::future::Future,
+) {
+    tokio::pin!(stop);
+    let t0 = tokio::time::Instant::now();
+    let first = samples.first().map_or(0.0, |s| s.time_s);
+    for (k, s) in samples.iter().enumerate() {
+        let due = t0 + Duration::from_secs_f64(((s.time_s - first) / speed).max(0.0));
+        tokio::select! {
+            _ = tokio::time::sleep_until(due) => {}
+            _ = &mut stop => return,
+        }
+        let ev = InputEvent::Pose { pose: s.to_pose(k as u32), arrival: std::time::Instant::now() };
+        InputCounters::inc(&counters.accepted);
+        if tx.try_send(ev).is_err() {
+            InputCounters::inc(&counters.channel_full);
+        }
+    }
+}
+
 /// Run the server until `shutdown` resolves (or `embed.max_frames` frames are out).
 pub async fn run(
     cfg: ServeConfig,
@@ -132,6 +158,12 @@ pub async fn run(
                     let mut sc = SocketCanConfig::new(i.iface.clone().unwrap_or_default());
                     sc.ids = ids;
                     tasks.push(tokio::spawn(crate::transport::socketcan::run_socketcan(sc, tx, c, stop)));
+                }
+                InputKind::Trajectory => {
+                    let path = i.file.clone().unwrap_or_default();
+                    let samples = crate::trajectory::Trajectory::load(&path)?;
+                    let speed = i.speed.unwrap_or(1.0);
+                    tasks.push(tokio::spawn(replay_trajectory(samples, speed, tx, c, stop)));
                 }
                 InputKind::None => drop(tx),
             }
