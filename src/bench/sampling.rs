@@ -122,6 +122,8 @@ pub fn rmse(a: &RadianceImage, b: &RadianceImage, mask: &[bool]) -> f64 {
 /// A converged reference: two independent halves of `spp` each (seeds differ), averaged.
 pub struct Reference {
     pub image: RadianceImage,
+    /// The direct-sunlight part of `image` (depth 1, the same samples' pixel positions).
+    pub direct: RadianceImage,
     /// RMS error of the averaged reference itself, estimated as rms(A − B)/2.
     pub noise: f64,
     pub spp: u32,
@@ -141,8 +143,24 @@ pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u
     let (a, ta) = case.render(&s(1_000_001));
     let (b, tb) = case.render(&s(2_000_003));
     let noise = rmse(&a, &b, &case.mask) / 2.0;
+    let direct = |seed| case.render(&RenderSettings { depth: 1, ..s(seed) }).0;
+    Reference {
+        image: average(&a, &b),
+        direct: average(&direct(1_000_001), &direct(2_000_003)),
+        noise,
+        spp: 2 * half_spp,
+        time_s: ta + tb,
+    }
+}
+
+fn average(a: &RadianceImage, b: &RadianceImage) -> RadianceImage {
     let data = a.data.iter().zip(&b.data).map(|(x, y)| 0.5 * (x + y)).collect();
-    Reference { image: RadianceImage { width: a.width, height: a.height, data }, noise, spp: 2 * half_spp, time_s: ta + tb }
+    RadianceImage { width: a.width, height: a.height, data }
+}
+
+fn minus(a: &RadianceImage, b: &RadianceImage) -> RadianceImage {
+    let data = a.data.iter().zip(&b.data).map(|(x, y)| x - y).collect();
+    RadianceImage { width: a.width, height: a.height, data }
 }
 
 /// One measured cell: a sampler at a sample count.
@@ -152,14 +170,19 @@ pub struct Cell {
     pub sequence: Sequence,
     pub spp: u32,
     pub rmse: f64,
+    /// RMSE of the indirect part alone: image minus its direct-only twin (same seed and
+    /// sequence, so the same pixel positions), against the reference's indirect part.
+    /// Removes the pixel-footprint noise of the fold texture, which no sampler changes.
+    pub rmse_indirect: f64,
     pub time_s: f64,
 }
 
 /// Render `case` with each sampler at each sample count and measure the RMSE against
 /// `reference`. `keep` receives each image (for the figure grid).
+#[allow(clippy::too_many_arguments)]
 pub fn sweep(
     case: &PlaneCase,
-    reference: &RadianceImage,
+    reference: &Reference,
     samplers: &[SamplerKind],
     spps: &[u32],
     sequence: Sequence,
@@ -168,14 +191,20 @@ pub fn sweep(
     mut keep: impl FnMut(SamplerKind, u32, &RadianceImage),
 ) -> Vec<Cell> {
     let mut out = Vec::new();
+    let ref_indirect = minus(&reference.image, &reference.direct);
+    let direct: Vec<RadianceImage> = spps
+        .iter()
+        .map(|&spp| case.render(&RenderSettings { spp, depth: 1, sampler: SamplerKind::Cosine, sequence, roulette: false, seed }).0)
+        .collect();
     for &sampler in samplers {
-        for &spp in spps {
+        for (k, &spp) in spps.iter().enumerate() {
             let settings = RenderSettings { spp, depth, sampler, sequence, roulette: false, seed };
             let (img, time_s) = case.render(&settings);
-            let e = rmse(&img, reference, &case.mask);
-            tracing::debug!(?sampler, spp, rmse = e, time_s, "sampling bench cell");
+            let e = rmse(&img, &reference.image, &case.mask);
+            let ei = rmse(&minus(&img, &direct[k]), &ref_indirect, &case.mask);
+            tracing::debug!(?sampler, spp, rmse = e, rmse_indirect = ei, time_s, "sampling bench cell");
             keep(sampler, spp, &img);
-            out.push(Cell { sampler, sequence, spp, rmse: e, time_s });
+            out.push(Cell { sampler, sequence, spp, rmse: e, rmse_indirect: ei, time_s });
         }
     }
     out
@@ -184,6 +213,11 @@ pub fn sweep(
 /// The RMSE of `sampler` at `spp` in `cells`.
 pub fn rmse_of(cells: &[Cell], sampler: SamplerKind, spp: u32) -> Option<f64> {
     cells.iter().find(|c| c.sampler == sampler && c.spp == spp).map(|c| c.rmse)
+}
+
+/// The indirect-part RMSE of `sampler` at `spp` in `cells`.
+pub fn rmse_indirect_of(cells: &[Cell], sampler: SamplerKind, spp: u32) -> Option<f64> {
+    cells.iter().find(|c| c.sampler == sampler && c.spp == spp).map(|c| c.rmse_indirect)
 }
 
 /// Relative reduction `(base − x)/base` in percent.
@@ -253,7 +287,7 @@ mod tests {
     use super::*;
 
     fn cell(sampler: SamplerKind, spp: u32, rmse: f64, time_s: f64) -> Cell {
-        Cell { sampler, sequence: Sequence::Independent, spp, rmse, time_s }
+        Cell { sampler, sequence: Sequence::Independent, spp, rmse, rmse_indirect: rmse, time_s }
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! in the paper's layout, and write CSV, RMSE plots and image grids.
 
 use super::sampling::{
-    Cell, PlaneCase, Reference, image_grid, reduction_pct, reference, rmse_at_time, rmse_of, sampler_name,
+    Cell, PlaneCase, Reference, image_grid, reduction_pct, reference, rmse_at_time, rmse_indirect_of, rmse_of, sampler_name,
     sequence_name, sweep,
 };
 use crate::bsdf::{Bsdf, ImprovedBlinnPhong};
@@ -64,13 +64,13 @@ pub struct LevelResult {
 
 impl LevelResult {
     /// Mean over the sample counts of the reduction of `sampler` over uniform sampling.
-    pub fn average_reduction(&self, sampler: SamplerKind, sequence: Sequence, spps: &[u32]) -> f64 {
+    /// `indirect` uses the indirect-part RMSE.
+    pub fn average_reduction(&self, sampler: SamplerKind, sequence: Sequence, spps: &[u32], indirect: bool) -> f64 {
+        let cells: Vec<Cell> = self.cells.iter().filter(|c| c.sequence == sequence).cloned().collect();
+        let get = if indirect { rmse_indirect_of } else { rmse_of };
         let v: Vec<f64> = spps
             .iter()
-            .filter_map(|&n| {
-                let cells: Vec<Cell> = self.cells.iter().filter(|c| c.sequence == sequence).cloned().collect();
-                Some(reduction_pct(rmse_of(&cells, SamplerKind::Uniform, n)?, rmse_of(&cells, sampler, n)?))
-            })
+            .filter_map(|&n| Some(reduction_pct(get(&cells, SamplerKind::Uniform, n)?, get(&cells, sampler, n)?)))
             .collect();
         v.iter().sum::<f64>() / v.len().max(1) as f64
     }
@@ -93,7 +93,7 @@ fn out_dir(out: &Option<PathBuf>) -> Result<Option<&Path>, BenchError> {
 pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
     let out = out_dir(&cfg.out)?;
     let mut results = Vec::new();
-    let mut csv = String::from("level,sequence,sampler,spp,rmse,time_s,ref_spp,ref_noise\n");
+    let mut csv = String::from("level,sequence,sampler,spp,rmse,rmse_indirect,time_s,ref_spp,ref_noise\n");
     for &level in &cfg.levels {
         let plane = generate_plane(level.target(), cfg.fold_seed)?;
         let case = PlaneCase::paper_lambert(plane.mesh, cfg.size);
@@ -109,22 +109,23 @@ pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
             r.noise
         );
         let mut grid: Vec<Vec<RadianceImage>> = vec![Vec::new(); SAMPLERS.len()];
-        let mut cells = sweep(&case, &r.image, &SAMPLERS, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |s, _, img| {
+        let mut cells = sweep(&case, &r, &SAMPLERS, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |s, _, img| {
             let row = SAMPLERS.iter().position(|x| *x == s).unwrap_or(0);
             grid[row].push(img.clone());
         });
         if cfg.sobol {
-            cells.extend(sweep(&case, &r.image, &SAMPLERS, &cfg.spps, Sequence::Sobol, cfg.depth, cfg.seed, |_, _, _| {}));
+            cells.extend(sweep(&case, &r, &SAMPLERS, &cfg.spps, Sequence::Sobol, cfg.depth, cfg.seed, |_, _, _| {}));
         }
         for c in &cells {
             let _ = writeln!(
                 csv,
-                "{},{},{},{},{:.6},{:.4},{},{:.6}",
+                "{},{},{},{},{:.6},{:.6},{:.4},{},{:.6}",
                 level.name(),
                 sequence_name(c.sequence),
                 sampler_name(c.sampler),
                 c.spp,
                 c.rmse,
+                c.rmse_indirect,
                 c.time_s,
                 r.spp,
                 r.noise
@@ -176,46 +177,51 @@ fn rmse_chart(title: &str, cells: &[Cell]) -> LineChart {
     chart
 }
 
-/// Table 1 in the paper's layout (one block per sequence).
+/// Table 1 in the paper's layout (one block per sequence): the whole pixel's RMSE (the
+/// paper's measure) and the RMSE of its indirect part alone.
 pub fn table1_text(results: &[LevelResult], spps: &[u32], sobol: bool) -> String {
     let mut t = String::new();
     let seqs: &[Sequence] = if sobol { &[Sequence::Independent, Sequence::Sobol] } else { &[Sequence::Independent] };
     for &seq in seqs {
-        let _ = writeln!(t, "\nTable 1 — RMSE (W·sr⁻¹·m⁻²) against the reference, {} random numbers", sequence_name(seq));
         let _ = writeln!(
             t,
-            "{:<7} {:>6} {:>10} {:>10} {:>10} {:>11} {:>11}",
-            "fold", "rays", "uniform", "cosine", "brdf", "cos vs uni", "brdf vs uni"
+            "\nTable 1 — RMSE (W·sr⁻¹·m⁻²) against the reference, {} random numbers; reduction vs uniform",
+            sequence_name(seq)
+        );
+        let _ = writeln!(
+            t,
+            "{:<7} {:>5} | {:>8} {:>8} {:>8} {:>8} {:>8} | indirect part: {:>8} {:>8} {:>8} {:>8} {:>8}",
+            "fold", "rays", "uniform", "cosine", "brdf", "cos %", "brdf %", "uniform", "cosine", "brdf", "cos %", "brdf %"
         );
         for r in results {
             let cells: Vec<Cell> = r.cells.iter().filter(|c| c.sequence == seq).cloned().collect();
             for &n in spps {
-                let (Some(u), Some(c), Some(b)) = (
-                    rmse_of(&cells, SamplerKind::Uniform, n),
-                    rmse_of(&cells, SamplerKind::Cosine, n),
-                    rmse_of(&cells, SamplerKind::Brdf, n),
-                ) else {
+                let row = |get: fn(&[Cell], SamplerKind, u32) -> Option<f64>| {
+                    let u = get(&cells, SamplerKind::Uniform, n)?;
+                    let c = get(&cells, SamplerKind::Cosine, n)?;
+                    let b = get(&cells, SamplerKind::Brdf, n)?;
+                    Some(format!(
+                        "{u:>8.4} {c:>8.4} {b:>8.4} {:>7.2}% {:>7.2}%",
+                        reduction_pct(u, c),
+                        reduction_pct(u, b)
+                    ))
+                };
+                let (Some(a), Some(i)) = (row(rmse_of), row(rmse_indirect_of)) else {
                     continue;
                 };
-                let _ = writeln!(
-                    t,
-                    "{:<7} {:>6} {:>10.4} {:>10.4} {:>10.4} {:>10.2}% {:>10.2}%",
-                    r.level.name(),
-                    n,
-                    u,
-                    c,
-                    b,
-                    reduction_pct(u, c),
-                    reduction_pct(u, b)
-                );
+                let _ = writeln!(t, "{:<7} {:>5} | {a} |                {i}", r.level.name(), n);
             }
+            let avg = |s, ind| r.average_reduction(s, seq, spps, ind);
             let _ = writeln!(
                 t,
-                "{:<7} average reduction: cosine {:.2} % (paper {:.2} %), brdf {:.2} %; reference noise {:.4}",
+                "{:<7} average reduction vs uniform: cosine {:.2} % (paper {:.2} %), brdf {:.2} %; \
+                 indirect part: cosine {:.2} %, brdf {:.2} %; reference noise {:.4}",
                 r.level.name(),
-                r.average_reduction(SamplerKind::Cosine, seq, spps),
+                avg(SamplerKind::Cosine, false),
                 paper_average_reduction(r.level),
-                r.average_reduction(SamplerKind::Brdf, seq, spps),
+                avg(SamplerKind::Brdf, false),
+                avg(SamplerKind::Cosine, true),
+                avg(SamplerKind::Brdf, true),
                 r.ref_noise
             );
         }
@@ -260,7 +266,7 @@ pub fn run_glints(cfg: &GlintConfig) -> Result<Vec<GlintResult>, BenchError> {
         for &ti in &cfg.theta_i_deg {
             let case = PlaneCase::new(plane.mesh.clone(), bsdf, super::sampling::PAPER_IRRADIANCE, ti, cfg.size);
             let r = reference(&case, SamplerKind::Brdf, cfg.ref_half_spp, cfg.depth);
-            let cells = sweep(&case, &r.image, &samplers, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |_, _, _| {});
+            let cells = sweep(&case, &r, &samplers, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |_, _, _| {});
             for c in &cells {
                 let _ = writeln!(
                     csv,
