@@ -2,6 +2,7 @@
 //! renderer level, against an answer computed here by our own quadrature; and the
 //! `bench sampling` pipeline runs end to end on a tiny image.
 
+use glam::Vec3;
 use hilcam::bench::sampling::PlaneCase;
 use hilcam::bench::table1::{Table1Config, run_table1};
 use hilcam::bsdf::{Bsdf, ImprovedBlinnPhong, Lambert};
@@ -10,7 +11,6 @@ use hilcam::fold::FoldLevel;
 use hilcam::fold::disk::reference_disk;
 use hilcam::integrator::{RenderSettings, SamplerKind};
 use hilcam::sampling::Sequence;
-use glam::Vec3;
 
 const SIZE: u32 = 24;
 
@@ -72,10 +72,7 @@ fn check_unbiased(bsdf: Bsdf, spp: u32) {
         assert!(v.len() > 250, "{}", v.len());
         let (m, se) = mean_se(&v);
         // 5 standard errors, plus 0.2 % for the f32 radiance sums and the quadrature.
-        assert!(
-            (m - want).abs() < 5.0 * se + 2e-3 * want,
-            "{sampler:?}: mean {m:.5} ± {se:.5}, quadrature {want:.5}"
-        );
+        assert!((m - want).abs() < 5.0 * se + 2e-3 * want, "{sampler:?}: mean {m:.5} ± {se:.5}, quadrature {want:.5}");
     }
 }
 

@@ -132,14 +132,7 @@ pub struct Reference {
 
 /// Render the reference with `sampler` and the Sobol sequence, `2 × half_spp` samples.
 pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u32) -> Reference {
-    let s = |seed| RenderSettings {
-        spp: half_spp,
-        depth,
-        sampler,
-        sequence: Sequence::Sobol,
-        roulette: false,
-        seed,
-    };
+    let s = |seed| RenderSettings { spp: half_spp, depth, sampler, sequence: Sequence::Sobol, roulette: false, seed };
     let (a, ta) = case.render(&s(1_000_001));
     let (b, tb) = case.render(&s(2_000_003));
     let noise = rmse(&a, &b, &case.mask) / 2.0;
@@ -194,7 +187,17 @@ pub fn sweep(
     let ref_indirect = minus(&reference.image, &reference.direct);
     let direct: Vec<RadianceImage> = spps
         .iter()
-        .map(|&spp| case.render(&RenderSettings { spp, depth: 1, sampler: SamplerKind::Cosine, sequence, roulette: false, seed }).0)
+        .map(|&spp| {
+            case.render(&RenderSettings {
+                spp,
+                depth: 1,
+                sampler: SamplerKind::Cosine,
+                sequence,
+                roulette: false,
+                seed,
+            })
+            .0
+        })
         .collect();
     for &sampler in samplers {
         for (k, &spp) in spps.iter().enumerate() {

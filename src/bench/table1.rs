@@ -2,8 +2,8 @@
 //! in the paper's layout, and write CSV, RMSE plots and image grids.
 
 use super::sampling::{
-    Cell, PlaneCase, Reference, image_grid, reduction_pct, reference, rmse_at_time, rmse_indirect_of, rmse_of, sampler_name,
-    sequence_name, sweep,
+    Cell, PlaneCase, Reference, image_grid, reduction_pct, reference, rmse_at_time, rmse_indirect_of, rmse_of,
+    sampler_name, sequence_name, sweep,
 };
 use crate::bsdf::{Bsdf, ImprovedBlinnPhong};
 use crate::film::RadianceImage;
@@ -109,10 +109,11 @@ pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
             r.noise
         );
         let mut grid: Vec<Vec<RadianceImage>> = vec![Vec::new(); SAMPLERS.len()];
-        let mut cells = sweep(&case, &r, &SAMPLERS, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |s, _, img| {
-            let row = SAMPLERS.iter().position(|x| *x == s).unwrap_or(0);
-            grid[row].push(img.clone());
-        });
+        let mut cells =
+            sweep(&case, &r, &SAMPLERS, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |s, _, img| {
+                let row = SAMPLERS.iter().position(|x| *x == s).unwrap_or(0);
+                grid[row].push(img.clone());
+            });
         if cfg.sobol {
             cells.extend(sweep(&case, &r, &SAMPLERS, &cfg.spps, Sequence::Sobol, cfg.depth, cfg.seed, |_, _, _| {}));
         }
@@ -151,10 +152,8 @@ pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
 }
 
 fn rmse_chart(title: &str, cells: &[Cell]) -> LineChart {
-    let mut chart = LineChart::new(title)
-        .x_label("rays per pixel")
-        .y_label("RMSE, W·sr⁻¹·m⁻²")
-        .scales(Scale::Log, Scale::Log);
+    let mut chart =
+        LineChart::new(title).x_label("rays per pixel").y_label("RMSE, W·sr⁻¹·m⁻²").scales(Scale::Log, Scale::Log);
     for seq in [Sequence::Independent, Sequence::Sobol] {
         for (k, s) in SAMPLERS.iter().enumerate() {
             let pts: Vec<(f64, f64)> = cells
@@ -166,8 +165,9 @@ fn rmse_chart(title: &str, cells: &[Cell]) -> LineChart {
                 continue;
             }
             let colors = [[31, 119, 180], [255, 127, 14], [44, 160, 44]];
-            let mut series =
-                Series::new(format!("{} ({})", sampler_name(*s), sequence_name(seq)), pts).with_markers().color(colors[k]);
+            let mut series = Series::new(format!("{} ({})", sampler_name(*s), sequence_name(seq)), pts)
+                .with_markers()
+                .color(colors[k]);
             if seq == Sequence::Sobol {
                 series = series.dashed();
             }
@@ -191,7 +191,18 @@ pub fn table1_text(results: &[LevelResult], spps: &[u32], sobol: bool) -> String
         let _ = writeln!(
             t,
             "{:<7} {:>5} | {:>8} {:>8} {:>8} {:>8} {:>8} | indirect part: {:>8} {:>8} {:>8} {:>8} {:>8}",
-            "fold", "rays", "uniform", "cosine", "brdf", "cos %", "brdf %", "uniform", "cosine", "brdf", "cos %", "brdf %"
+            "fold",
+            "rays",
+            "uniform",
+            "cosine",
+            "brdf",
+            "cos %",
+            "brdf %",
+            "uniform",
+            "cosine",
+            "brdf",
+            "cos %",
+            "brdf %"
         );
         for r in results {
             let cells: Vec<Cell> = r.cells.iter().filter(|c| c.sequence == seq).cloned().collect();
@@ -266,7 +277,8 @@ pub fn run_glints(cfg: &GlintConfig) -> Result<Vec<GlintResult>, BenchError> {
         for &ti in &cfg.theta_i_deg {
             let case = PlaneCase::new(plane.mesh.clone(), bsdf, super::sampling::PAPER_IRRADIANCE, ti, cfg.size);
             let r = reference(&case, SamplerKind::Brdf, cfg.ref_half_spp, cfg.depth);
-            let cells = sweep(&case, &r, &samplers, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |_, _, _| {});
+            let cells =
+                sweep(&case, &r, &samplers, &cfg.spps, Sequence::Independent, cfg.depth, cfg.seed, |_, _, _| {});
             for c in &cells {
                 let _ = writeln!(
                     csv,

@@ -113,11 +113,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
 
 fn sampling(a: SamplingBenchArgs) -> anyhow::Result<()> {
     rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
-    let levels = if a.level.eq_ignore_ascii_case("all") {
-        FoldLevel::ALL.to_vec()
-    } else {
-        vec![a.level.parse::<FoldLevel>()?]
-    };
+    let levels =
+        if a.level.eq_ignore_ascii_case("all") { FoldLevel::ALL.to_vec() } else { vec![a.level.parse::<FoldLevel>()?] };
     anyhow::ensure!(a.size > 0 && !a.spp.is_empty() && a.spp.iter().all(|n| *n > 0), "--size and --spp must be > 0");
     let cfg = Table1Config {
         levels,
