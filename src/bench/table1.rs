@@ -301,13 +301,11 @@ pub fn run_glints(cfg: &GlintConfig) -> Result<Vec<GlintResult>, BenchError> {
         write(&dir.join("glints.txt"), &text)?;
         // References side by side: row 1 the paper's fit, row 2 normalised; one scale per row.
         let n = cfg.theta_i_deg.len();
-        let mut rows = Vec::new();
         for k in 0..2 {
             let row: Vec<RadianceImage> = refs[k * n..(k + 1) * n].to_vec();
             let scale = row.iter().map(|i| i.preview_scale()).fold(0.0f32, f32::max);
             let p = dir.join(format!("glints_{}.png", if k == 0 { "paper" } else { "normalized" }));
             image_grid(&[row], scale, 2).save(&p).map_err(|source| BenchError::Image { path: p.clone(), source })?;
-            rows.push(p);
         }
     }
     Ok(results)
