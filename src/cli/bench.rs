@@ -1,6 +1,8 @@
 //! `hilcam bench …`: measurements that print ratios side by side in one run.
 
 use crate::bench::render::{measure, pose_for_coverage, print_table};
+use crate::bench::table1::{GlintConfig, Table1Config, run_glints, run_table1};
+use crate::fold::FoldLevel;
 use crate::geometry::BvhLayout;
 use crate::integrator::{RenderSettings, SamplerKind};
 use std::path::PathBuf;
@@ -16,6 +18,67 @@ pub enum BenchKind {
     /// Frame time and ray rate against obvhs's raw traversal on the same rays, for a
     /// target covering ~30 % and ~1 % of the frame.
     Render(RenderBenchArgs),
+    /// The paper's Table 1: uniform vs cosine (vs the BRDF's MIS) indirect sampling on
+    /// fold planes, RMSE against a converged reference; CSV, plots and image grids.
+    Sampling(SamplingBenchArgs),
+    /// The paper's Fig. 7 glint case: gold polyimide, cosine vs MIS at equal rays and time.
+    Glints(GlintBenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct SamplingBenchArgs {
+    /// slight | medium | severe | all
+    #[arg(long, default_value = "all")]
+    pub level: String,
+    /// Image side, pixels (the disk fills the frame).
+    #[arg(long, default_value_t = 64)]
+    pub size: u32,
+    /// Rays (samples) per pixel of the table's columns.
+    #[arg(long, value_delimiter = ',', default_values_t = [1, 10, 100, 500, 1000])]
+    pub spp: Vec<u32>,
+    /// Samples of each of the reference's two halves (cosine, Sobol).
+    #[arg(long, default_value_t = 2048)]
+    pub ref_half_spp: u32,
+    #[arg(long, default_value_t = 4)]
+    pub depth: u32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Seed of the fold planes.
+    #[arg(long, default_value_t = 0)]
+    pub fold_seed: u64,
+    /// Skip the second table (all samplers again with the Sobol sequence).
+    #[arg(long)]
+    pub no_sobol: bool,
+    /// Directory for table1.csv/.txt, rmse_<level>.png and grid_<level>.png.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GlintBenchArgs {
+    #[arg(long, default_value_t = 64)]
+    pub size: u32,
+    #[arg(long, value_delimiter = ',', default_values_t = [4, 16, 64, 256])]
+    pub spp: Vec<u32>,
+    /// Samples of each of the reference's two halves (brdf, Sobol).
+    #[arg(long, default_value_t = 2048)]
+    pub ref_half_spp: u32,
+    #[arg(long, default_value_t = 4)]
+    pub depth: u32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long, default_value_t = 0)]
+    pub fold_seed: u64,
+    /// Sun angles from the plane normal, degrees.
+    #[arg(long, value_delimiter = ',', default_values_t = [3.0, 6.0])]
+    pub theta_i: Vec<f64>,
+    /// Directory for glints.csv/.txt and the reference images.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
 }
 
 #[derive(clap::Args, Debug)]
@@ -43,7 +106,46 @@ pub struct RenderBenchArgs {
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     match a.kind {
         BenchKind::Render(r) => render(r),
+        BenchKind::Sampling(s) => sampling(s),
+        BenchKind::Glints(g) => glints(g),
     }
+}
+
+fn sampling(a: SamplingBenchArgs) -> anyhow::Result<()> {
+    rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
+    let levels =
+        if a.level.eq_ignore_ascii_case("all") { FoldLevel::ALL.to_vec() } else { vec![a.level.parse::<FoldLevel>()?] };
+    anyhow::ensure!(a.size > 0 && !a.spp.is_empty() && a.spp.iter().all(|n| *n > 0), "--size and --spp must be > 0");
+    let cfg = Table1Config {
+        levels,
+        size: a.size,
+        spps: a.spp,
+        ref_half_spp: a.ref_half_spp.max(1),
+        depth: a.depth.max(1),
+        seed: a.seed,
+        fold_seed: a.fold_seed,
+        sobol: !a.no_sobol,
+        out: a.out,
+    };
+    run_table1(&cfg)?;
+    Ok(())
+}
+
+fn glints(a: GlintBenchArgs) -> anyhow::Result<()> {
+    rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
+    anyhow::ensure!(a.size > 0 && !a.spp.is_empty() && a.spp.iter().all(|n| *n > 0), "--size and --spp must be > 0");
+    let cfg = GlintConfig {
+        size: a.size,
+        spps: a.spp,
+        ref_half_spp: a.ref_half_spp.max(1),
+        depth: a.depth.max(1),
+        seed: a.seed,
+        fold_seed: a.fold_seed,
+        theta_i_deg: a.theta_i,
+        out: a.out,
+    };
+    run_glints(&cfg)?;
+    Ok(())
 }
 
 fn render(a: RenderBenchArgs) -> anyhow::Result<()> {
