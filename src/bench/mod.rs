@@ -1,6 +1,7 @@
 //! Benchmarks that print ratios measured side by side in one run (never timed tests).
 
 pub mod render;
+pub mod trade;
 
 /// Median of a few timings (robust against a neighbour's burst on a shared machine).
 pub fn median(mut v: Vec<f64>) -> f64 {

@@ -16,6 +16,8 @@ pub enum BenchKind {
     /// Frame time and ray rate against obvhs's raw traversal on the same rays, for a
     /// target covering ~30 % and ~1 % of the frame.
     Render(RenderBenchArgs),
+    /// Frame time and relative error over spp × depth × sampler; Pareto front, CSV, plot.
+    Trade(crate::cli::bench_trade::TradeArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -43,6 +45,7 @@ pub struct RenderBenchArgs {
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     match a.kind {
         BenchKind::Render(r) => render(r),
+        BenchKind::Trade(t) => crate::cli::bench_trade::run(t),
     }
 }
 
