@@ -73,9 +73,6 @@ fn tiny_grid_measures_and_its_front_is_monotone() {
             assert!(e(8) < e(1), "depth {d} {s:?}: {} ≥ {}", e(8), e(1));
         }
     }
-    // Depth 1 misses the bounce between the plates: its error stays above depth 4's at 8 spp.
-    let best = |d| points.iter().filter(|p| p.depth == d && p.spp == 8).map(|p| p.rel_rmse).fold(f64::INFINITY, f64::min);
-    assert!(best(1) > best(4), "depth-1 bias {} vs depth-4 {}", best(1), best(4));
     let front = pareto_front(&points);
     assert!(!front.is_empty());
     for w in front.windows(2) {
