@@ -135,13 +135,22 @@ impl Shard {
 
     /// Metadata log of this shard: `frames.jsonl`, or `frames.shard-K-of-N.jsonl`.
     pub fn log_name(&self) -> String {
-        if self.count == 1 { LOG_NAME.to_string() } else { format!("frames.shard-{}-of-{}.jsonl", self.index, self.count) }
+        if self.count == 1 {
+            LOG_NAME.to_string()
+        } else {
+            format!("frames.shard-{}-of-{}.jsonl", self.index, self.count)
+        }
     }
 }
 
 /// The frame indices a run renders, in order: every `every`-th row, then this shard's share.
 pub fn select_frames(n_rows: u64, every: u64, shard: Shard) -> Vec<u64> {
-    (0..n_rows).step_by(every.max(1) as usize).enumerate().filter(|(j, _)| *j as u64 % shard.count == shard.index).map(|(_, k)| k).collect()
+    (0..n_rows)
+        .step_by(every.max(1) as usize)
+        .enumerate()
+        .filter(|(j, _)| *j as u64 % shard.count == shard.index)
+        .map(|(_, k)| k)
+        .collect()
 }
 
 /// Pin the scene's sensor to a fixed integration time and switch auto-exposure off, so
@@ -241,7 +250,13 @@ fn trim_partial_line(path: &Path) -> Result<(), ReplayError> {
 }
 
 /// The frames already complete in `dir`: a log line whose image file exists and is not empty.
-fn done_frames(dir: &Path, cfg: &ReplayConfig, w: u32, h: u32, stats: &mut ReplayStats) -> Result<HashSet<u64>, ReplayError> {
+fn done_frames(
+    dir: &Path,
+    cfg: &ReplayConfig,
+    w: u32,
+    h: u32,
+    stats: &mut ReplayStats,
+) -> Result<HashSet<u64>, ReplayError> {
     let mut done = HashSet::new();
     for log in log_files(dir)? {
         for d in read_log(&log, &mut stats.truncated_lines)? {
@@ -308,8 +323,11 @@ pub fn replay(
         let path = dir.join(&name);
         // A temp name with the real extension: the image writer picks the codec by it.
         let tmp = dir.join(format!(".tmp-{}-{name}", std::process::id()));
-        write_frame_image(&tmp, f.width, f.height, &f.pixels, cfg.format)
-            .map_err(|e| ReplayError::Image { frame: k, path: tmp.clone(), msg: e.to_string() })?;
+        write_frame_image(&tmp, f.width, f.height, &f.pixels, cfg.format).map_err(|e| ReplayError::Image {
+            frame: k,
+            path: tmp.clone(),
+            msg: e.to_string(),
+        })?;
         std::fs::rename(&tmp, &path).map_err(io(&path))?;
         let payload = f.pixels.to_le_bytes();
         let meta = frame_meta(k, &pose, &f.pixels, w, h, &cfg.settings, f.integration_s);

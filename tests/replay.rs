@@ -9,7 +9,9 @@ use hilcam::frame::CRC32;
 use hilcam::integrator::RenderSettings;
 use hilcam::pipeline::FramePipeline;
 use hilcam::pose::Pose;
-use hilcam::replay::{ReplayConfig, ReplayError, ReplayStats, Shard, merge, pin_integration_time, replay, select_frames};
+use hilcam::replay::{
+    ReplayConfig, ReplayError, ReplayStats, Shard, merge, pin_integration_time, replay, select_frames,
+};
 use hilcam::scene::Scene;
 use hilcam::sink::recorder::{FrameRecord, ImageFormat};
 use hilcam::trajectory::TrajectorySample;
@@ -190,7 +192,9 @@ fn shard_from_arguments_and_environment() {
     let e = Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "2")])).unwrap_err().to_string();
     assert_eq!(e, "environment variable SLURM_ARRAY_TASK_COUNT: not set");
     let out = [("SLURM_ARRAY_TASK_ID", "7"), ("SLURM_ARRAY_TASK_MIN", "4"), ("SLURM_ARRAY_TASK_COUNT", "3")];
-    assert!(Shard::from_env(env(&out)).unwrap_err().to_string().starts_with("environment variable SLURM_ARRAY_TASK_ID"));
+    assert!(
+        Shard::from_env(env(&out)).unwrap_err().to_string().starts_with("environment variable SLURM_ARRAY_TASK_ID")
+    );
     let step = [("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "3"), ("SLURM_ARRAY_TASK_STEP", "2")];
     assert!(Shard::from_env(env(&step)).unwrap_err().to_string().contains("SLURM_ARRAY_TASK_STEP"));
     let e = Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "a"), ("SLURM_ARRAY_TASK_COUNT", "3")])).unwrap_err();

@@ -30,7 +30,8 @@ fn pt(time_s: f64, rel_rmse: f64, spp: u32) -> TradePoint {
 
 #[test]
 fn pareto_front_and_recommendations() {
-    let pts = [pt(1.0, 0.5, 1), pt(2.0, 0.6, 2), pt(2.0, 0.3, 3), pt(4.0, 0.1, 4), pt(3.0, 0.4, 5), pt(8.0, f64::NAN, 6)];
+    let pts =
+        [pt(1.0, 0.5, 1), pt(2.0, 0.6, 2), pt(2.0, 0.3, 3), pt(4.0, 0.1, 4), pt(3.0, 0.4, 5), pt(8.0, f64::NAN, 6)];
     let f = pareto_front(&pts);
     assert_eq!(f.iter().map(|p| p.spp).collect::<Vec<_>>(), vec![1, 3, 4]);
     assert_eq!(best_for_fps(&f, 0.4).unwrap().spp, 3, "1/0.4 = 2.5 s budget");

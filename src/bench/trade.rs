@@ -43,7 +43,8 @@ impl TradeGrid {
     /// spp 1, 2, 4 … up to `max_spp`; depth 1/2/4; the three samplers; reference at
     /// depth 4 and 4 × `max_spp`.
     pub fn standard(max_spp: u32, base: RenderSettings) -> TradeGrid {
-        let spp = std::iter::successors(Some(1u32), |s| s.checked_mul(2)).take_while(|s| *s <= max_spp.max(1)).collect();
+        let spp =
+            std::iter::successors(Some(1u32), |s| s.checked_mul(2)).take_while(|s| *s <= max_spp.max(1)).collect();
         TradeGrid {
             spp,
             depths: vec![1, 2, 4],
@@ -136,7 +137,16 @@ pub fn to_csv(points: &[TradePoint], front: &[TradePoint]) -> String {
     let mut s = String::from("spp,depth,sampler,time_s,rel_rmse,pareto\n");
     for p in points {
         let on = front.iter().any(|f| f == p);
-        let _ = writeln!(s, "{},{},{},{:.6},{:.6},{}", p.spp, p.depth, sampler_name(p.sampler), p.time_s, p.rel_rmse, on as u8);
+        let _ = writeln!(
+            s,
+            "{},{},{},{:.6},{:.6},{}",
+            p.spp,
+            p.depth,
+            sampler_name(p.sampler),
+            p.time_s,
+            p.rel_rmse,
+            on as u8
+        );
     }
     s
 }
@@ -168,5 +178,7 @@ pub fn chart(points: &[TradePoint], front: &[TradePoint], title: &str) -> crate:
         let pts = points.iter().filter(|p| p.depth == d && p.sampler == s).map(|p| (p.time_s, p.rel_rmse)).collect();
         c = c.series(Series::new(format!("depth {d} {}", sampler_name(s)), pts).with_markers());
     }
-    c.series(Series::new("Pareto front", front.iter().map(|p| (p.time_s, p.rel_rmse)).collect()).dashed().color([0, 0, 0]))
+    c.series(
+        Series::new("Pareto front", front.iter().map(|p| (p.time_s, p.rel_rmse)).collect()).dashed().color([0, 0, 0]),
+    )
 }

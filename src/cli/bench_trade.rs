@@ -1,6 +1,8 @@
 //! `hilcam bench trade`: the quality/time trade of spp × depth × sampler, measured.
 
-use crate::bench::trade::{TradeGrid, best_for_error, best_for_fps, chart, measure, pareto_front, sampler_name, to_csv};
+use crate::bench::trade::{
+    TradeGrid, best_for_error, best_for_fps, chart, measure, pareto_front, sampler_name, to_csv,
+};
 use crate::cli::render::scaled_camera;
 use crate::pipeline::FramePipeline;
 use anyhow::Context;
@@ -61,13 +63,27 @@ pub fn run(a: TradeArgs) -> anyhow::Result<()> {
     );
     println!("{:>5} {:>5} {:>8} {:>11} {:>10}", "spp", "depth", "sampler", "time (ms)", "rel RMSE");
     let (points, ref_s) = measure(&pipeline, &pose, &grid, |p| {
-        println!("{:>5} {:>5} {:>8} {:>11.2} {:>10.4}", p.spp, p.depth, sampler_name(p.sampler), p.time_s * 1e3, p.rel_rmse)
+        println!(
+            "{:>5} {:>5} {:>8} {:>11.2} {:>10.4}",
+            p.spp,
+            p.depth,
+            sampler_name(p.sampler),
+            p.time_s * 1e3,
+            p.rel_rmse
+        )
     });
     println!("reference rendered in {ref_s:.1} s");
     let front = pareto_front(&points);
     println!("Pareto front (time ↑, error ↓):");
     for p in &front {
-        println!("  {:>5} spp depth {} {:<8} {:>9.2} ms  {:.4}", p.spp, p.depth, sampler_name(p.sampler), p.time_s * 1e3, p.rel_rmse);
+        println!(
+            "  {:>5} spp depth {} {:<8} {:>9.2} ms  {:.4}",
+            p.spp,
+            p.depth,
+            sampler_name(p.sampler),
+            p.time_s * 1e3,
+            p.rel_rmse
+        );
     }
     let csv = a.out.with_extension("csv");
     std::fs::write(&csv, to_csv(&points, &front)).with_context(|| csv.display().to_string())?;

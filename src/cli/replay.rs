@@ -65,7 +65,9 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else { bail!("--trajectory and --scene are required") };
+    let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
+        bail!("--trajectory and --scene are required")
+    };
     let Some(out) = a.out.clone() else { bail!("--out DIR is required") };
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
@@ -122,7 +124,11 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         secs,
         secs / stats.rendered.max(1) as f64,
         stats.skipped,
-        if stats.truncated_lines > 0 { format!(", {} truncated log lines ignored", stats.truncated_lines) } else { String::new() },
+        if stats.truncated_lines > 0 {
+            format!(", {} truncated log lines ignored", stats.truncated_lines)
+        } else {
+            String::new()
+        },
         out.join(shard.log_name()).display()
     );
     Ok(())
@@ -139,7 +145,10 @@ struct Progress {
 impl Progress {
     fn new() -> Self {
         let tty = std::io::stderr().is_terminal();
-        let bar = ProgressBar::with_draw_target(None, if tty { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() });
+        let bar = ProgressBar::with_draw_target(
+            None,
+            if tty { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() },
+        );
         bar.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {per_sec}  ETA {eta}  {msg}")
                 .expect("valid template"),
