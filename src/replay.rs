@@ -375,7 +375,8 @@ fn frame_meta(
 pub struct MergeStats {
     pub logs: usize,
     pub frames: u64,
-    /// Frame indices missing between 0 and the highest one present.
+    /// Frame indices missing between 0 and the highest one present, at the stride of the
+    /// indices present (the gcd, so a `--every K` run has no gaps).
     pub gaps: Vec<u64>,
 }
 
@@ -400,7 +401,16 @@ pub fn merge(dir: &Path) -> Result<MergeStats, ReplayError> {
     std::fs::write(&tmp, text).map_err(io(&tmp))?;
     let out = dir.join(LOG_NAME);
     std::fs::rename(&tmp, &out).map_err(io(&out))?;
+    // The stride of a `--every K` run: the gcd of the frame indices present.
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let step = by_frame.keys().fold(0, |g, k| gcd(g, *k)).max(1);
     let last = by_frame.keys().next_back().copied();
-    let gaps = last.map_or(Vec::new(), |l| (0..l).filter(|k| !by_frame.contains_key(k)).collect());
+    let gaps =
+        last.map_or(Vec::new(), |l| (0..l).step_by(step as usize).filter(|k| !by_frame.contains_key(k)).collect());
     Ok(MergeStats { logs: logs.len(), frames: by_frame.len() as u64, gaps })
 }

@@ -166,6 +166,14 @@ fn shards_share_a_directory_and_merge() {
     assert_eq!(records(&dir.path().join("frames.shard-0-of-2.jsonl")).len(), 3);
     let m = merge(dir.path()).unwrap();
     assert_eq!((m.logs, m.frames, m.gaps.len()), (2, 5, 0));
+    // Losing shard 0's log leaves gaps 0 and 2, which merge reports (shard 1's frames
+    // 1 and 3 fix the stride at 1; a stride of 2 alone would read as `--every 2`).
+    std::fs::remove_file(dir.path().join("frames.shard-0-of-2.jsonl")).unwrap();
+    std::fs::remove_file(dir.path().join("frames.jsonl")).unwrap();
+    let m = merge(dir.path()).unwrap();
+    assert_eq!((m.frames, m.gaps.clone()), (2, vec![0, 2]));
+    run(dir.path(), Shard { index: 0, count: 2 }, 5).unwrap();
+    assert_eq!(merge(dir.path()).unwrap().frames, 5);
     let merged = records(&dir.path().join("frames.jsonl"));
     let reference = records(&whole.path().join("frames.jsonl"));
     for (x, y) in merged.iter().zip(&reference) {
