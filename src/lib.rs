@@ -24,6 +24,7 @@
 //! - [`metrics`]: counters, latency histograms, Prometheus text and `/metrics` HTTP.
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
 //! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
+//! - [`replay`]: offline replay of a trajectory to files: resumable, sharded for clusters.
 //! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
 //! - [`serve`]: the real-time scheduler, quality governor and `hilcam serve`.
 //! - [`plot`]: small PNG line charts (RMSE vs spp, Pareto fronts, BRDF curves).
@@ -44,6 +45,7 @@ pub mod pipeline;
 pub mod plot;
 pub mod pose;
 pub mod render;
+pub mod replay;
 pub mod sampling;
 pub mod scene;
 pub mod sensor;

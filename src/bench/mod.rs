@@ -3,6 +3,7 @@
 pub mod render;
 pub mod sampling;
 pub mod table1;
+pub mod trade;
 
 /// Median of a few timings (robust against a neighbour's burst on a shared machine).
 pub fn median(mut v: Vec<f64>) -> f64 {

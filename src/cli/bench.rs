@@ -23,6 +23,8 @@ pub enum BenchKind {
     Sampling(SamplingBenchArgs),
     /// The paper's Fig. 7 glint case: gold polyimide, cosine vs MIS at equal rays and time.
     Glints(GlintBenchArgs),
+    /// Frame time and relative error over spp × depth × sampler; Pareto front, CSV, plot.
+    Trade(crate::cli::bench_trade::TradeArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -108,6 +110,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         BenchKind::Render(r) => render(r),
         BenchKind::Sampling(s) => sampling(s),
         BenchKind::Glints(g) => glints(g),
+        BenchKind::Trade(t) => crate::cli::bench_trade::run(t),
     }
 }
 

@@ -1,10 +1,12 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
 pub mod bench;
+pub mod bench_trade;
 pub mod brdf;
 pub mod demo;
 pub mod recv;
 pub mod render;
+pub mod replay;
 pub mod send;
 pub mod sensor;
 pub mod serve;
@@ -49,6 +51,8 @@ pub enum Command {
     Fold(fold::FoldArgs),
     /// Generate the shipped models (the Jason-like satellite).
     Model(model::ModelArgs),
+    /// Render a trajectory offline to image files (resumable; shards for clusters).
+    Replay(replay::ReplayArgs),
 }
 
 pub fn main() -> ExitCode {
@@ -72,6 +76,7 @@ pub fn main() -> ExitCode {
         Command::Brdf(args) => brdf::run(args),
         Command::Fold(args) => fold::run(args),
         Command::Model(args) => model::run(args),
+        Command::Replay(args) => replay::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,416 @@
+//! Offline replay: every pose of a trajectory rendered through [`FramePipeline`] to image
+//! files plus one JSON line per frame ([`FrameRecord`], the recorder's format).
+//!
+//! - Frame index = pose seq = trajectory row index, so replayed frame k is exactly
+//!   `FramePipeline::frame(&samples[k].to_pose(k), settings, k)`: the same payload bytes
+//!   (and CRC) as the live frame from a fresh pipeline fed the same poses in order.
+//! - Resumable: each image is written under a temporary name and renamed, then its line
+//!   is appended and flushed; on start the done set is rebuilt from every `frames*.jsonl`
+//!   in the directory (a truncated last line is tolerated, and cut from our own log).
+//! - Sharding: shard K/N renders the selected frames whose position j has j mod N = K,
+//!   logging to `frames.shard-K-of-N.jsonl`; [`merge`] combines the logs.
+//! - Auto-exposure carries state from frame to frame, so a shard, a resumed run or
+//!   `every > 1` would not see the live exposure history: [`replay`] refuses them unless
+//!   the integration time is pinned ([`pin_integration_time`]).
+
+use crate::frame::{FrameFlags, FrameMeta, unix_ns_now};
+use crate::integrator::RenderSettings;
+use crate::pipeline::FramePipeline;
+use crate::scene::Scene;
+use crate::sensor::SensorError;
+use crate::sink::recorder::{FrameRecord, ImageFormat, frame_file_name, write_frame_image};
+use crate::trajectory::TrajectorySample;
+use std::collections::{BTreeMap, HashSet};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Name of an unsharded replay's metadata log (the recorder's name).
+pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
+
+/// Errors of replay, sharding and merging; each names the file, line or variable.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}:{line}: not a frame record: {msg}")]
+    BadLine { path: PathBuf, line: usize, msg: String },
+    #[error("shard `{0}`: expected K/N with 0 ≤ K < N (e.g. 3/16)")]
+    BadShard(String),
+    #[error("environment variable {var}: {msg}")]
+    Env { var: &'static str, msg: String },
+    #[error(
+        "the sensor has auto-exposure, whose state runs from frame to frame; {what} would not reproduce the live \
+         exposures. Pin the integration time (--integration-s SECONDS) or render all frames in one run"
+    )]
+    AutoExposure { what: String },
+    #[error("--integration-s: the sensor has no [sensor.detector], so there is no integration time to pin")]
+    NoDetector,
+    #[error("--integration-s {0}: must be positive and finite")]
+    BadIntegration(f64),
+    #[error("--every must be ≥ 1")]
+    BadEvery,
+    #[error("{path}:{line}: frame {frame} was rendered at {found}, this run renders {expected}; use another --out")]
+    Mismatch { path: PathBuf, line: usize, frame: u64, found: String, expected: String },
+    #[error("frame {frame}: {source}")]
+    Sensor { frame: u64, source: SensorError },
+    #[error("frame {frame}: {path}: {msg}")]
+    Image { frame: u64, path: PathBuf, msg: String },
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReplayError + '_ {
+    move |source| ReplayError::Io { path: path.to_path_buf(), source }
+}
+
+/// Which of the selected frames this process renders: those at positions j ≡ index (mod count).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+/// Kubernetes Indexed Jobs give the index only; the shard count comes from this variable.
+pub const K8S_COUNT_VAR: &str = "HILCAM_SHARD_COUNT";
+
+impl Shard {
+    /// The whole job in one process.
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    /// Parse `K/N`.
+    pub fn parse(s: &str) -> Result<Shard, ReplayError> {
+        let bad = || ReplayError::BadShard(s.to_string());
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (k.trim().parse::<u64>().map_err(|_| bad())?, n.trim().parse::<u64>().map_err(|_| bad())?);
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The shard of a Slurm job array task (`SLURM_ARRAY_TASK_ID` − `SLURM_ARRAY_TASK_MIN`
+    /// of `SLURM_ARRAY_TASK_COUNT`; the array must be contiguous, step 1) or of a
+    /// Kubernetes Indexed Job pod (`JOB_COMPLETION_INDEX` of [`K8S_COUNT_VAR`]); `None`
+    /// when neither is set. `get` reads a variable (`std::env::var(..).ok()` in the CLI).
+    pub fn from_env(get: impl Fn(&str) -> Option<String>) -> Result<Option<Shard>, ReplayError> {
+        let num = |var: &'static str, required: bool| -> Result<Option<u64>, ReplayError> {
+            match get(var) {
+                None if required => Err(ReplayError::Env { var, msg: "not set".into() }),
+                None => Ok(None),
+                Some(v) => v
+                    .trim()
+                    .parse::<u64>()
+                    .map(Some)
+                    .map_err(|_| ReplayError::Env { var, msg: format!("`{v}` is not a non-negative integer") }),
+            }
+        };
+        if let Some(id) = num("SLURM_ARRAY_TASK_ID", false)? {
+            let count = num("SLURM_ARRAY_TASK_COUNT", true)?.unwrap_or(0);
+            let min = num("SLURM_ARRAY_TASK_MIN", false)?.unwrap_or(0);
+            if let Some(step) = num("SLURM_ARRAY_TASK_STEP", false)?.filter(|s| *s != 1) {
+                return Err(ReplayError::Env {
+                    var: "SLURM_ARRAY_TASK_STEP",
+                    msg: format!("is {step}; use a contiguous array (--array=0-{})", count.saturating_sub(1)),
+                });
+            }
+            if count == 0 {
+                return Err(ReplayError::Env { var: "SLURM_ARRAY_TASK_COUNT", msg: "is 0".into() });
+            }
+            let index = id.checked_sub(min).filter(|i| *i < count).ok_or_else(|| ReplayError::Env {
+                var: "SLURM_ARRAY_TASK_ID",
+                msg: format!("{id} is outside SLURM_ARRAY_TASK_MIN {min} .. MIN + SLURM_ARRAY_TASK_COUNT {count}"),
+            })?;
+            return Ok(Some(Shard { index, count }));
+        }
+        if let Some(index) = num("JOB_COMPLETION_INDEX", false)? {
+            let count = num(K8S_COUNT_VAR, true)?.unwrap_or(0);
+            if index >= count {
+                return Err(ReplayError::Env {
+                    var: "JOB_COMPLETION_INDEX",
+                    msg: format!("{index} must be below {K8S_COUNT_VAR} = {count} (set it to the Job's completions)"),
+                });
+            }
+            return Ok(Some(Shard { index, count }));
+        }
+        Ok(None)
+    }
+
+    /// Metadata log of this shard: `frames.jsonl`, or `frames.shard-K-of-N.jsonl`.
+    pub fn log_name(&self) -> String {
+        if self.count == 1 {
+            LOG_NAME.to_string()
+        } else {
+            format!("frames.shard-{}-of-{}.jsonl", self.index, self.count)
+        }
+    }
+}
+
+/// The frame indices a run renders, in order: every `every`-th row, then this shard's share.
+pub fn select_frames(n_rows: u64, every: u64, shard: Shard) -> Vec<u64> {
+    (0..n_rows)
+        .step_by(every.max(1) as usize)
+        .enumerate()
+        .filter(|(j, _)| *j as u64 % shard.count == shard.index)
+        .map(|(_, k)| k)
+        .collect()
+}
+
+/// Pin the scene's sensor to a fixed integration time and switch auto-exposure off, so
+/// any subset of frames renders independently of the others.
+pub fn pin_integration_time(scene: &mut Scene, seconds: f64) -> Result<(), ReplayError> {
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(ReplayError::BadIntegration(seconds));
+    }
+    let det = scene.sensor.detector.as_mut().ok_or(ReplayError::NoDetector)?;
+    det.integration_time_s = seconds;
+    scene.sensor.auto_exposure = None;
+    Ok(())
+}
+
+/// What to render and where.
+#[derive(Clone, Debug)]
+pub struct ReplayConfig {
+    pub out_dir: PathBuf,
+    pub format: ImageFormat,
+    pub settings: RenderSettings,
+    /// Render every `every`-th trajectory row (≥ 1).
+    pub every: u64,
+    pub shard: Shard,
+}
+
+/// Progress after each frame (rendered or skipped).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReplayStats {
+    /// Frames this run is responsible for.
+    pub selected: u64,
+    /// Rendered by this run.
+    pub rendered: u64,
+    /// Already done in the directory (resume).
+    pub skipped: u64,
+    /// Truncated trailing lines ignored while reading the logs.
+    pub truncated_lines: u64,
+}
+
+/// A frame log entry read back, with where it came from.
+struct Done {
+    rec: FrameRecord,
+    path: PathBuf,
+    line: usize,
+}
+
+/// All `frames*.jsonl` logs in `dir`, sorted by name.
+pub fn log_files(dir: &Path) -> Result<Vec<PathBuf>, ReplayError> {
+    let mut v = Vec::new();
+    let rd = match std::fs::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(v),
+        Err(e) => return Err(ReplayError::Io { path: dir.to_path_buf(), source: e }),
+    };
+    for e in rd {
+        let p = e.map_err(io(dir))?.path();
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.starts_with("frames") && name.ends_with(".jsonl") {
+            v.push(p);
+        }
+    }
+    v.sort();
+    Ok(v)
+}
+
+/// Parse a log. A last line without its newline that does not parse is a write cut short
+/// by a kill: it is skipped and counted; any other bad line is an error.
+fn read_log(path: &Path, truncated: &mut u64) -> Result<Vec<Done>, ReplayError> {
+    let text = std::fs::read_to_string(path).map_err(io(path))?;
+    let mut out = Vec::new();
+    let complete = text.ends_with('\n');
+    let lines: Vec<&str> = text.lines().collect();
+    for (i, l) in lines.iter().enumerate() {
+        if l.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<FrameRecord>(l) {
+            Ok(rec) => out.push(Done { rec, path: path.to_path_buf(), line: i + 1 }),
+            Err(_) if i + 1 == lines.len() && !complete => {
+                *truncated += 1;
+                tracing::warn!(file = %path.display(), line = i + 1, "ignoring a truncated last line");
+            }
+            Err(e) => return Err(ReplayError::BadLine { path: path.to_path_buf(), line: i + 1, msg: e.to_string() }),
+        }
+    }
+    Ok(out)
+}
+
+/// Cut a log back to its last newline so that appended lines start on a line of their own.
+fn trim_partial_line(path: &Path) -> Result<(), ReplayError> {
+    let Ok(bytes) = std::fs::read(path) else { return Ok(()) };
+    if bytes.is_empty() || bytes.ends_with(b"\n") {
+        return Ok(());
+    }
+    let keep = bytes.iter().rposition(|b| *b == b'\n').map_or(0, |p| p + 1);
+    let f = std::fs::OpenOptions::new().write(true).open(path).map_err(io(path))?;
+    f.set_len(keep as u64).map_err(io(path))
+}
+
+/// The frames already complete in `dir`: a log line whose image file exists and is not empty.
+fn done_frames(
+    dir: &Path,
+    cfg: &ReplayConfig,
+    w: u32,
+    h: u32,
+    stats: &mut ReplayStats,
+) -> Result<HashSet<u64>, ReplayError> {
+    let mut done = HashSet::new();
+    for log in log_files(dir)? {
+        for d in read_log(&log, &mut stats.truncated_lines)? {
+            let r = &d.rec;
+            let (found, expected) = (
+                format!("{}x{} spp {} depth {}", r.width, r.height, r.spp, r.depth),
+                format!("{w}x{h} spp {} depth {}", cfg.settings.spp, cfg.settings.depth),
+            );
+            if found != expected {
+                return Err(ReplayError::Mismatch { path: d.path, line: d.line, frame: r.frame_seq, found, expected });
+            }
+            let complete = std::fs::metadata(dir.join(&r.file)).is_ok_and(|m| m.len() > 0);
+            if complete {
+                done.insert(r.frame_seq);
+            }
+        }
+    }
+    Ok(done)
+}
+
+/// Render the selected frames of `samples` through `pipeline` into `cfg.out_dir`,
+/// skipping frames already done; `progress` is called after every frame.
+pub fn replay(
+    pipeline: &mut FramePipeline,
+    samples: &[TrajectorySample],
+    cfg: &ReplayConfig,
+    mut progress: impl FnMut(&ReplayStats),
+) -> Result<ReplayStats, ReplayError> {
+    if cfg.every == 0 {
+        return Err(ReplayError::BadEvery);
+    }
+    let dir = &cfg.out_dir;
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let (w, h) = (pipeline.camera().width, pipeline.camera().height);
+    let mut stats = ReplayStats::default();
+    let log_path = dir.join(cfg.shard.log_name());
+    trim_partial_line(&log_path)?;
+    let done = done_frames(dir, cfg, w, h, &mut stats)?;
+    let frames = select_frames(samples.len() as u64, cfg.every, cfg.shard);
+    stats.selected = frames.len() as u64;
+    let todo: Vec<u64> = frames.iter().copied().filter(|k| !done.contains(k)).collect();
+    stats.skipped = stats.selected - todo.len() as u64;
+    if pipeline.sensor().auto_exposure().is_some() && !todo.is_empty() {
+        let what = if cfg.shard.count > 1 {
+            format!("shard {}/{}", cfg.shard.index, cfg.shard.count)
+        } else if cfg.every > 1 {
+            format!("--every {}", cfg.every)
+        } else if stats.skipped > 0 || todo.first() != Some(&0) {
+            format!("resuming ({} of {} frames already in {})", stats.skipped, stats.selected, dir.display())
+        } else {
+            String::new()
+        };
+        if !what.is_empty() {
+            return Err(ReplayError::AutoExposure { what });
+        }
+    }
+    let log = std::fs::OpenOptions::new().create(true).append(true).open(&log_path).map_err(io(&log_path))?;
+    let mut log = std::io::BufWriter::new(log);
+    progress(&stats);
+    for k in todo {
+        let pose = samples[k as usize].to_pose(k as u32);
+        let f = pipeline.frame(&pose, &cfg.settings, k).map_err(|source| ReplayError::Sensor { frame: k, source })?;
+        let name = frame_file_name(k, cfg.format);
+        let path = dir.join(&name);
+        // A temp name with the real extension: the image writer picks the codec by it.
+        let tmp = dir.join(format!(".tmp-{}-{name}", std::process::id()));
+        write_frame_image(&tmp, f.width, f.height, &f.pixels, cfg.format).map_err(|e| ReplayError::Image {
+            frame: k,
+            path: tmp.clone(),
+            msg: e.to_string(),
+        })?;
+        std::fs::rename(&tmp, &path).map_err(io(&path))?;
+        let payload = f.pixels.to_le_bytes();
+        let meta = frame_meta(k, &pose, &f.pixels, w, h, &cfg.settings, f.integration_s);
+        let line = serde_json::to_string(&FrameRecord::new(&meta, &payload, name)).expect("FrameRecord serialises");
+        writeln!(log, "{line}").and_then(|_| log.flush()).map_err(io(&log_path))?;
+        stats.rendered += 1;
+        progress(&stats);
+    }
+    Ok(stats)
+}
+
+fn frame_meta(
+    k: u64,
+    pose: &crate::pose::Pose,
+    px: &crate::film::Pixels,
+    width: u32,
+    height: u32,
+    s: &RenderSettings,
+    integration_s: Option<f64>,
+) -> FrameMeta {
+    let bit_depth = match px {
+        crate::film::Pixels::Mono8(_) => 8,
+        crate::film::Pixels::Mono16 { bits, .. } => *bits,
+        crate::film::Pixels::Float32(_) => 32,
+    };
+    FrameMeta {
+        frame_seq: k,
+        pose_seq: pose.seq,
+        pose_t_ns: pose.t_ns,
+        pose_arrival_unix_ns: 0,
+        emit_unix_ns: unix_ns_now(),
+        width,
+        height,
+        format: px.format(),
+        bit_depth,
+        spp: s.spp.min(u16::MAX as u32) as u16,
+        depth: s.depth.min(u16::MAX as u32) as u16,
+        integration_s: integration_s.unwrap_or(0.0) as f32,
+        flags: FrameFlags::default(),
+    }
+}
+
+/// What [`merge`] wrote.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergeStats {
+    pub logs: usize,
+    pub frames: u64,
+    /// Frame indices missing between 0 and the highest one present, at the stride of the
+    /// indices present (the gcd, so a `--every K` run has no gaps).
+    pub gaps: Vec<u64>,
+}
+
+/// Merge every `frames*.jsonl` in `dir` into `frames.jsonl`, one line per frame in frame
+/// order (a frame logged twice, e.g. re-rendered after its file was lost, keeps its last
+/// line). Written to a temporary file and renamed; the shard logs are left in place.
+pub fn merge(dir: &Path) -> Result<MergeStats, ReplayError> {
+    let logs = log_files(dir)?;
+    let mut truncated = 0;
+    let mut by_frame = BTreeMap::new();
+    for log in &logs {
+        for d in read_log(log, &mut truncated)? {
+            by_frame.insert(d.rec.frame_seq, d.rec);
+        }
+    }
+    let tmp = dir.join(".frames.jsonl.merge");
+    let mut text = String::new();
+    for r in by_frame.values() {
+        text.push_str(&serde_json::to_string(r).expect("FrameRecord serialises"));
+        text.push('\n');
+    }
+    std::fs::write(&tmp, text).map_err(io(&tmp))?;
+    let out = dir.join(LOG_NAME);
+    std::fs::rename(&tmp, &out).map_err(io(&out))?;
+    // The stride of a `--every K` run: the gcd of the frame indices present.
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let step = by_frame.keys().fold(0, |g, k| gcd(g, *k)).max(1);
+    let last = by_frame.keys().next_back().copied();
+    let gaps =
+        last.map_or(Vec::new(), |l| (0..l).step_by(step as usize).filter(|k| !by_frame.contains_key(k)).collect());
+    Ok(MergeStats { logs: logs.len(), frames: by_frame.len() as u64, gaps })
+}

@@ -1,0 +1,86 @@
+//! `hilcam bench trade` logic (issue 7 item 4): the error metric against an analytic
+//! case, the Pareto front, and a tiny measured grid.
+
+mod common;
+use common::scenes::*;
+use hilcam::bench::trade::{
+    TradeGrid, TradePoint, best_for_error, best_for_fps, measure, pareto_front, relative_rmse, to_csv,
+};
+use hilcam::film::RadianceImage;
+use hilcam::integrator::{RenderSettings, SamplerKind};
+use hilcam::pipeline::FramePipeline;
+use hilcam::pose::Pose;
+use std::sync::Arc;
+
+#[test]
+fn relative_rmse_matches_its_definition() {
+    let reference = RadianceImage { width: 4, height: 1, data: vec![0.0, 2.0, 2.0, 4.0] };
+    // Pixels where the reference is 0 do not count, whatever their value.
+    let img = RadianceImage { width: 4, height: 1, data: vec![9.0, 2.2, 1.8, 4.4] };
+    // errors 0.2, -0.2, 0.4 → RMSE sqrt(0.24/3) = 0.2828; reference mean 8/3.
+    let want = (0.24f64 / 3.0).sqrt() / (8.0 / 3.0);
+    assert!((relative_rmse(&img, &reference) - want).abs() < 1e-6);
+    assert_eq!(relative_rmse(&reference, &reference), 0.0);
+    assert!(relative_rmse(&img, &RadianceImage::new(4, 1, 0.0)).is_nan());
+}
+
+fn pt(time_s: f64, rel_rmse: f64, spp: u32) -> TradePoint {
+    TradePoint { spp, depth: 1, sampler: SamplerKind::Cosine, time_s, rel_rmse }
+}
+
+#[test]
+fn pareto_front_and_recommendations() {
+    let pts =
+        [pt(1.0, 0.5, 1), pt(2.0, 0.6, 2), pt(2.0, 0.3, 3), pt(4.0, 0.1, 4), pt(3.0, 0.4, 5), pt(8.0, f64::NAN, 6)];
+    let f = pareto_front(&pts);
+    assert_eq!(f.iter().map(|p| p.spp).collect::<Vec<_>>(), vec![1, 3, 4]);
+    assert_eq!(best_for_fps(&f, 0.4).unwrap().spp, 3, "1/0.4 = 2.5 s budget");
+    assert_eq!(best_for_fps(&f, 100.0), None);
+    assert_eq!(best_for_error(&f, 0.35).unwrap().spp, 3);
+    assert_eq!(best_for_error(&f, 0.01), None);
+    let csv = to_csv(&pts, &f);
+    assert_eq!(csv.lines().count(), 7);
+    assert!(csv.lines().nth(1).unwrap().ends_with(",1"));
+    assert!(csv.lines().nth(2).unwrap().ends_with(",0"));
+}
+
+#[test]
+fn tiny_grid_measures_and_its_front_is_monotone() {
+    let cam = camera(10, 10, 333.0, 10.0);
+    let pose = Pose { sun_dir: sun_at_incidence(30.0), ..Pose::ahead(5.0) };
+    // Two plates at right angles: light bounces between them, so depth matters.
+    let mut mesh = square(0.0, 0.0, 0.0, 1.0, 0);
+    let wall = square(0.0, 0.0, 0.0, 1.0, 0);
+    let base = mesh.positions.len() as u32;
+    mesh.positions.extend(wall.positions.iter().map(|p| glam::Vec3::new(0.5, p.y, p.x - 0.5)));
+    mesh.indices.extend(wall.indices.iter().map(|t| t.map(|i| i + base)));
+    mesh.material.extend(wall.material);
+    let s = scene(mesh, vec![lambert("paint", 0.8)], cam.clone(), pose, RenderSettings::default());
+    let pipeline = FramePipeline::new(Arc::new(s), cam).unwrap();
+    let mut grid = TradeGrid::standard(8, RenderSettings::default());
+    grid.depths = vec![1, 4];
+    grid.samplers = vec![SamplerKind::Cosine, SamplerKind::Brdf];
+    grid.rounds = 1;
+    grid.reference_spp = 256;
+    assert_eq!(grid.spp, vec![1, 2, 4, 8]);
+    let mut seen = 0;
+    let (points, _) = measure(&pipeline, &pose, &grid, |_| seen += 1);
+    assert_eq!((points.len(), seen), (16, 16));
+    assert!(points.iter().all(|p| p.rel_rmse.is_finite() && p.rel_rmse > 0.0 && p.time_s > 0.0));
+    // More samples, less error (same depth and sampler): 8 spp beats 1 spp.
+    for d in [1, 4] {
+        for s in [SamplerKind::Cosine, SamplerKind::Brdf] {
+            let e = |spp| points.iter().find(|p| p.spp == spp && p.depth == d && p.sampler == s).unwrap().rel_rmse;
+            assert!(e(8) < e(1), "depth {d} {s:?}: {} ≥ {}", e(8), e(1));
+        }
+    }
+    let front = pareto_front(&points);
+    assert!(!front.is_empty());
+    for w in front.windows(2) {
+        assert!(w[1].time_s >= w[0].time_s && w[1].rel_rmse < w[0].rel_rmse, "{w:?}");
+    }
+    // Every point is dominated by (or is) a front point.
+    for p in &points {
+        assert!(front.iter().any(|f| f.time_s <= p.time_s && f.rel_rmse <= p.rel_rmse), "{p:?}");
+    }
+}
