@@ -436,7 +436,7 @@ def mitsuba_scene(mi, sc: HilcamScene, cam: Camera, depth: int, sampler: str, sp
         sensor["principal_point_offset_y"] = -cam.pp[1] / cam.height
     d = {
         "type": "scene",
-        # hilcam has no Russian roulette: keep Mitsuba's off too (rr_depth past max_depth).
+        # hilcam runs with --no-roulette: keep Mitsuba's off too (rr_depth past max_depth).
         "integrator": {"type": "path", "max_depth": depth + 1, "rr_depth": depth + 2, "hide_emitters": True},
         "sensor": sensor,
         "sun": {
@@ -493,6 +493,7 @@ class Hilcam:
             str(self.exe), "render", str(scene_file or self.scene_file), "--out", str(out),
             "--spp", str(spp), "--depth", str(self.depth), "--sampler", self.sampler, "--seed", str(seed),
             "--width", str(self.cam.width), "--height", str(self.cam.height),
+            "--no-roulette",  # Mitsuba runs with rr_depth past max_depth: neither uses roulette
         ]  # fmt: skip
         r = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if r.returncode != 0:
