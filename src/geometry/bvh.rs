@@ -37,11 +37,15 @@ pub struct Ray {
     pub tmax: f32,
 }
 
-/// The closest hit: `tri` indexes the mesh's triangles (original order).
+/// The closest hit: `tri` indexes the mesh's triangles (original order). The unit face
+/// normal and material come from data stored in BVH order next to the triangle that was
+/// just intersected, so shading touches no cold memory.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub tri: u32,
     pub t: f32,
+    pub normal: Vec3,
+    pub material: u32,
 }
 
 enum Tree {
@@ -55,6 +59,8 @@ pub struct Accel {
     tree: Tree,
     tris: Vec<RtTriangle>,
     original: Vec<u32>,
+    /// Material of each primitive, BVH order.
+    material: Vec<u32>,
     pub build_time: Duration,
 }
 
@@ -86,7 +92,8 @@ impl Accel {
             }
         };
         let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
-        Accel { tree, tris: rt, original, build_time: t0.elapsed() }
+        let material = original.iter().map(|&i| mesh.material.get(i as usize).copied().unwrap_or(0)).collect();
+        Accel { tree, tris: rt, original, material, build_time: t0.elapsed() }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -111,7 +118,11 @@ impl Accel {
             Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
             Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
         };
-        found.then(|| Hit { tri: self.original[hit.primitive_id as usize], t: hit.t })
+        found.then(|| {
+            let k = hit.primitive_id as usize;
+            let normal = Vec3::from(self.tris[k].compute_normal());
+            Hit { tri: self.original[k], t: hit.t, normal, material: self.material[k] }
+        })
     }
 
     /// True when anything blocks the ray within `(0, tmax]` (stops at the first hit).
@@ -146,7 +157,8 @@ pub mod brute_force {
         for i in 0..mesh.indices.len() {
             let t = rt(mesh, i).intersect(&ray);
             if t < best.map_or(ray.tmax, |h| h.t) {
-                best = Some(Hit { tri: i as u32, t });
+                let normal = mesh.face_normal_area2(i).normalize_or_zero();
+                best = Some(Hit { tri: i as u32, t, normal, material: mesh.material[i] });
             }
         }
         best

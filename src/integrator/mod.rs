@@ -159,11 +159,11 @@ impl<'a> PathContext<'a> {
                 break;
             };
             let wo = -ray.dir;
-            let mut n = scene.normals[hit.tri as usize];
+            let mut n = hit.normal;
             if n.dot(wo) < 0.0 {
                 n = -n;
             }
-            let bsdf = &scene.material_of(hit.tri).bsdf;
+            let bsdf = &scene.materials[hit.material as usize].bsdf;
             let p = ray.origin + ray.dir * hit.t;
             let origin = p + n * self.offset(p);
             let frame = Frame::from_normal(n);
