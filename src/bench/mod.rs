@@ -2,6 +2,7 @@
 
 pub mod render;
 pub mod sampling;
+pub mod serve;
 pub mod table1;
 pub mod trade;
 

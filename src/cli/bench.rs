@@ -25,6 +25,22 @@ pub enum BenchKind {
     Glints(GlintBenchArgs),
     /// Frame time and relative error over spp × depth × sampler; Pareto front, CSV, plot.
     Trade(crate::cli::bench_trade::TradeArgs),
+    /// Latency (pose arrival → last byte out) beside render time through the real server,
+    /// at the navigation camera and the paper's camera scaled down.
+    Serve(ServeBenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ServeBenchArgs {
+    /// Frames per case.
+    #[arg(long, default_value_t = 20)]
+    pub frames: u64,
+    /// Width of the paper camera's scaled-down case.
+    #[arg(long, default_value_t = 1024)]
+    pub paper_width: u32,
+    /// Samples per pixel for both cases (each scene's own depth is kept).
+    #[arg(long, default_value_t = 2)]
+    pub spp: u32,
 }
 
 #[derive(clap::Args, Debug)]
@@ -111,6 +127,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         BenchKind::Sampling(s) => sampling(s),
         BenchKind::Glints(g) => glints(g),
         BenchKind::Trade(t) => crate::cli::bench_trade::run(t),
+        BenchKind::Serve(s) => serve_bench(s),
     }
 }
 
@@ -193,6 +210,33 @@ fn render(a: RenderBenchArgs) -> anyhow::Result<()> {
                 far.frame_s / near.frame_s
             );
         }
+    }
+    Ok(())
+}
+
+fn serve_bench(a: ServeBenchArgs) -> anyhow::Result<()> {
+    use crate::bench::serve::{measure, print_table};
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    let rows = rt.block_on(async {
+        let nav = measure(
+            std::path::Path::new("scenes/satellite.toml"),
+            1024,
+            a.spp,
+            a.frames,
+            "satellite, nav camera 1024²",
+        )
+        .await?;
+        let label = format!("Jason, paper camera at {}²", a.paper_width);
+        let paper =
+            measure(std::path::Path::new("scenes/jason_paper.toml"), a.paper_width, a.spp, a.frames, &label).await?;
+        anyhow::Ok(vec![nav, paper])
+    })?;
+    print_table(&rows);
+    for r in &rows {
+        println!(
+            "{}: superseded poses {}, late frames {}",
+            r.label, r.report.scheduler.superseded, r.report.scheduler.late
+        );
     }
     Ok(())
 }
