@@ -61,24 +61,12 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let scene = crate::scene::load(&a.scene)?;
-    let mut settings = scene.render;
-    if let Some(v) = a.spp {
-        settings.spp = v.max(1);
-    }
-    if let Some(v) = a.depth {
-        settings.depth = v.max(1);
-    }
-    if let Some(v) = a.sampler {
-        settings.sampler = v;
-    }
+    let mut settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
     if let Some(v) = a.sequence {
         settings.sequence = v;
     }
     if a.no_roulette {
         settings.roulette = false;
-    }
-    if let Some(v) = a.seed {
-        settings.seed = v;
     }
     let camera = scaled_camera(&scene.camera, a.width, a.height);
     let pose = match &a.pose {

@@ -81,19 +81,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if let Some(t) = a.integration_s {
         pin_integration_time(&mut scene, t)?;
     }
-    let mut settings = scene.render;
-    if let Some(v) = a.spp {
-        settings.spp = v.max(1);
-    }
-    if let Some(v) = a.depth {
-        settings.depth = v.max(1);
-    }
-    if let Some(v) = a.sampler {
-        settings.sampler = v;
-    }
-    if let Some(v) = a.seed {
-        settings.seed = v;
-    }
+    let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
     let camera = scaled_camera(&scene.camera, a.width, None);
     let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
     let cfg = ReplayConfig { out_dir: out.clone(), format: a.format, settings, every: a.every, shard };

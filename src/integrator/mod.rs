@@ -54,6 +54,28 @@ impl Default for RenderSettings {
     }
 }
 
+impl RenderSettings {
+    /// These settings with the given command-line or config overrides (spp and depth at
+    /// least 1). One place for `render`, `replay` and `serve`.
+    pub fn overridden(
+        mut self,
+        spp: Option<u32>,
+        depth: Option<u32>,
+        sampler: Option<SamplerKind>,
+        seed: Option<u64>,
+    ) -> Self {
+        if let Some(v) = spp {
+            self.spp = v.max(1);
+        }
+        if let Some(v) = depth {
+            self.depth = v.max(1);
+        }
+        self.sampler = sampler.unwrap_or(self.sampler);
+        self.seed = seed.unwrap_or(self.seed);
+        self
+    }
+}
+
 /// Rays traced and samples discarded; summed over threads after a frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RayCounts {

@@ -119,12 +119,8 @@ pub async fn run(
 ) -> anyhow::Result<ServeReport> {
     let scene = Arc::new(crate::scene::load(&cfg.scene)?);
     let camera = scaled_camera(&scene.camera, cfg.width, None);
-    let mut settings = scene.render;
     let o = &cfg.render;
-    settings.spp = o.spp.unwrap_or(settings.spp);
-    settings.depth = o.depth.unwrap_or(settings.depth);
-    settings.sampler = o.sampler.unwrap_or(settings.sampler);
-    settings.seed = o.seed.unwrap_or(settings.seed);
+    let settings = scene.render.overridden(o.spp, o.depth, o.sampler, o.seed);
     let pipeline = FramePipeline::new(scene.clone(), camera.clone()).context("sensor")?;
     let registry = Registry::new();
     let counters = Arc::new(InputCounters::new());
