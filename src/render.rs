@@ -6,7 +6,7 @@
 //! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
 //! whatever the thread count.
 
-use crate::camera::{CameraModel, PixelRect, View};
+use crate::camera::{CameraModel, PixelRect, Silhouette, View};
 use crate::film::RadianceImage;
 use crate::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::pose::Pose;
@@ -20,7 +20,8 @@ use std::time::{Duration, Instant};
 pub struct RenderStats {
     pub time: Duration,
     pub rays: RayCounts,
-    /// Pixels inside the traced rectangle (0 when the target is out of view).
+    /// Pixels sampled: inside the traced rectangle and the bounding sphere's image (0 when
+    /// the target is out of view).
     pub traced_pixels: u64,
     pub rect: Option<PixelRect>,
 }
@@ -79,12 +80,14 @@ fn render_view_logged<L: RayLog + Default + Send>(
     let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
     let mut logs = Vec::new();
+    let mut traced = 0u64;
     if let Some(rect) = rect {
         let ctx = PathContext::new(scene, view.sun, settings);
         let w = camera.width as usize;
         let spp = settings.spp.max(1);
         let inv_spp = 1.0 / spp as f32;
-        let per_row: Vec<(RayCounts, L)> = img
+        let silhouette = Silhouette::new(view);
+        let per_row: Vec<(RayCounts, L, u64)> = img
             .data
             .par_chunks_mut(w)
             .enumerate()
@@ -93,7 +96,16 @@ fn render_view_logged<L: RayLog + Default + Send>(
             .map(|(row, line)| {
                 let mut counts = RayCounts::default();
                 let mut log = L::default();
-                for col in rect.col0..rect.col1 {
+                // Columns of this row that can see the bounding sphere; the rest keep the
+                // background without costing a sample.
+                let (col0, col1) = match &silhouette {
+                    Some(s) => match s.columns(row as u32) {
+                        Some((a, b)) => (a.max(rect.col0), b.min(rect.col1)),
+                        None => (0, 0),
+                    },
+                    None => (rect.col0, rect.col1),
+                };
+                for col in col0..col1 {
                     let pixel = (row * w + col as usize) as u64;
                     let mut sum = 0.0f32;
                     for s in 0..spp {
@@ -115,18 +127,19 @@ fn render_view_logged<L: RayLog + Default + Send>(
                     }
                     line[col as usize] = sum * inv_spp;
                 }
-                (counts, log)
+                (counts, log, u64::from(col1.saturating_sub(col0)))
             })
             .collect();
-        for (c, l) in per_row {
+        for (c, l, n) in per_row {
             rays.add(&c);
             logs.push(l);
+            traced += n;
         }
         if rays.nonfinite > 0 {
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
-    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: rect.map_or(0, |r| r.area()), rect };
+    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect };
     (img, stats, logs)
 }
 

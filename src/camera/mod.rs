@@ -6,9 +6,11 @@
 //! `(cx, cy)` is the principal point's offset from the array centre, in pixels.
 
 pub mod distortion;
+pub mod silhouette;
 pub mod view;
 
 use serde::Deserialize;
+pub use silhouette::Silhouette;
 pub use view::{PixelRect, TargetBounds, View};
 
 /// Intrinsics of a pinhole camera, as read from `[camera]` in a scene or config file.

@@ -38,19 +38,19 @@ pub struct TargetBounds {
 /// One camera, one pose: everything needed to make primary rays.
 #[derive(Clone, Debug)]
 pub struct View {
-    width: u32,
-    height: u32,
+    pub(super) width: u32,
+    pub(super) height: u32,
     /// Pixel coordinate of the principal point (continuous, 0 at the array's corner).
-    pp: [f64; 2],
-    inv_focal_px: f64,
+    pub(super) pp: [f64; 2],
+    pub(super) inv_focal_px: f64,
     /// Camera centre in the render frame, metres.
-    origin: DVec3,
+    pub(super) origin: DVec3,
     /// Camera frame → render frame.
-    cam_to_render: DMat3,
-    bounds: TargetBounds,
+    pub(super) cam_to_render: DMat3,
+    pub(super) bounds: TargetBounds,
     /// Lens distortion: sample positions on the (distorted) focal plane are mapped to the
     /// ideal pinhole directions that a real lens would image there.
-    distortion: Option<Distortion>,
+    pub(super) distortion: Option<Distortion>,
     /// Unit vector toward the sun, render frame.
     pub sun: Vec3,
 }
