@@ -93,7 +93,8 @@ pub fn measure(
 ) -> RenderBenchRow {
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
     let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();
-    debug_assert_eq!(recorded, stats.rays.total());
+    // Every ray the renderer traced must be re-traced, or the ratio compares different work.
+    assert_eq!(recorded, stats.rays.total(), "ray log incomplete");
     let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
         let (_, s) = render(scene, camera, pose, settings, 0);

@@ -196,7 +196,9 @@ impl<'a> PathContext<'a> {
                 let f_cos = bsdf.eval_cos(wo_l, frame.to_local(self.sun));
                 if f_cos > 0.0 {
                     counts.shadow += 1;
-                    if !scene.accel.occluded(&Ray { origin, dir: self.sun, tmax: f32::INFINITY }) {
+                    let shadow = Ray { origin, dir: self.sun, tmax: f32::INFINITY };
+                    log.shadow(&shadow);
+                    if !scene.accel.occluded(&shadow) {
                         l += beta * f_cos * e_sun;
                     }
                 }
