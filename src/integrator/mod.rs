@@ -6,7 +6,7 @@
 //! (depth 1 = direct only; Mitsuba's `max_depth` = depth + 1). Surfaces are two-sided:
 //! the shading normal is flipped to face the incoming ray. Shading uses face normals.
 
-use crate::geometry::Ray;
+use crate::geometry::{Hit, Ray};
 use crate::sampling::{
     Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, cosine_hemisphere_pdf, uniform_hemisphere,
 };
@@ -124,6 +124,14 @@ impl RayLog for RecordedRays {
     }
 }
 
+/// What one surface interaction produces (see [`PathContext::scatter`]).
+pub struct Scatter {
+    /// Shadow ray toward the sun, and the radiance it adds if nothing blocks it.
+    pub shadow: Option<(Ray, f32)>,
+    /// The path's next ray and throughput; `None` when the path ends here.
+    pub next: Option<(Ray, f32)>,
+}
+
 /// Per-frame constants of the estimator.
 pub struct PathContext<'a> {
     pub scene: &'a Scene,
@@ -156,7 +164,8 @@ impl<'a> PathContext<'a> {
         2e-5 * (p.abs().max_element() + self.scene.bounds.radius as f32 * 0.1)
     }
 
-    /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻².
+    /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻²: one path, traced to
+    /// the end. The tile renderer (`crate::render`) runs the same steps wave by wave.
     #[inline]
     pub fn radiance<L: RayLog, S: SampleSource>(
         &self,
@@ -166,7 +175,6 @@ impl<'a> PathContext<'a> {
         log: &mut L,
     ) -> f32 {
         let scene = self.scene;
-        let e_sun = scene.sun_irradiance;
         let mut l = 0.0f32;
         let mut beta = 1.0f32;
         for bounce in 0..self.depth {
@@ -180,64 +188,79 @@ impl<'a> PathContext<'a> {
                 l += beta * scene.background;
                 break;
             };
-            let wo = -ray.dir;
-            let mut n = hit.normal;
-            if n.dot(wo) < 0.0 {
-                n = -n;
-            }
-            let bsdf = &scene.materials[hit.material as usize].bsdf;
-            let p = ray.origin + ray.dir * hit.t;
-            let origin = p + n * self.offset(p);
-            let frame = Frame::from_normal(n);
-            let wo_l = frame.to_local(wo);
-
-            // Direct sunlight: a delta light, so next-event estimation is the whole estimate.
-            if n.dot(self.sun) > 0.0 {
-                let f_cos = bsdf.eval_cos(wo_l, frame.to_local(self.sun));
-                if f_cos > 0.0 {
-                    counts.shadow += 1;
-                    let shadow = Ray { origin, dir: self.sun, tmax: f32::INFINITY };
-                    log.shadow(&shadow);
-                    if !scene.accel.occluded(&shadow) {
-                        l += beta * f_cos * e_sun;
-                    }
+            let sc = self.scatter(&ray, &hit, beta, bounce, rng);
+            if let Some((shadow, contribution)) = sc.shadow {
+                counts.shadow += 1;
+                log.shadow(&shadow);
+                if !scene.accel.occluded(&shadow) {
+                    l += contribution;
                 }
             }
-
-            if !self.indirect || bounce + 1 == self.depth || bsdf.is_black() {
-                break;
+            match sc.next {
+                Some((next, b)) => (ray, beta) = (next, b),
+                None => break,
             }
-            let u = rng.next_2d();
-            let (wi_l, weight) = match self.sampler {
-                SamplerKind::Uniform => {
-                    let wi = uniform_hemisphere(u);
-                    (wi, bsdf.eval_cos(wo_l, wi) / UNIFORM_HEMISPHERE_PDF)
-                }
-                SamplerKind::Cosine => {
-                    let wi = cosine_hemisphere(u);
-                    let pdf = cosine_hemisphere_pdf(wi.z);
-                    (wi, if pdf > 0.0 { bsdf.eval_cos(wo_l, wi) / pdf } else { 0.0 })
-                }
-                SamplerKind::Brdf => match bsdf.sample(wo_l, u, rng.next_1d()) {
-                    Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
-                    _ => break,
-                },
-            };
-            beta *= weight;
-            if beta <= 0.0 || !beta.is_finite() {
-                break;
-            }
-            // Russian roulette from the second indirect bounce on: a path whose throughput
-            // fell below 1 survives with probability `beta` and carries 1 afterwards —
-            // unbiased, and low-throughput paths stop costing rays.
-            if self.roulette && bounce >= 1 && beta < 1.0 {
-                if rng.next_1d() >= beta {
-                    break;
-                }
-                beta = 1.0;
-            }
-            ray = Ray { origin, dir: frame.to_world(wi_l), tmax: f32::INFINITY };
         }
         l
+    }
+
+    /// One surface interaction of a path with throughput `beta` arriving along `ray`:
+    /// the shadow ray toward the sun with the radiance it adds if unoccluded (next-event
+    /// estimation: the sun is a delta light, so this is the whole direct estimate), and
+    /// the path's next ray and throughput, if it goes on.
+    #[inline(always)]
+    pub fn scatter<S: SampleSource>(&self, ray: &Ray, hit: &Hit, beta: f32, bounce: u32, rng: &mut S) -> Scatter {
+        let wo = -ray.dir;
+        let mut n = hit.normal;
+        if n.dot(wo) < 0.0 {
+            n = -n;
+        }
+        let bsdf = &self.scene.materials[hit.material as usize].bsdf;
+        let p = ray.origin + ray.dir * hit.t;
+        let origin = p + n * self.offset(p);
+        let frame = Frame::from_normal(n);
+        let wo_l = frame.to_local(wo);
+
+        let mut shadow = None;
+        if n.dot(self.sun) > 0.0 {
+            let f_cos = bsdf.eval_cos(wo_l, frame.to_local(self.sun));
+            if f_cos > 0.0 {
+                let ray = Ray { origin, dir: self.sun, tmax: f32::INFINITY };
+                shadow = Some((ray, beta * f_cos * self.scene.sun_irradiance));
+            }
+        }
+        if !self.indirect || bounce + 1 == self.depth || bsdf.is_black() {
+            return Scatter { shadow, next: None };
+        }
+        let u = rng.next_2d();
+        let (wi_l, weight) = match self.sampler {
+            SamplerKind::Uniform => {
+                let wi = uniform_hemisphere(u);
+                (wi, bsdf.eval_cos(wo_l, wi) / UNIFORM_HEMISPHERE_PDF)
+            }
+            SamplerKind::Cosine => {
+                let wi = cosine_hemisphere(u);
+                let pdf = cosine_hemisphere_pdf(wi.z);
+                (wi, if pdf > 0.0 { bsdf.eval_cos(wo_l, wi) / pdf } else { 0.0 })
+            }
+            SamplerKind::Brdf => match bsdf.sample(wo_l, u, rng.next_1d()) {
+                Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
+                _ => return Scatter { shadow, next: None },
+            },
+        };
+        let mut beta = beta * weight;
+        if beta <= 0.0 || !beta.is_finite() {
+            return Scatter { shadow, next: None };
+        }
+        // Russian roulette from the second indirect bounce on: a path whose throughput
+        // fell below 1 survives with probability `beta` and carries 1 afterwards —
+        // unbiased, and low-throughput paths stop costing rays.
+        if self.roulette && bounce >= 1 && beta < 1.0 {
+            if rng.next_1d() >= beta {
+                return Scatter { shadow, next: None };
+            }
+            beta = 1.0;
+        }
+        Scatter { shadow, next: Some((Ray { origin, dir: frame.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
     }
 }

@@ -72,6 +72,25 @@ pub trait SampleSource {
     fn next_2d(&mut self) -> Vec2;
 }
 
+/// A [`SampleSource`] keyed by (seed, frame, pixel, sample index): one per camera sample.
+pub trait PerSample: SampleSource + Sized {
+    fn for_sample(seed: u64, frame: u64, pixel: u64, index: u32) -> Self;
+}
+
+impl PerSample for Rng {
+    #[inline]
+    fn for_sample(seed: u64, frame: u64, pixel: u64, index: u32) -> Self {
+        Rng::for_sample(seed, frame, pixel, index)
+    }
+}
+
+impl PerSample for SobolStream {
+    #[inline]
+    fn for_sample(seed: u64, frame: u64, pixel: u64, index: u32) -> Self {
+        SobolStream::new(seed, frame, pixel, index)
+    }
+}
+
 impl SampleSource for Rng {
     #[inline]
     fn next_1d(&mut self) -> f32 {
