@@ -49,7 +49,7 @@ impl Silhouette {
         }
         let c = view.cam_to_render.transpose() * (view.bounds.centre - view.origin);
         let r = view.bounds.radius;
-        if !(c.z > r * 1.000_001) {
+        if c.z.is_nan() || c.z <= r * 1.000_001 {
             return None;
         }
         let k = c.length_squared() - r * r;
