@@ -90,7 +90,20 @@ impl BlinnLobe {
         let Some(hv) = Half::new(wo, wi) else {
             return 0.0;
         };
+        if self.beyond_lobe(&hv) {
+            return 0.0;
+        }
         self.rho_s * self.shape(&hv) * pow_pos(wi.z, 1.0 - self.a)
+    }
+
+    /// True where `(n·h)^α` underflows f32 to exactly 0, so the lobe (and its sampling
+    /// density) is exactly 0 without evaluating a logarithm and two exponentials. Most
+    /// directions of a sharp lobe (α = 3865.7: θh > 14.5°) land here. Bound:
+    /// `α·ln cosθh = α·½·ln(1 − sin²θh) ≤ −α·sin²θh/2 < −120` when `α·sin²θh > 240`, and
+    /// f32 `exp(x)` is 0 below x ≈ −103.9.
+    #[inline]
+    fn beyond_lobe(&self, hv: &Half) -> bool {
+        self.alpha * hv.sin2 > 240.0
     }
 
     /// `(n·h)^α · exp(−b (1 − n·h)^(1/π))`, in [0, 1].
@@ -121,6 +134,9 @@ impl BlinnLobe {
         let Some(hv) = Half::new(wo, wi) else {
             return 0.0;
         };
+        if self.beyond_lobe(&hv) {
+            return 0.0;
+        }
         let pdf_h = (self.alpha + 1.0) / (2.0 * PI) * (self.alpha * hv.ln_cos()).exp();
         (pdf_h / (4.0 * hv.wo_dot_h)).min(f32::MAX)
     }
@@ -194,6 +210,29 @@ mod tests {
         let l = BlinnLobe { rho_s: 1.0, alpha: 1e5, a: 1.0, b: 0.0 };
         let v = l.eval_cos(wo, wi);
         assert!((f64::from(v) - (1e5 * want).exp()).abs() < 1e-5, "{v}");
+    }
+
+    #[test]
+    fn the_lobe_shortcut_only_skips_exact_zeros() {
+        // Wherever `beyond_lobe` answers, the full formula underflows to exactly 0 too.
+        let mut rng = crate::sampling::Rng::for_sample(3, 0, 0, 0);
+        let mut skipped = 0;
+        for alpha in [20.0f32, 300.0, 3865.7, 1e5] {
+            let lobe = BlinnLobe { rho_s: 283.9, alpha, a: 0.9665, b: 1.3965 };
+            for _ in 0..20_000 {
+                let wo = crate::sampling::cosine_hemisphere(rng.next_2d());
+                // Directions concentrated near the mirror direction, where the bound is tight.
+                let jitter = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 0.0) * 0.3;
+                let wi = (Vec3::new(-wo.x, -wo.y, wo.z) + jitter).normalize();
+                let Some(hv) = Half::new(wo, wi) else { continue };
+                if lobe.beyond_lobe(&hv) {
+                    skipped += 1;
+                    assert_eq!(lobe.shape(&hv), 0.0, "α {alpha}, sin² {}", hv.sin2);
+                    assert_eq!((alpha * hv.ln_cos()).exp(), 0.0);
+                }
+            }
+        }
+        assert!(skipped > 10_000, "only {skipped} evaluations skipped");
     }
 
     #[test]
