@@ -354,7 +354,8 @@ pub fn replay_jobs(
     let dir = &cfg.out_dir;
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let (w, h) = (pipeline.camera().width, pipeline.camera().height);
-    manifest::check_or_write(dir, &manifest::ReplayManifest::new(cfg, pipeline))?;
+    let manifest = manifest::ReplayManifest::new(cfg, pipeline);
+    let has_manifest = manifest::check(dir, &manifest)?;
     let mut stats = ReplayStats::default();
     let log_path = dir.join(cfg.shard.log_name());
     trim_partial_line(&log_path)?;
@@ -381,6 +382,9 @@ pub fn replay_jobs(
         if !what.is_empty() {
             return Err(ReplayError::AutoExposure { what });
         }
+    }
+    if !has_manifest {
+        manifest::write(dir, &manifest)?;
     }
     let log = std::fs::OpenOptions::new().create(true).append(true).open(&log_path).map_err(io(&log_path))?;
     let mut log = std::io::BufWriter::new(log);

@@ -78,27 +78,30 @@ impl ReplayManifest {
     }
 }
 
-/// Write `m` into `dir` if it has no manifest; otherwise require the one there to match.
-pub fn check_or_write(dir: &Path, m: &ReplayManifest) -> Result<(), ReplayError> {
+/// Require `dir`'s manifest, if it has one, to equal `m`; Ok(false) when it has none.
+pub fn check(dir: &Path, m: &ReplayManifest) -> Result<bool, ReplayError> {
     let path = dir.join(MANIFEST_NAME);
-    match std::fs::read_to_string(&path) {
-        Ok(text) => {
-            let old: ReplayManifest = serde_json::from_str(&text)
-                .map_err(|e| ReplayError::BadManifest { path: path.clone(), msg: e.to_string() })?;
-            for ((field, found), (_, expected)) in old.fields().into_iter().zip(m.fields()) {
-                if found != expected {
-                    return Err(ReplayError::ManifestMismatch { dir: dir.to_path_buf(), field, found, expected });
-                }
-            }
-            Ok(())
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
+        Err(source) => return Err(ReplayError::Io { path, source }),
+    };
+    let old: ReplayManifest =
+        serde_json::from_str(&text).map_err(|e| ReplayError::BadManifest { path: path.clone(), msg: e.to_string() })?;
+    for ((field, found), (_, expected)) in old.fields().into_iter().zip(m.fields()) {
+        if found != expected {
+            return Err(ReplayError::ManifestMismatch { dir: dir.to_path_buf(), field, found, expected });
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            let tmp = dir.join(format!(".{MANIFEST_NAME}.{}", std::process::id()));
-            let text = serde_json::to_string_pretty(m).expect("manifest serialises") + "\n";
-            std::fs::write(&tmp, text).map_err(|source| ReplayError::Io { path: tmp.clone(), source })?;
-            // Two shards starting together may both write: the texts are equal, either wins.
-            std::fs::rename(&tmp, &path).map_err(|source| ReplayError::Io { path: path.clone(), source })
-        }
-        Err(source) => Err(ReplayError::Io { path, source }),
     }
+    Ok(true)
+}
+
+/// Write `m` as `dir`'s manifest (temporary file + rename: readers never see half of it;
+/// two shards starting together write the same text, either wins).
+pub fn write(dir: &Path, m: &ReplayManifest) -> Result<(), ReplayError> {
+    let path = dir.join(MANIFEST_NAME);
+    let tmp = dir.join(format!(".{MANIFEST_NAME}.{}", std::process::id()));
+    let text = serde_json::to_string_pretty(m).expect("manifest serialises") + "\n";
+    std::fs::write(&tmp, text).map_err(|source| ReplayError::Io { path: tmp.clone(), source })?;
+    std::fs::rename(&tmp, &path).map_err(|source| ReplayError::Io { path, source })
 }
