@@ -171,6 +171,9 @@ pub struct FrameLine {
     pub source_seq: u32,
     /// That pose's arrival, ns since the session start.
     pub source_mono_ns: u64,
+    /// Poses the scheduler had received when the frame started: the source is the last
+    /// of them (`pose` line number `poses_received` when no line was dropped).
+    pub poses_received: u64,
     /// Seconds the pose was moved forward by extrapolation (0 if not extrapolated).
     pub extrapolated_s: f64,
     /// The pose actually rendered (after extrapolation; `t_ns` is the target time).
@@ -385,6 +388,7 @@ mod tests {
             mono_ns: 10,
             source_seq: 7,
             source_mono_ns: 9,
+            poses_received: 1,
             extrapolated_s: 0.1 + 0.2,
             pose: PoseFields::from(&pose()),
             settings: SettingsFields::from(&settings),

@@ -77,6 +77,8 @@ struct Job {
     extrapolated_s: f64,
     /// When the job was handed to the renderer.
     started: Instant,
+    /// Poses received when it started.
+    poses_received: u64,
     arrival_unix_ns: u64,
     /// Lateness is measured from here (pose arrival, tick or trigger).
     reference: Instant,
@@ -152,6 +154,7 @@ fn record(tap: Option<&SessionTap>, d: &Done) {
                 mono_ns: tap.mono_ns(j.started),
                 source_seq: j.pose.seq,
                 source_mono_ns: tap.mono_ns(j.source_arrival),
+                poses_received: j.poses_received,
                 extrapolated_s: j.extrapolated_s,
                 pose: (&j.pose).into(),
                 settings: (&j.settings).into(),
@@ -373,6 +376,7 @@ pub async fn run_scheduler(
                 source_arrival: arrival,
                 extrapolated_s,
                 started: Instant::now(),
+                poses_received: s.poses,
                 arrival_unix_ns: unix_ns_of(arrival),
                 reference,
                 settings,
