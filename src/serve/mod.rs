@@ -123,7 +123,8 @@ pub async fn run(
     mut embed: Embed,
     shutdown: impl std::future::Future,
 ) -> anyhow::Result<ServeReport> {
-    let session_start = std::time::Instant::now();
+    // The zero of the session file's clocks (monotonic and wall).
+    let (session_start, session_start_unix) = (std::time::Instant::now(), crate::frame::unix_ns_now());
     let embedded = embed.inputs.is_some();
     let scene = Arc::new(crate::scene::load(&cfg.scene)?);
     let camera = scaled_camera(&scene.camera, cfg.width, None);
@@ -206,7 +207,8 @@ pub async fn run(
     let input_name = if embedded { "embedded" } else { cfg.input.kind.as_str() };
     let session_writer = match cfg.record.as_ref().and_then(|r| r.session.as_ref()) {
         Some(path) => {
-            let header = session_header(&cfg, &camera, &settings, input_name);
+            let mut header = session_header(&cfg, &camera, &settings, input_name);
+            header.start_unix_ns = session_start_unix;
             Some(SessionWriter::start(path, &header, session_start, input_name, &registry)?)
         }
         None => None,
@@ -312,7 +314,7 @@ fn session_header(
     SessionHeader {
         version: crate::session::SESSION_VERSION,
         hilcam: env!("CARGO_PKG_VERSION").to_string(),
-        start_unix_ns: crate::frame::unix_ns_now(),
+        start_unix_ns: 0,
         scene: std::fs::canonicalize(&cfg.scene).unwrap_or(cfg.scene.clone()).display().to_string(),
         width_setting: cfg.width,
         width: camera.width,
