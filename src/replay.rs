@@ -59,7 +59,8 @@ pub enum ReplayError {
     Mismatch { path: PathBuf, line: usize, frame: u64, found: String, expected: String },
     #[error(
         "{dir}: was rendered with {field} = {found}, this run has {field} = {expected}; resume with the same \
-         settings, use another --out, or delete {dir}/{} to accept", manifest::MANIFEST_NAME
+         settings, use another --out, or delete {dir}/{} to accept",
+        manifest::MANIFEST_NAME
     )]
     ManifestMismatch { dir: PathBuf, field: &'static str, found: String, expected: String },
     #[error("{path}: not a replay manifest: {msg}")]

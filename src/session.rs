@@ -265,8 +265,8 @@ pub struct Session {
 impl Session {
     /// Read and check a session file.
     pub fn load(path: &Path) -> Result<Session, SessionError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| SessionError::Io { path: path.to_path_buf(), source })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| SessionError::Io { path: path.to_path_buf(), source })?;
         Session::parse(&text, path)
     }
 
@@ -412,7 +412,7 @@ mod tests {
     #[test]
     fn lines_round_trip_bit_for_bit() {
         let p = pose();
-        let lines = vec![
+        let lines = [
             SessionLine::Header(SessionHeader { hilcam: "x".into(), width: 4, height: 3, ..placeholder_header() }),
             SessionLine::Pose(PoseLine { mono_ns: 1, unix_ns: 2, source: "embedded".into(), pose: (&p).into() }),
             SessionLine::Frame(frame_line()),
@@ -462,13 +462,9 @@ mod tests {
     #[test]
     fn malformed_lines_are_named_by_file_and_line() {
         let header = SessionLine::Header(placeholder_header()).encode();
-        let pose = SessionLine::Pose(PoseLine {
-            mono_ns: 1,
-            unix_ns: 2,
-            source: "serial".into(),
-            pose: (&pose()).into(),
-        })
-        .encode();
+        let pose =
+            SessionLine::Pose(PoseLine { mono_ns: 1, unix_ns: 2, source: "serial".into(), pose: (&pose()).into() })
+                .encode();
         let path = Path::new("run1.session.jsonl");
         let bad = format!("{header}\n{pose}\n{{\"kind\":\"pose\",\"mono_ns\":\"x\"}}\n{pose}\n");
         let e = Session::parse(&bad, path).unwrap_err().to_string();

@@ -275,7 +275,8 @@ fn resuming_with_other_settings_is_refused_naming_the_directory_and_field() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("replay.manifest.json")).unwrap()).unwrap();
     assert_eq!((manifest["seed"].as_u64(), manifest["spp"].as_u64()), (Some(7), Some(2)));
     assert_eq!((manifest["scene"].as_str(), manifest["format"].as_str()), (Some("plate"), Some("pfm")));
-    let variants: [(&str, &str, &str, fn(&mut ReplayConfig)); 6] = [
+    type Change = fn(&mut ReplayConfig);
+    let variants: [(&str, &str, &str, Change); 6] = [
         ("seed", "7", "8", |c| c.settings.seed = 8),
         ("sampler", "cosine", "uniform", |c| c.settings.sampler = hilcam::integrator::SamplerKind::Uniform),
         ("spp", "2", "4", |c| c.settings.spp = 4),
@@ -289,7 +290,8 @@ fn resuming_with_other_settings_is_refused_naming_the_directory_and_field() {
         let e = replay(&mut pipeline(plate_scene()), &samples(3), &c, |_| {}).unwrap_err();
         assert!(matches!(e, ReplayError::ManifestMismatch { field: f, .. } if f == field), "{field}: {e}");
         let text = e.to_string();
-        let want = format!("{}: was rendered with {field} = {found}, this run has {field} = {expected}", dir.path().display());
+        let want =
+            format!("{}: was rendered with {field} = {found}, this run has {field} = {expected}", dir.path().display());
         assert!(text.starts_with(&want), "{text}");
     }
     // A sharded resume with the same settings shares the directory.

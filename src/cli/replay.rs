@@ -2,6 +2,7 @@
 //! re-render a recorded `serve` session frame for frame (`--session`).
 
 use crate::cli::render::scaled_camera;
+use crate::frame::FrameFlags;
 use crate::integrator::SamplerKind;
 use crate::pipeline::FramePipeline;
 use crate::replay::{
@@ -14,7 +15,6 @@ use crate::trajectory::Trajectory;
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
-use crate::frame::FrameFlags;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -127,7 +127,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         shard.count,
         a.every
     );
-    render(&mut pipeline, &trajectory_jobs(&samples, &settings), &cfg)
+    render(&mut pipeline, &trajectory_jobs(&samples, &settings), &cfg).map(|_| ())
 }
 
 /// `--session`: the session's streamed frames, each checked against the streamed CRC.
@@ -201,9 +201,9 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
         shard.count,
         a.every
     );
-    render(&mut pipeline, &jobs, &cfg)?;
-    if !a.no_verify {
-        println!("every frame re-rendered bit-identical to the stream (payload CRC-32 checked)");
+    let stats = render(&mut pipeline, &jobs, &cfg)?;
+    if !a.no_verify && stats.rendered > 0 {
+        println!("{} frames re-rendered, each bit-identical to the stream (payload CRC-32 checked)", stats.rendered);
     }
     Ok(())
 }
@@ -226,7 +226,7 @@ fn identity(p: &Path, content: bool) -> anyhow::Result<String> {
 }
 
 /// Render `jobs` with the progress bar and print the summary.
-fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -> anyhow::Result<()> {
+fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -> anyhow::Result<ReplayStats> {
     let bar = Progress::new();
     let t0 = Instant::now();
     let stats = replay_jobs(pipeline, jobs, cfg, |s| bar.update(s)).context("replay")?;
@@ -246,7 +246,7 @@ fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -
         },
         cfg.out_dir.join(cfg.shard.log_name()).display()
     );
-    Ok(())
+    Ok(stats)
 }
 
 /// A progress bar on a terminal; otherwise (batch jobs) a log line every 30 s.

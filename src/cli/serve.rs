@@ -1,8 +1,8 @@
 //! `hilcam serve`: run the real-time server from a config file until Ctrl-C.
 
 use crate::serve::config::{RecordSection, ServeConfig};
-use crate::sink::ImageFormat;
 use crate::serve::{Embed, ServeReport, run};
+use crate::sink::ImageFormat;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

@@ -172,7 +172,10 @@ impl SessionWriter {
         let result = thread.join().unwrap_or_else(|_| Err(std::io::Error::other("session writer panicked")));
         result.map_err(|source| SessionWriteError::Io { path: path.clone(), source })?;
         if !sent {
-            return Err(SessionWriteError::Io { path, source: std::io::Error::other("writer gone before the end line") });
+            return Err(SessionWriteError::Io {
+                path,
+                source: std::io::Error::other("writer gone before the end line"),
+            });
         }
         Ok(SessionStats { path, written: written.get(), dropped: dropped_full.get() + dropped_error.get() })
     }

@@ -117,4 +117,3 @@ pub fn radiance(f: &Frame) -> &[f32] {
 pub fn pose(seq: u32, position: DVec3, sun: DVec3) -> Pose {
     Pose { seq, t_ns: u64::from(seq) * 1_000_000, position, sun_dir: sun.normalize(), ..Pose::ahead(10.0) }
 }
-
