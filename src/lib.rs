@@ -26,6 +26,7 @@
 //! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
 //! - [`replay`]: offline replay of a trajectory to files: resumable, sharded for clusters.
 //! - [`bench`]: benchmarks that print side-by-side ratios (`hilcam bench …`).
+//! - [`session`]: session files (poses received, frames rendered by `serve`) for re-rendering.
 //! - [`serve`]: the real-time scheduler, quality governor and `hilcam serve`.
 //! - [`plot`]: small PNG line charts (RMSE vs spp, Pareto fronts, BRDF curves).
 //! - [`cli`]: the `hilcam` command line (thin; `main.rs` only calls it).
@@ -50,6 +51,7 @@ pub mod sampling;
 pub mod scene;
 pub mod sensor;
 pub mod serve;
+pub mod session;
 pub mod sink;
 pub mod trajectory;
 pub mod transport;

@@ -12,6 +12,10 @@
 //! - Auto-exposure carries state from frame to frame, so a shard, a resumed run or
 //!   `every > 1` would not see the live exposure history: [`replay`] refuses them unless
 //!   the integration time is pinned ([`pin_integration_time`]).
+//! - Sessions: [`replay_jobs`] renders any list of [`FrameJob`]s — a recorded `serve`
+//!   session's frames ([`crate::session::frame_jobs`]) with their own poses, settings and
+//!   indices, each checked against the CRC that was streamed.
+//! - The directory's [`manifest`] pins scene, size and settings: a resume with others is refused.
 
 use crate::frame::{FrameFlags, FrameMeta, unix_ns_now};
 use crate::integrator::RenderSettings;
@@ -26,6 +30,8 @@ use std::path::{Path, PathBuf};
 
 /// Name of an unsharded replay's metadata log (the recorder's name).
 pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
+
+pub mod manifest;
 
 /// Errors of replay, sharding and merging; each names the file, line or variable.
 #[derive(Debug, thiserror::Error)]
@@ -51,6 +57,19 @@ pub enum ReplayError {
     BadEvery,
     #[error("{path}:{line}: frame {frame} was rendered at {found}, this run renders {expected}; use another --out")]
     Mismatch { path: PathBuf, line: usize, frame: u64, found: String, expected: String },
+    #[error(
+        "{dir}: was rendered with {field} = {found}, this run has {field} = {expected}; resume with the same \
+         settings, use another --out, or delete {dir}/{} to accept",
+        manifest::MANIFEST_NAME
+    )]
+    ManifestMismatch { dir: PathBuf, field: &'static str, found: String, expected: String },
+    #[error("{path}: not a replay manifest: {msg}")]
+    BadManifest { path: PathBuf, msg: String },
+    #[error(
+        "frame {frame}: the re-rendered payload has CRC-32 {got:08x}, the session streamed {expected:08x}: the \
+         scene, camera or hilcam version differs from the live run (--no-verify writes the frames anyway)"
+    )]
+    NotIdentical { frame: u64, expected: u32, got: u32 },
     #[error("frame {frame}: {source}")]
     Sensor { frame: u64, source: SensorError },
     #[error("frame {frame}: {path}: {msg}")]
@@ -174,6 +193,10 @@ pub struct ReplayConfig {
     /// Render every `every`-th trajectory row (≥ 1).
     pub every: u64,
     pub shard: Shard,
+    /// What the poses come from (trajectory or session file), for the manifest.
+    pub source: String,
+    /// Which scene (path and content checksum), for the manifest.
+    pub scene: String,
 }
 
 /// Progress after each frame (rendered or skipped).
@@ -249,21 +272,24 @@ fn trim_partial_line(path: &Path) -> Result<(), ReplayError> {
     f.set_len(keep as u64).map_err(io(path))
 }
 
-/// The frames already complete in `dir`: a log line whose image file exists and is not empty.
+/// The frames already complete in `dir`: a log line whose image file exists and is not
+/// empty. A line rendered at another size or quality than this run gives that frame
+/// (`expected(k)`) is refused.
 fn done_frames(
     dir: &Path,
-    cfg: &ReplayConfig,
     w: u32,
     h: u32,
+    expected: impl Fn(u64) -> RenderSettings,
     stats: &mut ReplayStats,
 ) -> Result<HashSet<u64>, ReplayError> {
     let mut done = HashSet::new();
     for log in log_files(dir)? {
         for d in read_log(&log, &mut stats.truncated_lines)? {
             let r = &d.rec;
+            let want = expected(r.frame_seq);
             let (found, expected) = (
                 format!("{}x{} spp {} depth {}", r.width, r.height, r.spp, r.depth),
-                format!("{w}x{h} spp {} depth {}", cfg.settings.spp, cfg.settings.depth),
+                format!("{w}x{h} spp {} depth {}", want.spp, want.depth),
             );
             if found != expected {
                 return Err(ReplayError::Mismatch { path: d.path, line: d.line, frame: r.frame_seq, found, expected });
@@ -277,11 +303,49 @@ fn done_frames(
     Ok(done)
 }
 
+/// One frame to render: its index (frame number and random-number domain), the pose and
+/// settings to render it with, the flags to log, and optionally the payload CRC it must
+/// reproduce (a session re-render checks every frame against what was streamed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameJob {
+    pub index: u64,
+    pub pose: crate::pose::Pose,
+    pub settings: RenderSettings,
+    pub flags: FrameFlags,
+    pub expect_crc32: Option<u32>,
+}
+
+/// The jobs of a trajectory: row k is frame k with pose seq k at `settings`.
+pub fn trajectory_jobs(samples: &[TrajectorySample], settings: &RenderSettings) -> Vec<FrameJob> {
+    (0..samples.len())
+        .map(|k| FrameJob {
+            index: k as u64,
+            pose: samples[k].to_pose(k as u32),
+            settings: *settings,
+            flags: FrameFlags::default(),
+            expect_crc32: None,
+        })
+        .collect()
+}
+
 /// Render the selected frames of `samples` through `pipeline` into `cfg.out_dir`,
 /// skipping frames already done; `progress` is called after every frame.
 pub fn replay(
     pipeline: &mut FramePipeline,
     samples: &[TrajectorySample],
+    cfg: &ReplayConfig,
+    progress: impl FnMut(&ReplayStats),
+) -> Result<ReplayStats, ReplayError> {
+    replay_jobs(pipeline, &trajectory_jobs(samples, &cfg.settings), cfg, progress)
+}
+
+/// Render the selected `jobs` (every `cfg.every`-th, then this shard's share, by
+/// position in `jobs`) into `cfg.out_dir`, skipping frames already done. `cfg.settings`
+/// goes into the directory's manifest (a resume with other settings is refused); each
+/// frame renders with its job's own settings.
+pub fn replay_jobs(
+    pipeline: &mut FramePipeline,
+    jobs: &[FrameJob],
     cfg: &ReplayConfig,
     mut progress: impl FnMut(&ReplayStats),
 ) -> Result<ReplayStats, ReplayError> {
@@ -291,21 +355,28 @@ pub fn replay(
     let dir = &cfg.out_dir;
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let (w, h) = (pipeline.camera().width, pipeline.camera().height);
+    let manifest = manifest::ReplayManifest::new(cfg, pipeline);
+    let has_manifest = manifest::check(dir, &manifest)?;
     let mut stats = ReplayStats::default();
     let log_path = dir.join(cfg.shard.log_name());
     trim_partial_line(&log_path)?;
-    let done = done_frames(dir, cfg, w, h, &mut stats)?;
-    let frames = select_frames(samples.len() as u64, cfg.every, cfg.shard);
-    stats.selected = frames.len() as u64;
-    let todo: Vec<u64> = frames.iter().copied().filter(|k| !done.contains(k)).collect();
+    let by_index: std::collections::HashMap<u64, RenderSettings> = jobs.iter().map(|j| (j.index, j.settings)).collect();
+    let done = done_frames(dir, w, h, |k| by_index.get(&k).copied().unwrap_or(cfg.settings), &mut stats)?;
+    let positions = select_frames(jobs.len() as u64, cfg.every, cfg.shard);
+    stats.selected = positions.len() as u64;
+    let todo: Vec<&FrameJob> =
+        positions.iter().map(|&j| &jobs[j as usize]).filter(|job| !done.contains(&job.index)).collect();
     stats.skipped = stats.selected - todo.len() as u64;
     if pipeline.sensor().auto_exposure().is_some() && !todo.is_empty() {
+        let gap = jobs.iter().enumerate().find(|(j, job)| job.index != *j as u64).map(|(j, _)| j as u64);
         let what = if cfg.shard.count > 1 {
             format!("shard {}/{}", cfg.shard.index, cfg.shard.count)
         } else if cfg.every > 1 {
             format!("--every {}", cfg.every)
-        } else if stats.skipped > 0 || todo.first() != Some(&0) {
+        } else if stats.skipped > 0 || todo.first().map(|j| j.index) != Some(0) {
             format!("resuming ({} of {} frames already in {})", stats.skipped, stats.selected, dir.display())
+        } else if let Some(k) = gap {
+            format!("a frame list with frame {k} missing")
         } else {
             String::new()
         };
@@ -313,12 +384,23 @@ pub fn replay(
             return Err(ReplayError::AutoExposure { what });
         }
     }
+    if !has_manifest {
+        manifest::write(dir, &manifest)?;
+    }
     let log = std::fs::OpenOptions::new().create(true).append(true).open(&log_path).map_err(io(&log_path))?;
     let mut log = std::io::BufWriter::new(log);
     progress(&stats);
-    for k in todo {
-        let pose = samples[k as usize].to_pose(k as u32);
-        let f = pipeline.frame(&pose, &cfg.settings, k).map_err(|source| ReplayError::Sensor { frame: k, source })?;
+    for job in todo {
+        let k = job.index;
+        let f =
+            pipeline.frame(&job.pose, &job.settings, k).map_err(|source| ReplayError::Sensor { frame: k, source })?;
+        let payload = f.pixels.to_le_bytes();
+        let crc = crate::frame::CRC32.checksum(&payload);
+        if let Some(want) = job.expect_crc32
+            && want != crc
+        {
+            return Err(ReplayError::NotIdentical { frame: k, expected: want, got: crc });
+        }
         let name = frame_file_name(k, cfg.format);
         let path = dir.join(&name);
         // A temp name with the real extension: the image writer picks the codec by it.
@@ -329,8 +411,8 @@ pub fn replay(
             msg: e.to_string(),
         })?;
         std::fs::rename(&tmp, &path).map_err(io(&path))?;
-        let payload = f.pixels.to_le_bytes();
-        let meta = frame_meta(k, &pose, &f.pixels, w, h, &cfg.settings, f.integration_s);
+        let mut meta = frame_meta(k, &job.pose, &f.pixels, w, h, &job.settings, f.integration_s);
+        meta.flags = job.flags;
         let line = serde_json::to_string(&FrameRecord::new(&meta, &payload, name)).expect("FrameRecord serialises");
         writeln!(log, "{line}").and_then(|_| log.flush()).map_err(io(&log_path))?;
         stats.rendered += 1;

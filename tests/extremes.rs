@@ -157,3 +157,82 @@ fn quaternions_at_plus_and_minus_180_degrees_are_the_same_attitude() {
         assert!(t > 0.0 && d / t < 1e-4, "relative difference {}", d / t);
     }
 }
+
+/// Constant-rate motion sampled at 10 kHz: pose k is the exact state at k·100 µs.
+fn pose_at_10_khz(k: u32) -> Pose {
+    let t = f64::from(k) * 1e-4;
+    let (v, w) = (DVec3::new(0.4, -0.3, -2.0), DVec3::new(0.2, -0.5, 0.3));
+    Pose {
+        seq: k,
+        t_ns: u64::from(k) * 100_000,
+        position: DVec3::new(0.1, 0.05, 12.0) + v * t,
+        attitude: DQuat::from_axis_angle(w.normalize(), w.length() * t) * DQuat::from_rotation_x(0.3),
+        sun_dir: DVec3::new(0.3, 0.2, -1.0).normalize(),
+        velocity: Some(v),
+        angular_rate: Some(w),
+    }
+}
+
+/// The attitude at time t as a matrix, by Rodrigues' formula (no quaternion code).
+fn attitude_matrix(t: f64) -> glam::DMat3 {
+    use glam::DMat3;
+    let w = DVec3::new(0.2, -0.5, 0.3);
+    let (k, theta) = (w.normalize(), w.length() * t);
+    let kx = DMat3::from_cols(DVec3::new(0.0, k.z, -k.y), DVec3::new(-k.z, 0.0, k.x), DVec3::new(k.y, -k.x, 0.0));
+    let r = DMat3::IDENTITY + kx * theta.sin() + kx * kx * (1.0 - theta.cos());
+    let (c, s) = (0.3f64.cos(), 0.3f64.sin());
+    r * DMat3::from_cols(DVec3::X, DVec3::new(0.0, c, s), DVec3::new(0.0, -s, c))
+}
+
+fn matrix_error(q: DQuat, m: glam::DMat3) -> f64 {
+    let d = glam::DMat3::from_quat(q) - m;
+    d.x_axis.length() + d.y_axis.length() + d.z_axis.length()
+}
+
+#[test]
+fn poses_at_10_khz_extrapolate_over_100_us_to_the_next_pose() {
+    use hilcam::serve::extrapolate::extrapolate;
+    // One second at 10 kHz: every pose moved 100 µs ahead lands on the next one, and
+    // 10 000 chained 100 µs steps land on the pose 1 s later.
+    let mut chained = pose_at_10_khz(0);
+    for k in 1..=10_000u32 {
+        let t = f64::from(k) * 1e-4;
+        let (e, moved) = extrapolate(&pose_at_10_khz(k - 1), 1e-4);
+        assert!(moved && e.position.is_finite() && e.attitude.is_finite());
+        assert_eq!(e.t_ns, u64::from(k) * 100_000, "t_ns exact at step {k}");
+        let want_pos = DVec3::new(0.1, 0.05, 12.0) + DVec3::new(0.4, -0.3, -2.0) * t;
+        assert!((e.position - want_pos).length() < 1e-12, "step {k}");
+        assert!(matrix_error(e.attitude, attitude_matrix(t)) < 1e-12, "step {k}");
+        chained = extrapolate(&chained, 1e-4).0;
+        assert!((chained.attitude.length() - 1.0).abs() < 1e-12);
+    }
+    assert_eq!(chained.t_ns, 1_000_000_000);
+    let want_pos = DVec3::new(0.1, 0.05, 12.0) + DVec3::new(0.4, -0.3, -2.0);
+    assert!((chained.position - want_pos).length() < 1e-9, "{}", chained.position);
+    assert!(matrix_error(chained.attitude, attitude_matrix(1.0)) < 1e-9);
+}
+
+#[test]
+fn poses_at_10_khz_survive_the_serial_codec_and_validation() {
+    use hilcam::pose::Message;
+    use hilcam::pose::serial::{DecodeEvent, SerialDecoder, encode_frame};
+    use hilcam::pose::validate::{PoseLimits, PoseValidator};
+    // One second of 10 kHz poses as one byte stream, fed in odd-sized chunks.
+    let bytes: Vec<u8> = (1..=10_000u32).flat_map(|k| encode_frame(&Message::Pose(pose_at_10_khz(k)))).collect();
+    let mut dec = SerialDecoder::new();
+    let mut validator = PoseValidator::new(PoseLimits::default());
+    let mut next = 1u32;
+    for chunk in bytes.chunks(997) {
+        dec.push(chunk);
+        while let Some(ev) = dec.next_event() {
+            let DecodeEvent::Message(Message::Pose(p)) = ev else { panic!("{ev:?}") };
+            let p = validator.check(&p).expect("a 100 µs step is a valid pose");
+            let sent = pose_at_10_khz(next);
+            assert_eq!((p.seq, p.t_ns, p.position, p.velocity), (sent.seq, sent.t_ns, sent.position, sent.velocity));
+            next += 1;
+        }
+    }
+    assert_eq!(next, 10_001, "every pose decoded");
+    // A pose 100 µs in the past is refused.
+    assert!(validator.check(&pose_at_10_khz(9_999)).is_err());
+}

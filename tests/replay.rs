@@ -50,7 +50,15 @@ fn samples(n: usize) -> Vec<TrajectorySample> {
 }
 
 fn cfg(dir: &Path, shard: Shard) -> ReplayConfig {
-    ReplayConfig { out_dir: dir.to_path_buf(), format: ImageFormat::Pfm, settings: SETTINGS, every: 1, shard }
+    ReplayConfig {
+        out_dir: dir.to_path_buf(),
+        format: ImageFormat::Pfm,
+        settings: SETTINGS,
+        every: 1,
+        shard,
+        source: "samples".into(),
+        scene: "plate".into(),
+    }
 }
 
 fn pipeline(scene: Scene) -> FramePipeline {
@@ -92,10 +100,11 @@ fn writes_every_frame_and_matches_live_frames_bit_for_bit() {
         let bytes: Vec<u8> = img.data.iter().flat_map(|v| v.to_le_bytes()).collect();
         assert_eq!(bytes, payload, "frame {k} file bytes");
     }
-    // No temporary files are left behind.
+    // No temporary files are left behind: the frames, the log and the manifest.
     let names: Vec<String> =
         std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
-    assert_eq!(names.len(), n + 1, "{names:?}");
+    assert_eq!(names.len(), n + 2, "{names:?}");
+    assert!(names.iter().any(|n| n == "replay.manifest.json"), "{names:?}");
 }
 
 #[test]
@@ -256,4 +265,66 @@ fn auto_exposure_refuses_shards_and_resume_unless_pinned() {
     let mut plain = plate_scene();
     assert!(matches!(pin_integration_time(&mut plain, 1e-3), Err(ReplayError::NoDetector)));
     assert!(matches!(pin_integration_time(&mut plain, -1.0), Err(ReplayError::BadIntegration(_))));
+}
+
+#[test]
+fn resuming_with_other_settings_is_refused_naming_the_directory_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    run(dir.path(), Shard::ALL, 3).unwrap();
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("replay.manifest.json")).unwrap()).unwrap();
+    assert_eq!((manifest["seed"].as_u64(), manifest["spp"].as_u64()), (Some(7), Some(2)));
+    assert_eq!((manifest["scene"].as_str(), manifest["format"].as_str()), (Some("plate"), Some("pfm")));
+    type Change = fn(&mut ReplayConfig);
+    let variants: [(&str, &str, &str, Change); 6] = [
+        ("seed", "7", "8", |c| c.settings.seed = 8),
+        ("sampler", "cosine", "uniform", |c| c.settings.sampler = hilcam::integrator::SamplerKind::Uniform),
+        ("spp", "2", "4", |c| c.settings.spp = 4),
+        ("depth", "2", "3", |c| c.settings.depth = 3),
+        ("scene", "plate", "other", |c| c.scene = "other".into()),
+        ("format", "pfm", "exr", |c| c.format = ImageFormat::Exr),
+    ];
+    for (field, found, expected, change) in variants {
+        let mut c = cfg(dir.path(), Shard::ALL);
+        change(&mut c);
+        let e = replay(&mut pipeline(plate_scene()), &samples(3), &c, |_| {}).unwrap_err();
+        assert!(matches!(e, ReplayError::ManifestMismatch { field: f, .. } if f == field), "{field}: {e}");
+        let text = e.to_string();
+        let want =
+            format!("{}: was rendered with {field} = {found}, this run has {field} = {expected}", dir.path().display());
+        assert!(text.starts_with(&want), "{text}");
+    }
+    // A sharded resume with the same settings shares the directory.
+    let s = run(dir.path(), Shard { index: 1, count: 2 }, 3).unwrap();
+    assert_eq!((s.rendered, s.skipped), (0, 1));
+}
+
+#[test]
+fn jobs_carry_their_own_settings_flags_and_expected_crc() {
+    use hilcam::frame::FrameFlags;
+    use hilcam::replay::{replay_jobs, trajectory_jobs};
+    let dir = tempfile::tempdir().unwrap();
+    let mut jobs = trajectory_jobs(&samples(3), &SETTINGS);
+    // Frame 1 as a governor-degraded, extrapolated frame; its CRC computed independently.
+    jobs[1].settings.spp = 1;
+    jobs[1].flags = FrameFlags(FrameFlags::DEGRADED | FrameFlags::EXTRAPOLATED);
+    let mut live = pipeline(plate_scene());
+    for j in &mut jobs {
+        let f = live.frame(&j.pose, &j.settings, j.index).unwrap();
+        j.expect_crc32 = Some(CRC32.checksum(&f.pixels.to_le_bytes()));
+    }
+    replay_jobs(&mut pipeline(plate_scene()), &jobs, &cfg(dir.path(), Shard::ALL), |_| {}).unwrap();
+    let recs = records(&dir.path().join("frames.jsonl"));
+    assert_eq!(recs.iter().map(|r| r.spp).collect::<Vec<_>>(), vec![2, 1, 2]);
+    assert!(recs[1].extrapolated && recs[1].flags == FrameFlags::DEGRADED | FrameFlags::EXTRAPOLATED);
+    for (r, j) in recs.iter().zip(&jobs) {
+        assert_eq!(Some(r.payload_crc32), j.expect_crc32);
+    }
+    // A frame that does not reproduce its CRC stops the run before its file is written.
+    let other = tempfile::tempdir().unwrap();
+    jobs[2].expect_crc32 = jobs[2].expect_crc32.map(|c| c ^ 1);
+    let e = replay_jobs(&mut pipeline(plate_scene()), &jobs, &cfg(other.path(), Shard::ALL), |_| {}).unwrap_err();
+    assert!(matches!(e, ReplayError::NotIdentical { frame: 2, .. }), "{e}");
+    assert!(!other.path().join("frame_0000000002.pfm").exists());
+    assert_eq!(records(&other.path().join("frames.jsonl")).len(), 2);
 }

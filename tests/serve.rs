@@ -1,125 +1,24 @@
 //! `hilcam serve` end to end: poses over a real pty or an in-process channel, frames over
 //! loopback TCP, checked against independent answers.
 
-use glam::DVec3;
-use hilcam::film::Pixels;
-use hilcam::frame::{DecodeError, Frame, FrameFlags, decode_frame};
+mod serve_common;
+use glam::{DMat3, DQuat, DVec3};
+use hilcam::frame::{Frame, FrameFlags};
 use hilcam::pose::{Message, Pose};
-use hilcam::serve::config::{GovernorConfig, InputConfig, InputKind, ServeConfig, TriggerConfig};
+use hilcam::serve::ServeReport;
+use hilcam::serve::config::{GovernorConfig, InputConfig, InputKind, RecordSection, TriggerConfig};
 use hilcam::serve::governor::Policy;
 use hilcam::serve::scheduler::TriggerMode;
-use hilcam::serve::{Embed, ServeInfo, ServeReport, run};
+use hilcam::session::Session;
+use hilcam::sink::ImageFormat;
 use hilcam::transport::InputEvent;
 use hilcam::transport::send::{MessageWriter, SerialWriter};
 use serialport::SerialPort;
-use std::path::{Path, PathBuf};
+use serve_common::*;
+use std::collections::BTreeSet;
+use std::io::Write;
 use std::time::{Duration, Instant};
-use tokio::io::AsyncReadExt;
-use tokio::net::TcpStream;
-use tokio::sync::{mpsc, oneshot};
-
-const PATIENCE: Duration = Duration::from_secs(60);
-
-/// A sphere scene with a small float-output camera (no sensor): pixels are radiance.
-fn sphere_scene(dir: &Path, width: u32, spp: u32) -> PathBuf {
-    let mesh = std::fs::canonicalize("scenes/meshes/sphere.obj").unwrap();
-    let text = format!(
-        r#"
-[[mesh]]
-obj = "{}"
-[materials.white_paint]
-model = "lambert"
-rho = 0.5
-[camera]
-width = {width}
-height = {width}
-pitch_um = 10.0
-focal_mm = 2.0
-[render]
-spp = {spp}
-depth = 1
-"#,
-        mesh.display()
-    );
-    let p = dir.join("scene.toml");
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn config(scene: PathBuf, input: InputConfig, trigger: TriggerConfig, governor: GovernorConfig) -> ServeConfig {
-    let text = "scene = \"x\"\n[stream]\nlisten = \"127.0.0.1:0\"\n";
-    let mut cfg: ServeConfig = toml::from_str(text).unwrap();
-    cfg.scene = scene;
-    cfg.input = input;
-    cfg.trigger = trigger;
-    cfg.governor = governor;
-    cfg.metrics.print_interval_s = 60.0;
-    cfg.validate().unwrap();
-    cfg
-}
-
-struct Running {
-    info: ServeInfo,
-    stop: oneshot::Sender<()>,
-    task: tokio::task::JoinHandle<anyhow::Result<ServeReport>>,
-}
-
-async fn start(cfg: ServeConfig, inputs: Option<mpsc::Receiver<InputEvent>>) -> Running {
-    let (ready_tx, ready_rx) = oneshot::channel();
-    let (stop, stop_rx) = oneshot::channel::<()>();
-    let task = tokio::spawn(run(cfg, Embed { inputs, ready: Some(ready_tx), max_frames: None }, stop_rx));
-    let info = tokio::time::timeout(PATIENCE, ready_rx).await.expect("server start").expect("server ready");
-    Running { info, stop, task }
-}
-
-impl Running {
-    async fn finish(self) -> ServeReport {
-        let _ = self.stop.send(());
-        tokio::time::timeout(PATIENCE, self.task).await.expect("server stops").unwrap().unwrap()
-    }
-}
-
-/// Read frames off a stream connection.
-struct Reader {
-    s: TcpStream,
-    buf: Vec<u8>,
-}
-
-impl Reader {
-    async fn connect(addr: std::net::SocketAddr) -> Reader {
-        Reader { s: TcpStream::connect(addr).await.unwrap(), buf: Vec::new() }
-    }
-
-    async fn next(&mut self) -> Frame {
-        let deadline = Instant::now() + PATIENCE;
-        loop {
-            match decode_frame(&self.buf) {
-                Ok((f, used)) => {
-                    self.buf.drain(..used);
-                    return f;
-                }
-                Err(DecodeError::Incomplete { .. }) => {}
-                Err(e) => panic!("bad frame: {e:?}"),
-            }
-            let mut chunk = vec![0u8; 1 << 16];
-            let left = deadline.saturating_duration_since(Instant::now());
-            let n = tokio::time::timeout(left, self.s.read(&mut chunk)).await.expect("frame in time").unwrap();
-            assert!(n > 0, "stream closed");
-            self.buf.extend_from_slice(&chunk[..n]);
-        }
-    }
-}
-
-fn radiance(f: &Frame) -> &[f32] {
-    match &f.pixels {
-        Pixels::Float32(v) => v,
-        other => panic!("expected float frames, got {:?}", other.format()),
-    }
-}
-
-fn pose(seq: u32, position: DVec3, sun: DVec3) -> Pose {
-    Pose { seq, t_ns: u64::from(seq) * 1_000_000, position, sun_dir: sun.normalize(), ..Pose::ahead(10.0) }
-}
+use tokio::sync::mpsc;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_pose_sent_over_a_pty_arrives_as_a_frame_where_the_pinhole_model_puts_it() {
@@ -219,6 +118,120 @@ async fn a_pose_flood_never_builds_a_backlog_and_frames_use_the_newest_pose() {
         s.frames
     );
     assert!(t0.elapsed() < PATIENCE);
+}
+
+/// The target drifts and tumbles at constant rates; pose k is its exact state at k·100 µs.
+fn pose_at_10_khz(seq: u32) -> Pose {
+    let t = f64::from(seq) * 1e-4;
+    let (v, w) = (DVec3::new(0.4, -0.3, -2.0), DVec3::new(0.2, -0.5, 0.3));
+    Pose {
+        seq,
+        t_ns: u64::from(seq) * 100_000,
+        position: DVec3::new(0.1, 0.05, 12.0) + v * t,
+        attitude: DQuat::from_axis_angle(w.normalize(), w.length() * t),
+        sun_dir: DVec3::new(0.3, 0.2, -1.0).normalize(),
+        velocity: Some(v),
+        angular_rate: Some(w),
+    }
+}
+
+/// Rodrigues' formula: the rotation by `w·dt` as a matrix (independent of the quaternion
+/// code under test).
+fn rotation_matrix(w: DVec3, dt: f64) -> DMat3 {
+    let theta = w.length() * dt;
+    let k = w.normalize();
+    let kx = DMat3::from_cols(DVec3::new(0.0, k.z, -k.y), DVec3::new(-k.z, 0.0, k.x), DVec3::new(k.y, -k.x, 0.0));
+    DMat3::IDENTITY + kx * theta.sin() + kx * kx * (1.0 - theta.cos())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn poses_at_10_khz_are_all_counted_and_frames_use_the_newest_extrapolated_exactly() {
+    const N: u32 = 10_000; // 1 s of pose time, timestamps 100 µs apart
+    let dir = tempfile::tempdir().unwrap();
+    let (mut master, slave) = serialport::TTYPort::pair().unwrap();
+    let device = slave.name().unwrap();
+    let input =
+        InputConfig { kind: InputKind::Serial, device: Some(device), baud: Some(921_600), ..Default::default() };
+    let trigger = TriggerConfig { mode: TriggerMode::Rate, rate_hz: Some(50.0), extrapolate: true };
+    let mut cfg = config(sphere_scene(dir.path(), 16, 1), input, trigger, GovernorConfig::default());
+    let path = dir.path().join("10khz.session.jsonl");
+    cfg.record = Some(RecordSection { dir: None, session: Some(path.clone()), format: ImageFormat::Png });
+    let server = start(cfg, None).await;
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    // Ten poses every millisecond (one write each), paced against the wall clock.
+    let sender = std::thread::spawn(move || {
+        let t0 = Instant::now();
+        for batch in 0..N / 10 {
+            let due = t0 + Duration::from_millis(u64::from(batch));
+            std::thread::sleep(due.saturating_duration_since(Instant::now()));
+            let mut bytes = Vec::new();
+            for seq in batch * 10 + 1..=batch * 10 + 10 {
+                bytes.extend(hilcam::pose::serial::encode_frame(&Message::Pose(pose_at_10_khz(seq))));
+            }
+            master.write_all(&bytes).unwrap();
+        }
+        (master, t0.elapsed())
+    });
+    let (master, took) = tokio::task::spawn_blocking(move || sender.join().unwrap()).await.unwrap();
+    // Let the server drain the pty: wait until the last pose is in the session file.
+    let deadline = Instant::now() + PATIENCE;
+    while Instant::now() < deadline {
+        let text = std::fs::read_to_string(&path).unwrap_or_default();
+        if text.contains(&format!("\"seq\":{N},")) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let report = server.finish().await;
+    drop((master, slave));
+
+    let s = Session::load(&path).unwrap();
+    let end = s.end.clone().expect("end line");
+    // Every pose is counted: accepted by the transport (none rejected), then either received
+    // by the scheduler or counted as a full input channel; every received one is recorded.
+    assert_eq!((report.poses_accepted, end.poses_accepted), (u64::from(N), u64::from(N)), "sent in {took:?}");
+    assert!(end.poses_rejected.is_empty(), "{:?}", end.poses_rejected);
+    assert_eq!(end.poses_received + end.input_channel_full, end.poses_accepted);
+    assert_eq!(end.records_dropped, 0);
+    assert_eq!(s.poses.len() as u64, end.poses_received);
+    assert!(s.poses.windows(2).all(|w| w[0].pose.seq < w[1].pose.seq && w[0].mono_ns <= w[1].mono_ns));
+    for p in &s.poses {
+        let sent = pose_at_10_khz(p.pose.seq);
+        assert_eq!((p.pose.t_ns, p.pose.to_pose().position), (sent.t_ns, sent.position), "seq {}", p.pose.seq);
+    }
+    // Each frame used the newest pose the scheduler had at its start.
+    assert_eq!(end.frames, s.frames.len() as u64);
+    assert!(s.frames.len() >= 5, "{} frames", s.frames.len());
+    for f in &s.frames {
+        assert_eq!(s.poses[f.poses_received as usize - 1].pose.seq, f.source_seq, "frame {}", f.index);
+    }
+    // Poses never rendered are exactly the superseded ones (plus the newest if no frame took it).
+    let rendered: BTreeSet<u32> = s.frames.iter().map(|f| f.source_seq).collect();
+    let last_unrendered = u64::from(!rendered.contains(&s.poses.last().unwrap().pose.seq));
+    assert_eq!(rendered.len() as u64 + end.poses_superseded + last_unrendered, end.poses_received);
+    assert_eq!(report.scheduler.superseded, end.poses_superseded);
+    // Extrapolation from poses 100 µs apart: finite, and equal to constant-rate motion
+    // computed independently (Rodrigues' rotation matrix, straight-line position).
+    let by_seq: std::collections::HashMap<u32, Pose> = s.poses.iter().map(|p| (p.pose.seq, p.pose.to_pose())).collect();
+    // (A pose that arrived after the frame's tick is not moved back: dt = 0, pose as received.)
+    for f in s.frames.iter().filter(|f| !f.extrapolated) {
+        assert_eq!((f.extrapolated_s, f.pose.to_pose()), (0.0, by_seq[&f.source_seq]), "frame {}", f.index);
+    }
+    let moved: Vec<_> = s.frames.iter().filter(|f| f.extrapolated).collect();
+    assert!(!moved.is_empty(), "none of {} frames extrapolated", s.frames.len());
+    for f in moved {
+        assert!(f.extrapolated_s > 0.0 && f.extrapolated_s < 1.0, "frame {}: {} s", f.index, f.extrapolated_s);
+        let src = by_seq[&f.source_seq];
+        let got = f.pose.to_pose();
+        let dt = f.extrapolated_s;
+        assert!(got.position.is_finite() && got.attitude.is_finite());
+        assert!((got.position - (src.position + src.velocity.unwrap() * dt)).length() < 1e-12);
+        let want = rotation_matrix(src.angular_rate.unwrap(), dt) * DMat3::from_quat(src.attitude);
+        let d = DMat3::from_quat(got.attitude) - want;
+        let err = d.x_axis.length() + d.y_axis.length() + d.z_axis.length();
+        assert!(err < 1e-12, "frame {}: attitude off by {err}", f.index);
+        assert_eq!(got.t_ns, src.t_ns + (dt * 1e9).round() as u64);
+    }
 }
 
 async fn run_with_policy(policy: Policy, budget_ms: f64, spp: u32) -> (Vec<Frame>, ServeReport) {

@@ -26,6 +26,14 @@ fn config_errors_name_the_file_and_field() {
     assert!(e.contains("input.device"), "{e}");
     let e = write("scene = \"s.toml\"\n[stream]\nlisten = \"nowhere\"\n");
     assert!(e.contains("line 3"), "{e}");
+    let e = write("scene = \"s.toml\"\n[record]\nformat = \"png\"\n");
+    assert!(e.contains("serve.toml") && e.contains("record: needs `dir`"), "{e}");
+    let e = write("scene = \"s.toml\"\n[record]\nsesion = \"x.jsonl\"\n");
+    assert!(e.contains("line 3") && e.contains("sesion"), "{e}");
+    let p = dir.path().join("serve.toml");
+    std::fs::write(&p, "scene = \"s.toml\"\n[record]\nsession = \"runs/a.session.jsonl\"\n").unwrap();
+    let r = ServeConfig::load(&p).unwrap().record.unwrap();
+    assert_eq!((r.dir, r.session), (None, Some(dir.path().join("runs/a.session.jsonl"))));
 }
 
 #[test]

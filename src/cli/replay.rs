@@ -1,31 +1,47 @@
-//! `hilcam replay`: render a trajectory offline to files (resumable, shardable).
+//! `hilcam replay`: render a trajectory offline to files (resumable, shardable), or
+//! re-render a recorded `serve` session frame for frame (`--session`).
 
 use crate::cli::render::scaled_camera;
+use crate::frame::FrameFlags;
 use crate::integrator::SamplerKind;
 use crate::pipeline::FramePipeline;
-use crate::replay::{ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay};
+use crate::replay::{
+    FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs, trajectory_jobs,
+};
+use crate::serve::config::ServeConfig;
+use crate::session::{Session, frame_jobs};
 use crate::sink::recorder::ImageFormat;
 use crate::trajectory::Trajectory;
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args, Debug)]
 pub struct ReplayArgs {
     /// Trajectory CSV (docs/trajectory.md); row k becomes frame k with pose seq k.
-    #[arg(long, required_unless_present = "merge")]
+    #[arg(long, required_unless_present_any = ["merge", "session"])]
     pub trajectory: Option<PathBuf>,
     /// Scene file (TOML).
-    #[arg(long, required_unless_present = "merge")]
+    #[arg(long, required_unless_present_any = ["merge", "session"])]
     pub scene: Option<PathBuf>,
+    /// Session file recorded by `hilcam serve` ([record] session, docs/session.md):
+    /// re-render exactly the frames it streamed, with their poses, settings and seeds.
+    #[arg(long, conflicts_with_all = ["trajectory", "spp", "depth", "sampler", "seed", "integration_s", "width"])]
+    pub session: Option<PathBuf>,
+    /// With --session: the serve config or scene file (default: the scene the session names).
+    #[arg(long, requires = "session", conflicts_with = "scene")]
+    pub config: Option<PathBuf>,
+    /// With --session: write frames even when one differs from what was streamed (by CRC).
+    #[arg(long, requires = "session")]
+    pub no_verify: bool,
     /// Output directory: images `frame_<k>.<ext>` and `frames*.jsonl`.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Merge the shard logs of DIR into DIR/frames.jsonl and exit.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["trajectory", "scene", "out"])]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["trajectory", "scene", "out", "session"])]
     pub merge: Option<PathBuf>,
     /// Render at this many columns (same field of view; default: the camera's).
     #[arg(long)]
@@ -65,9 +81,6 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
-        bail!("--trajectory and --scene are required")
-    };
     let Some(out) = a.out.clone() else { bail!("--out DIR is required") };
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
@@ -75,6 +88,12 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let shard = match &a.shard {
         Some(s) => Shard::parse(s)?,
         None => Shard::from_env(|v| std::env::var(v).ok())?.unwrap_or(Shard::ALL),
+    };
+    if let Some(session) = &a.session {
+        return run_session(&a, session, out, shard);
+    }
+    let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
+        bail!("--trajectory and --scene are required")
     };
     let samples = Trajectory::load(traj)?;
     let mut scene = crate::scene::load(scene_path)?;
@@ -84,7 +103,15 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
     let camera = scaled_camera(&scene.camera, a.width, None);
     let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
-    let cfg = ReplayConfig { out_dir: out.clone(), format: a.format, settings, every: a.every, shard };
+    let cfg = ReplayConfig {
+        out_dir: out.clone(),
+        format: a.format,
+        settings,
+        every: a.every,
+        shard,
+        source: identity(traj, false)?,
+        scene: identity(scene_path, true)?,
+    };
     println!(
         "{}: {} poses → {} ({}x{}, spp {} depth {} {:?}, seed {}), shard {}/{}, every {}",
         traj.display(),
@@ -100,9 +127,109 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         shard.count,
         a.every
     );
+    render(&mut pipeline, &trajectory_jobs(&samples, &settings), &cfg).map(|_| ())
+}
+
+/// `--session`: the session's streamed frames, each checked against the streamed CRC.
+fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyhow::Result<()> {
+    let session = Session::load(path)?;
+    let h = &session.header;
+    match &session.end {
+        None => tracing::warn!("{}: no end line (the server did not stop cleanly)", path.display()),
+        Some(e) if e.records_dropped > 0 => tracing::warn!(
+            "{}: the server dropped {} session lines; frames missing from the file are not re-rendered",
+            path.display(),
+            e.records_dropped
+        ),
+        Some(_) => {}
+    }
+    let gaps = session.frame_gaps();
+    if !gaps.is_empty() {
+        tracing::warn!("{}: {} frame indices missing (first {})", path.display(), gaps.len(), gaps[0]);
+    }
+    // The scene: a serve config's, a scene file, or the one the session names.
+    let given = a.config.as_ref().or(a.scene.as_ref());
+    let scene_path = match given {
+        Some(p) if is_serve_config(p)? => ServeConfig::load(p)?.scene,
+        Some(p) => p.clone(),
+        None => PathBuf::from(&h.scene),
+    };
+    let scene = crate::scene::load(&scene_path)?;
+    let camera = scaled_camera(&scene.camera, h.width_setting, None);
+    if (camera.width, camera.height) != (h.width, h.height) {
+        bail!(
+            "{}: the session streamed {}x{} frames, {} gives {}x{} (width setting {:?})",
+            path.display(),
+            h.width,
+            h.height,
+            scene_path.display(),
+            camera.width,
+            camera.height,
+            h.width_setting
+        );
+    }
+    let mut pipeline = FramePipeline::new(Arc::new(scene), camera)?;
+    let settings = h.settings.to_settings();
+    let cfg = ReplayConfig {
+        out_dir: out.clone(),
+        format: a.format,
+        settings,
+        every: a.every,
+        shard,
+        source: identity(path, false)?,
+        scene: identity(&scene_path, true)?,
+    };
+    let jobs = frame_jobs(&session, !a.no_verify);
+    let flagged = |bit| jobs.iter().filter(|j| j.flags.contains(bit)).count();
+    println!(
+        "{}: {} frames ({} degraded, {} extrapolated, {} late) of {} poses → {} ({}x{}, best spp {} depth {} {:?}, \
+         seed {}), shard {}/{}, every {}",
+        path.display(),
+        jobs.len(),
+        flagged(FrameFlags::DEGRADED),
+        flagged(FrameFlags::EXTRAPOLATED),
+        flagged(FrameFlags::LATE),
+        session.poses.len(),
+        out.display(),
+        h.width,
+        h.height,
+        settings.spp,
+        settings.depth,
+        settings.sampler,
+        settings.seed,
+        shard.index,
+        shard.count,
+        a.every
+    );
+    let stats = render(&mut pipeline, &jobs, &cfg)?;
+    if !a.no_verify && stats.rendered > 0 {
+        println!("{} frames re-rendered, each bit-identical to the stream (payload CRC-32 checked)", stats.rendered);
+    }
+    Ok(())
+}
+
+/// A serve config names its scene with a top-level `scene = "…"`; a scene file does not.
+fn is_serve_config(p: &Path) -> anyhow::Result<bool> {
+    let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+    let v: toml::Table = toml::from_str(&text).with_context(|| p.display().to_string())?;
+    Ok(v.get("scene").is_some_and(toml::Value::is_str))
+}
+
+/// A file's identity for the manifest: its absolute path, plus a content checksum.
+fn identity(p: &Path, content: bool) -> anyhow::Result<String> {
+    let abs = std::fs::canonicalize(p).with_context(|| p.display().to_string())?;
+    if !content {
+        return Ok(abs.display().to_string());
+    }
+    let bytes = std::fs::read(&abs).with_context(|| abs.display().to_string())?;
+    Ok(format!("{} (crc32 {:08x})", abs.display(), crate::frame::CRC32.checksum(&bytes)))
+}
+
+/// Render `jobs` with the progress bar and print the summary.
+fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -> anyhow::Result<ReplayStats> {
     let bar = Progress::new();
     let t0 = Instant::now();
-    let stats = replay(&mut pipeline, &samples, &cfg, |s| bar.update(s)).context("replay")?;
+    let stats = replay_jobs(pipeline, jobs, cfg, |s| bar.update(s)).context("replay")?;
     bar.finish();
     let secs = t0.elapsed().as_secs_f64();
     println!(
@@ -117,9 +244,9 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         } else {
             String::new()
         },
-        out.join(shard.log_name()).display()
+        cfg.out_dir.join(cfg.shard.log_name()).display()
     );
-    Ok(())
+    Ok(stats)
 }
 
 /// A progress bar on a terminal; otherwise (batch jobs) a log line every 30 s.

@@ -1,7 +1,8 @@
 //! `hilcam serve`: run the real-time server from a config file until Ctrl-C.
 
-use crate::serve::config::ServeConfig;
+use crate::serve::config::{RecordSection, ServeConfig};
 use crate::serve::{Embed, ServeReport, run};
+use crate::sink::ImageFormat;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -9,10 +10,18 @@ pub struct ServeArgs {
     /// Server configuration (TOML; see config/serve-*.toml).
     #[arg(long, short)]
     pub config: PathBuf,
+    /// Record a session file (poses received, frames rendered; docs/session.md), as
+    /// `[record] session` does; re-render it with `hilcam replay --session`.
+    #[arg(long, value_name = "FILE")]
+    pub record_session: Option<PathBuf>,
 }
 
 pub fn run_cli(a: ServeArgs) -> anyhow::Result<()> {
-    let cfg = ServeConfig::load(&a.config)?;
+    let mut cfg = ServeConfig::load(&a.config)?;
+    if let Some(path) = a.record_session {
+        let r = cfg.record.get_or_insert(RecordSection { dir: None, session: None, format: ImageFormat::Png });
+        r.session = Some(path);
+    }
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     let report = rt.block_on(async {
         let ctrl_c = async {
@@ -22,6 +31,9 @@ pub fn run_cli(a: ServeArgs) -> anyhow::Result<()> {
         run(cfg, Embed::default(), ctrl_c).await
     })?;
     print_report(&report);
+    if let Some(s) = &report.session {
+        println!("session {}: {} lines, {} dropped", s.path.display(), s.written, s.dropped);
+    }
     Ok(())
 }
 

@@ -15,7 +15,7 @@ use glam::Vec3;
 use serde::Deserialize;
 
 /// How indirect directions are drawn.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum SamplerKind {
     /// Uniform over the hemisphere, pdf 1/(2π) (the paper's baseline).

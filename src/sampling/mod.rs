@@ -114,7 +114,7 @@ impl SampleSource for SobolStream {
 }
 
 /// Which sequence feeds the estimator.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Sequence {
     /// Independent random numbers (PCG32) per sample.

@@ -32,9 +32,11 @@
 //! listen = "127.0.0.1:5600"
 //! queue_depth = 2
 //!
-//! [record]                             # optional recorder sink
-//! dir = "frames"
+//! [record]                             # optional
+//! dir = "frames"                       # recorder sink: every frame as an image file
 //! format = "png"                       # png | tiff | exr | pfm
+//! session = "run1.session.jsonl"       # session file: poses received, frames rendered
+//!                                      # (docs/session.md; never overwritten)
 //!
 //! [metrics]
 //! listen = "127.0.0.1:9100"            # optional Prometheus endpoint
@@ -90,6 +92,19 @@ pub enum InputKind {
     Trajectory,
     #[default]
     None,
+}
+
+impl InputKind {
+    /// The config spelling (`serial`, …).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            InputKind::Serial => "serial",
+            InputKind::Slcan => "slcan",
+            InputKind::Socketcan => "socketcan",
+            InputKind::Trajectory => "trajectory",
+            InputKind::None => "none",
+        }
+    }
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -167,7 +182,10 @@ fn default_max_clients() -> usize {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RecordSection {
-    pub dir: PathBuf,
+    /// Recorder sink: frames as image files in this directory.
+    pub dir: Option<PathBuf>,
+    /// Session file (JSON lines) to create; re-render with `hilcam replay --session`.
+    pub session: Option<PathBuf>,
     #[serde(default = "default_format")]
     pub format: ImageFormat,
 }
@@ -206,7 +224,8 @@ impl ServeConfig {
             *f = dir.join(&*f);
         }
         if let Some(r) = &mut cfg.record {
-            r.dir = dir.join(&r.dir);
+            r.dir = r.dir.as_ref().map(|d| dir.join(d));
+            r.session = r.session.as_ref().map(|s| dir.join(s));
         }
         cfg.validate().map_err(|(field, message)| ConfigError::Field { path: path.into(), field, message })?;
         Ok(cfg)
@@ -255,6 +274,12 @@ impl ServeConfig {
         }
         if self.stream.queue_depth == 0 {
             return Err(("stream.queue_depth", "must be at least 1".into()));
+        }
+        if let Some(r) = &self.record
+            && r.dir.is_none()
+            && r.session.is_none()
+        {
+            return Err(("record", "needs `dir` (frames as images) or `session` (session file), or both".into()));
         }
         if self.width == Some(0) {
             return Err(("width", "must be at least 1".into()));

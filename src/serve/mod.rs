@@ -5,16 +5,19 @@
 //! - [`scheduler`]: latest-pose-wins triggering, the render thread, publishing.
 //! - [`governor`]: the quality ladder that keeps frames inside their budget.
 //! - [`extrapolate`]: poses moved to the exposure mid-time with their rates.
+//! - [`session`]: the session file writer (poses received, frames rendered).
 
 pub mod config;
 pub mod extrapolate;
 pub mod governor;
 pub mod scheduler;
+pub mod session;
 
 use crate::cli::render::scaled_camera;
 use crate::metrics::{Registry, serve_http, spawn_summary_logger};
 use crate::pipeline::FramePipeline;
 use crate::pose::can::CanIds;
+use crate::session::{EndLine, SessionHeader};
 use crate::sink::{Recorder, RecorderConfig, Sink, StreamConfig, StreamServer, WriteHook};
 use crate::transport::serial::SerialConfig;
 use crate::transport::slcan::SlcanConfig;
@@ -23,6 +26,7 @@ use crate::transport::{InputCounters, InputEvent};
 use anyhow::Context;
 use config::{InputKind, ServeConfig};
 use scheduler::{SchedulerConfig, SchedulerSummary, run_scheduler};
+use session::SessionWriter;
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
@@ -46,6 +50,8 @@ pub struct ServeReport {
     pub poses_rejected: u64,
     /// Frames dropped per stream client (slow readers).
     pub client_drops: u64,
+    /// The session file written, if one was recorded.
+    pub session: Option<session::SessionStats>,
 }
 
 /// Options for embedding the server (tests, demo).
@@ -117,6 +123,9 @@ pub async fn run(
     mut embed: Embed,
     shutdown: impl std::future::Future,
 ) -> anyhow::Result<ServeReport> {
+    // The zero of the session file's clocks (monotonic and wall).
+    let (session_start, session_start_unix) = (std::time::Instant::now(), crate::frame::unix_ns_now());
+    let embedded = embed.inputs.is_some();
     let scene = Arc::new(crate::scene::load(&cfg.scene)?);
     let camera = scaled_camera(&scene.camera, cfg.width, None);
     let o = &cfg.render;
@@ -190,9 +199,20 @@ pub async fn run(
     let stream = StreamServer::bind(stream_cfg, registry.clone(), Some(hook)).await?;
     let stream_addr = stream.local_addr();
     let mut sinks = vec![Sink::Stream(stream)];
-    if let Some(r) = &cfg.record {
-        sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(&r.dir, r.format), &registry)?));
+    if let Some(r) = &cfg.record
+        && let Some(dir) = &r.dir
+    {
+        sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(dir, r.format), &registry)?));
     }
+    let input_name = if embedded { "embedded" } else { cfg.input.kind.as_str() };
+    let session_writer = match cfg.record.as_ref().and_then(|r| r.session.as_ref()) {
+        Some(path) => {
+            let mut header = session_header(&cfg, &camera, &settings, input_name);
+            header.start_unix_ns = session_start_unix;
+            Some(SessionWriter::start(path, &header, session_start, input_name, &registry)?)
+        }
+        None => None,
+    };
     let sinks = Arc::new(sinks);
 
     // Observability.
@@ -240,6 +260,7 @@ pub async fn run(
         policy: cfg.governor.policy,
         settings,
         max_frames: embed.max_frames,
+        session: session_writer.as_ref().map(SessionWriter::tap),
     };
     let summary = run_scheduler(sched_cfg, pipeline, inputs, sinks.clone(), registry.clone(), shutdown).await;
 
@@ -259,6 +280,17 @@ pub async fn run(
             s.close().await;
         }
     }
+    let session = match session_writer {
+        Some(w) => {
+            let end = session_end(&counters, &summary);
+            let stats = tokio::task::spawn_blocking(move || w.finish(end)).await.context("session writer")??;
+            if stats.dropped > 0 {
+                tracing::warn!(file = %stats.path.display(), dropped = stats.dropped, "session lines were dropped");
+            }
+            Some(stats)
+        }
+        None => None,
+    };
     let snap = latency.snapshot();
     let q = |p| snap.quantile(p).map(|ns| ns as f64 / 1e6).unwrap_or(0.0);
     Ok(ServeReport {
@@ -267,5 +299,52 @@ pub async fn run(
         poses_accepted: counters.accepted.load(std::sync::atomic::Ordering::Relaxed),
         poses_rejected: counters.rejected_total(),
         client_drops,
+        session,
     })
+}
+
+/// The session file's first line: how this server renders.
+fn session_header(
+    cfg: &ServeConfig,
+    camera: &crate::camera::CameraModel,
+    settings: &crate::integrator::RenderSettings,
+    input: &str,
+) -> SessionHeader {
+    let lower = |v: &dyn std::fmt::Debug| format!("{v:?}").to_lowercase();
+    SessionHeader {
+        version: crate::session::SESSION_VERSION,
+        hilcam: env!("CARGO_PKG_VERSION").to_string(),
+        start_unix_ns: 0,
+        scene: std::fs::canonicalize(&cfg.scene).unwrap_or(cfg.scene.clone()).display().to_string(),
+        width_setting: cfg.width,
+        width: camera.width,
+        height: camera.height,
+        settings: settings.into(),
+        trigger: lower(&cfg.trigger.mode),
+        extrapolate: cfg.trigger.extrapolate,
+        policy: match cfg.governor.policy {
+            governor::Policy::FixedQuality => "fixed-quality".into(),
+            governor::Policy::FixedRate => "fixed-rate".into(),
+        },
+        input: input.to_string(),
+    }
+}
+
+/// The session file's last line: the run's pose and frame counters.
+fn session_end(counters: &InputCounters, s: &SchedulerSummary) -> EndLine {
+    use crate::pose::validate::Rejection;
+    use std::sync::atomic::Ordering::Relaxed;
+    EndLine {
+        poses_accepted: counters.accepted.load(Relaxed),
+        poses_rejected: Rejection::ALL
+            .iter()
+            .map(|r| (r.as_str().to_string(), counters.rejected(*r)))
+            .filter(|(_, n)| *n > 0)
+            .collect(),
+        input_channel_full: counters.channel_full.load(Relaxed),
+        poses_received: s.poses,
+        poses_superseded: s.superseded,
+        frames: s.frames,
+        ..EndLine::default()
+    }
 }

@@ -11,11 +11,13 @@
 
 use super::extrapolate::extrapolate;
 use super::governor::{Governor, Policy, Quality};
-use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, unix_ns_now};
+use super::session::SessionTap;
+use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, decode_header, unix_ns_now};
 use crate::integrator::RenderSettings;
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
 use crate::pipeline::FramePipeline;
 use crate::pose::Pose;
+use crate::session::{FrameFailedLine, FrameLine, SessionLine};
 use crate::sink::Sink;
 use crate::transport::InputEvent;
 use std::sync::Arc;
@@ -49,6 +51,8 @@ pub struct SchedulerConfig {
     pub settings: RenderSettings,
     /// Stop after this many frames (demo, tests); None = until shutdown.
     pub max_frames: Option<u64>,
+    /// Record every received pose and rendered frame (session file).
+    pub session: Option<SessionTap>,
 }
 
 /// What a run did (also in the metrics registry).
@@ -66,7 +70,15 @@ pub struct SchedulerSummary {
 }
 
 struct Job {
+    /// The pose rendered (extrapolated when `extrapolated_s` ≠ 0).
     pose: Pose,
+    /// Arrival of the received pose it came from.
+    source_arrival: Instant,
+    extrapolated_s: f64,
+    /// When the job was handed to the renderer.
+    started: Instant,
+    /// Poses received when it started.
+    poses_received: u64,
     arrival_unix_ns: u64,
     /// Lateness is measured from here (pose arrival, tick or trigger).
     reference: Instant,
@@ -76,6 +88,7 @@ struct Job {
 }
 
 struct Done {
+    job: Job,
     frame: Result<Arc<EncodedFrame>, String>,
     render_time: Duration,
     quality: Quality,
@@ -126,6 +139,42 @@ fn unix_ns_of(t: Instant) -> u64 {
     unix_ns_now().saturating_sub(ago.as_nanos() as u64)
 }
 
+/// Hand a finished frame's session line to the writer (never waits).
+fn record(tap: Option<&SessionTap>, d: &Done) {
+    let Some(tap) = tap else { return };
+    let j = &d.job;
+    match &d.frame {
+        Ok(frame) => {
+            let flags = frame.meta.flags;
+            let crc = decode_header(&frame.bytes)
+                .map(|h| h.payload_crc)
+                .unwrap_or_else(|_| crate::frame::CRC32.checksum(frame.payload()));
+            tap.frame(FrameLine {
+                index: j.index,
+                mono_ns: tap.mono_ns(j.started),
+                source_seq: j.pose.seq,
+                source_mono_ns: tap.mono_ns(j.source_arrival),
+                poses_received: j.poses_received,
+                extrapolated_s: j.extrapolated_s,
+                pose: (&j.pose).into(),
+                settings: (&j.settings).into(),
+                flags: flags.0,
+                late: flags.contains(FrameFlags::LATE),
+                extrapolated: flags.contains(FrameFlags::EXTRAPOLATED),
+                degraded: flags.contains(FrameFlags::DEGRADED),
+                integration_s: d.integration_s,
+                payload_crc32: crc,
+            });
+        }
+        Err(e) => tap.send(SessionLine::FrameFailed(FrameFailedLine {
+            index: j.index,
+            mono_ns: tap.mono_ns(j.started),
+            source_seq: j.pose.seq,
+            error: e.clone(),
+        })),
+    }
+}
+
 /// The render thread: owns the pipeline (and its auto-exposure state).
 fn spawn_renderer(
     mut pipeline: FramePipeline,
@@ -169,7 +218,7 @@ fn spawn_renderer(
                     Err(e) => (Err(e.to_string()), None),
                 };
                 let late = frame.as_ref().map(|f| f.meta.flags.contains(FrameFlags::LATE)).unwrap_or(false);
-                let d = Done { frame, render_time: t0.elapsed(), quality, late, integration_s };
+                let d = Done { job, frame, render_time: t0.elapsed(), quality, late, integration_s };
                 if done.blocking_send(d).is_err() {
                     break;
                 }
@@ -227,6 +276,9 @@ pub async fn run_scheduler(
             ev = inputs.recv(), if inputs_open => match ev {
                 None => inputs_open = false,
                 Some(InputEvent::Pose { pose, arrival }) => {
+                    if let Some(tap) = &cfg.session {
+                        tap.pose(&pose, arrival);
+                    }
                     s.poses += 1;
                     pending += 1;
                     latest = Some((pose, arrival));
@@ -264,6 +316,7 @@ pub async fn run_scheduler(
                 if let Some(i) = d.integration_s {
                     last_integration = i;
                 }
+                record(cfg.session.as_ref(), &d);
                 match d.frame {
                     Ok(frame) => {
                         for sink in sinks.iter() {
@@ -308,15 +361,28 @@ pub async fn run_scheduler(
                 flags = flags.with(FrameFlags::DEGRADED);
             }
             let mut pose = pose;
+            let mut extrapolated_s = 0.0;
             if cfg.extrapolate && cfg.trigger == TriggerMode::Rate {
                 let dt = reference.saturating_duration_since(arrival).as_secs_f64() + last_integration * 0.5;
                 let (p, moved) = extrapolate(&pose, dt);
                 if moved {
                     pose = p;
+                    extrapolated_s = dt;
                     flags = flags.with(FrameFlags::EXTRAPOLATED);
                 }
             }
-            let job = Job { pose, arrival_unix_ns: unix_ns_of(arrival), reference, settings, index, flags };
+            let job = Job {
+                pose,
+                source_arrival: arrival,
+                extrapolated_s,
+                started: Instant::now(),
+                poses_received: s.poses,
+                arrival_unix_ns: unix_ns_of(arrival),
+                reference,
+                settings,
+                index,
+                flags,
+            };
             if job_tx.send(job).is_err() {
                 tracing::error!("render thread is gone");
                 break;
@@ -328,6 +394,7 @@ pub async fn run_scheduler(
 
     // Finish the frame in flight, then stop the render thread.
     if busy && let Some(d) = done_rx.recv().await {
+        record(cfg.session.as_ref(), &d);
         if let Ok(frame) = d.frame {
             for sink in sinks.iter() {
                 sink.publish(&frame);

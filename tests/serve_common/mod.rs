@@ -1,0 +1,119 @@
+//! Helpers shared by the `serve` end-to-end tests: a small sphere scene, a config, the
+//! embedded server, and a frame reader on the TCP stream.
+#![allow(dead_code)]
+
+use glam::DVec3;
+use hilcam::film::Pixels;
+use hilcam::frame::{DecodeError, Frame, decode_frame};
+use hilcam::pose::Pose;
+use hilcam::serve::config::{GovernorConfig, InputConfig, ServeConfig, TriggerConfig};
+use hilcam::serve::{Embed, ServeInfo, ServeReport, run};
+use hilcam::transport::InputEvent;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use tokio::io::AsyncReadExt;
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, oneshot};
+
+pub const PATIENCE: Duration = Duration::from_secs(60);
+
+/// A sphere scene with a small float-output camera (no sensor): pixels are radiance.
+pub fn sphere_scene(dir: &Path, width: u32, spp: u32) -> PathBuf {
+    let mesh = std::fs::canonicalize("scenes/meshes/sphere.obj").unwrap();
+    let text = format!(
+        r#"
+[[mesh]]
+obj = "{}"
+[materials.white_paint]
+model = "lambert"
+rho = 0.5
+[camera]
+width = {width}
+height = {width}
+pitch_um = 10.0
+focal_mm = 2.0
+[render]
+spp = {spp}
+depth = 1
+"#,
+        mesh.display()
+    );
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+pub fn config(scene: PathBuf, input: InputConfig, trigger: TriggerConfig, governor: GovernorConfig) -> ServeConfig {
+    let text = "scene = \"x\"\n[stream]\nlisten = \"127.0.0.1:0\"\n";
+    let mut cfg: ServeConfig = toml::from_str(text).unwrap();
+    cfg.scene = scene;
+    cfg.input = input;
+    cfg.trigger = trigger;
+    cfg.governor = governor;
+    cfg.metrics.print_interval_s = 60.0;
+    cfg.validate().unwrap();
+    cfg
+}
+
+pub struct Running {
+    pub info: ServeInfo,
+    pub stop: oneshot::Sender<()>,
+    pub task: tokio::task::JoinHandle<anyhow::Result<ServeReport>>,
+}
+
+pub async fn start(cfg: ServeConfig, inputs: Option<mpsc::Receiver<InputEvent>>) -> Running {
+    let (ready_tx, ready_rx) = oneshot::channel();
+    let (stop, stop_rx) = oneshot::channel::<()>();
+    let task = tokio::spawn(run(cfg, Embed { inputs, ready: Some(ready_tx), max_frames: None }, stop_rx));
+    let info = tokio::time::timeout(PATIENCE, ready_rx).await.expect("server start").expect("server ready");
+    Running { info, stop, task }
+}
+
+impl Running {
+    pub async fn finish(self) -> ServeReport {
+        let _ = self.stop.send(());
+        tokio::time::timeout(PATIENCE, self.task).await.expect("server stops").unwrap().unwrap()
+    }
+}
+
+/// Read frames off a stream connection.
+pub struct Reader {
+    pub s: TcpStream,
+    pub buf: Vec<u8>,
+}
+
+impl Reader {
+    pub async fn connect(addr: std::net::SocketAddr) -> Reader {
+        Reader { s: TcpStream::connect(addr).await.unwrap(), buf: Vec::new() }
+    }
+
+    pub async fn next(&mut self) -> Frame {
+        let deadline = Instant::now() + PATIENCE;
+        loop {
+            match decode_frame(&self.buf) {
+                Ok((f, used)) => {
+                    self.buf.drain(..used);
+                    return f;
+                }
+                Err(DecodeError::Incomplete { .. }) => {}
+                Err(e) => panic!("bad frame: {e:?}"),
+            }
+            let mut chunk = vec![0u8; 1 << 16];
+            let left = deadline.saturating_duration_since(Instant::now());
+            let n = tokio::time::timeout(left, self.s.read(&mut chunk)).await.expect("frame in time").unwrap();
+            assert!(n > 0, "stream closed");
+            self.buf.extend_from_slice(&chunk[..n]);
+        }
+    }
+}
+
+pub fn radiance(f: &Frame) -> &[f32] {
+    match &f.pixels {
+        Pixels::Float32(v) => v,
+        other => panic!("expected float frames, got {:?}", other.format()),
+    }
+}
+
+pub fn pose(seq: u32, position: DVec3, sun: DVec3) -> Pose {
+    Pose { seq, t_ns: u64::from(seq) * 1_000_000, position, sun_dir: sun.normalize(), ..Pose::ahead(10.0) }
+}
