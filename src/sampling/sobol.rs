@@ -97,13 +97,14 @@ fn hash32(a: u64, b: u64) -> u32 {
 }
 
 /// The samples of one camera sample (pixel, index): 2-D points for successive dimension
-/// pairs. After `max_pairs` pairs it continues with independent random numbers.
+/// pairs. After `MAX_PAIRS` pairs it continues with independent random numbers, seeded
+/// only then (most paths never get there, and seeding costs as much as a pair).
 #[derive(Clone, Debug)]
 pub struct SobolStream {
     pixel_key: u64,
     index: u32,
     pair: u32,
-    rng: Rng,
+    rng: Option<Rng>,
 }
 
 /// Dimension pairs served by the sequence before falling back to independent numbers
@@ -113,13 +114,15 @@ const MAX_PAIRS: u32 = 16;
 impl SobolStream {
     pub fn new(seed: u64, frame: u64, pixel: u64, index: u32) -> Self {
         let pixel_key = mix64(seed ^ mix64(frame.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel)));
-        SobolStream { pixel_key, index, pair: 0, rng: Rng::for_sample(seed, frame, pixel, index) }
+        SobolStream { pixel_key, index, pair: 0, rng: None }
     }
 
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         if self.pair >= MAX_PAIRS {
-            return self.rng.next_2d();
+            let (key, index) = (self.pixel_key, self.index);
+            let rng = self.rng.get_or_insert_with(|| Rng::from_state(mix64(key ^ mix64(u64::from(index) + 1))));
+            return rng.next_2d();
         }
         let k = hash32(self.pixel_key, u64::from(self.pair));
         self.pair += 1;
@@ -182,6 +185,25 @@ mod tests {
         let n = 100_000;
         let mean: f64 = (0..n).map(|px| SobolStream::new(3, 0, px, 0).next_2d().y as f64).sum::<f64>() / n as f64;
         assert!((mean - 0.5).abs() < 0.004, "{mean}");
+    }
+
+    #[test]
+    fn past_the_last_pair_numbers_stay_uniform_and_distinct_per_sample() {
+        let n = 50_000u32;
+        let mut mean = 0.0f64;
+        let mut firsts = std::collections::HashSet::new();
+        for i in 0..n {
+            let mut s = SobolStream::new(9, 2, u64::from(i % 97), i);
+            for _ in 0..MAX_PAIRS {
+                s.next_2d();
+            }
+            let (a, b) = (s.next_2d(), s.next_2d());
+            assert_ne!(a, b);
+            firsts.insert(a.x.to_bits());
+            mean += f64::from(a.x + a.y + b.x + b.y) / 4.0;
+        }
+        assert!((mean / f64::from(n) - 0.5).abs() < 0.005, "{}", mean / f64::from(n));
+        assert!(firsts.len() as f64 > 0.99 * f64::from(n), "{} distinct of {n}", firsts.len());
     }
 
     #[test]
