@@ -1,8 +1,10 @@
 //! The frame loop: (scene, camera, pose, settings, frame index) → radiance image.
 //!
-//! Synchronous and pure; rayon parallelises over rows. Only pixels whose area can see the
-//! target's bounds are traced (the rest get the background radiance without any work),
-//! so a far, small target costs in proportion to the pixels it covers. Every random
+//! Synchronous and pure; rayon parallelises over bands of rows, each band is traced tile
+//! by tile in waves (`tile`). Only pixels whose area can see the target's bounds are
+//! sampled (per-row spans, `camera::Silhouette`; the rest get the background radiance
+//! without any work), so a far, small target costs in proportion to the pixels it
+//! covers. Every random
 //! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
 //! whatever the thread count.
 
