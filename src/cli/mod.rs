@@ -81,8 +81,44 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The error and its causes, `: `-separated, leaving out a cause whose text the message
+/// already quotes (library errors name their cause in their own text, so that a log line
+/// is complete; `{:#}` would print it twice).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let msg = cause.to_string();
+        if out.contains(&msg) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&msg);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::error_chain;
+
+    #[test]
+    fn a_cause_quoted_by_its_error_is_printed_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory (os error 2)");
+        let e = hilcam_scene_error(io);
+        assert_eq!(error_chain(&e), "scenes/x.toml: No such file or directory (os error 2)");
+        let ctx = anyhow::anyhow!("inner cause").context("while loading");
+        assert_eq!(error_chain(&ctx), "while loading: inner cause");
+    }
+
+    fn hilcam_scene_error(source: std::io::Error) -> anyhow::Error {
+        crate::scene::file::SceneError::Io { path: "scenes/x.toml".into(), source }.into()
     }
 }
