@@ -4,7 +4,8 @@
 mod common;
 use common::scenes::*;
 use hilcam::bench::trade::{
-    TradeGrid, TradePoint, best_for_error, best_for_fps, measure, pareto_front, relative_rmse, to_csv,
+    TradeGrid, TradePoint, best_for_error, best_for_fps, lit_quantile, measure, pareto_front, relative_rmse,
+    relative_rmse_up_to, to_csv,
 };
 use hilcam::film::RadianceImage;
 use hilcam::integrator::{RenderSettings, SamplerKind};
@@ -22,10 +23,16 @@ fn relative_rmse_matches_its_definition() {
     assert!((relative_rmse(&img, &reference) - want).abs() < 1e-6);
     assert_eq!(relative_rmse(&reference, &reference), 0.0);
     assert!(relative_rmse(&img, &RadianceImage::new(4, 1, 0.0)).is_nan());
+    // The body error leaves out reference pixels above the bound: here the 4.0 pixel.
+    let body = (0.08f64 / 2.0).sqrt() / 2.0;
+    assert!((relative_rmse_up_to(&img, &reference, 3.0) - body).abs() < 1e-6);
+    assert_eq!(lit_quantile(&reference, 0.0), 2.0);
+    assert_eq!(lit_quantile(&reference, 1.0), 4.0);
+    assert_eq!(lit_quantile(&RadianceImage::new(4, 1, 0.0), 0.5), f32::INFINITY);
 }
 
 fn pt(time_s: f64, rel_rmse: f64, spp: u32) -> TradePoint {
-    TradePoint { spp, depth: 1, sampler: SamplerKind::Cosine, time_s, rel_rmse }
+    TradePoint { spp, depth: 1, sampler: SamplerKind::Cosine, time_s, rel_rmse, rel_rmse_body: rel_rmse }
 }
 
 #[test]
@@ -67,6 +74,7 @@ fn tiny_grid_measures_and_its_front_is_monotone() {
     let (points, _) = measure(&pipeline, &pose, &grid, |_| seen += 1);
     assert_eq!((points.len(), seen), (16, 16));
     assert!(points.iter().all(|p| p.rel_rmse.is_finite() && p.rel_rmse > 0.0 && p.time_s > 0.0));
+    assert!(points.iter().all(|p| p.rel_rmse_body.is_finite() && p.rel_rmse_body > 0.0));
     // More samples, less error (same depth and sampler): 8 spp beats 1 spp.
     for d in [1, 4] {
         for s in [SamplerKind::Cosine, SamplerKind::Brdf] {

@@ -5,6 +5,13 @@
 //! The reference is the deepest setting (depth 4, many spp, BRDF sampling) rendered with
 //! another seed, so its noise is independent of the estimates'. Depth also changes the
 //! converged answer: the error of depth 1 and 2 includes their bias (missing bounces).
+//!
+//! Sub-pixel glints (a sharp lobe mirroring the sun from a facet that covers part of a
+//! pixel) are estimated by pixel-area sampling with a heavy tail: on the shipped
+//! satellite ten pixels out of ~10 000 hold > 99 % of the squared error at 1 spp. So a
+//! second error is reported beside it, the *body* error: the same relative RMSE over the
+//! lit pixels at or below the reference's 99.9th percentile (the glints, which a real
+//! detector clips, left out).
 
 use crate::film::RadianceImage;
 use crate::integrator::{RenderSettings, SamplerKind};
@@ -22,6 +29,15 @@ pub struct TradePoint {
     pub time_s: f64,
     /// Relative RMSE against the reference.
     pub rel_rmse: f64,
+    /// Relative RMSE over the reference's lit pixels at or below its 99.9th percentile.
+    pub rel_rmse_body: f64,
+}
+
+impl TradePoint {
+    /// This point ranked by its body error instead (for a front of the body error).
+    pub fn by_body_error(&self) -> TradePoint {
+        TradePoint { rel_rmse: self.rel_rmse_body, ..*self }
+    }
 }
 
 /// The grid to measure.
@@ -60,9 +76,14 @@ impl TradeGrid {
 /// Relative RMSE of `img` against `reference` over the pixels where the reference is
 /// > 0, divided by the reference mean there (NaN when no reference pixel is lit).
 pub fn relative_rmse(img: &RadianceImage, reference: &RadianceImage) -> f64 {
+    relative_rmse_up_to(img, reference, f32::INFINITY)
+}
+
+/// [`relative_rmse`] over the reference pixels in `(0, max]`.
+pub fn relative_rmse_up_to(img: &RadianceImage, reference: &RadianceImage, max: f32) -> f64 {
     let (mut se, mut sum, mut n) = (0.0f64, 0.0f64, 0u64);
     for (&x, &r) in img.data.iter().zip(&reference.data) {
-        if r > 0.0 {
+        if r > 0.0 && r <= max {
             let d = f64::from(x) - f64::from(r);
             se += d * d;
             sum += f64::from(r);
@@ -70,6 +91,16 @@ pub fn relative_rmse(img: &RadianceImage, reference: &RadianceImage) -> f64 {
         }
     }
     if n == 0 { f64::NAN } else { (se / n as f64).sqrt() / (sum / n as f64) }
+}
+
+/// The `q`-quantile (0…1) of the reference's lit (> 0) pixels; ∞ if none is lit.
+pub fn lit_quantile(reference: &RadianceImage, q: f64) -> f32 {
+    let mut lit: Vec<f32> = reference.data.iter().copied().filter(|&r| r > 0.0).collect();
+    if lit.is_empty() {
+        return f32::INFINITY;
+    }
+    lit.sort_by(f32::total_cmp);
+    lit[((lit.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize]
 }
 
 /// Render the reference, then every grid point; `progress` gets each point as measured.
@@ -87,19 +118,22 @@ pub fn measure(
         ..grid.base
     };
     let (reference, ref_stats) = pipeline.radiance(pose, &ref_settings, 0);
+    let body_max = lit_quantile(&reference, 0.999);
     let mut out = Vec::new();
     for &depth in &grid.depths {
         for &sampler in &grid.samplers {
             for &spp in &grid.spp {
                 let s = RenderSettings { spp, depth, sampler, ..grid.base };
                 let mut times = Vec::new();
-                let mut err = f64::NAN;
+                let (mut err, mut body) = (f64::NAN, f64::NAN);
                 for _ in 0..grid.rounds.max(1) {
                     let (img, st) = pipeline.radiance(pose, &s, 0);
                     times.push(st.time.as_secs_f64());
                     err = relative_rmse(&img, &reference);
+                    body = relative_rmse_up_to(&img, &reference, body_max);
                 }
-                let p = TradePoint { spp, depth, sampler, time_s: super::median(times), rel_rmse: err };
+                let time_s = super::median(times);
+                let p = TradePoint { spp, depth, sampler, time_s, rel_rmse: err, rel_rmse_body: body };
                 progress(&p);
                 out.push(p);
             }
@@ -132,19 +166,21 @@ pub fn best_for_error(front: &[TradePoint], error: f64) -> Option<TradePoint> {
     front.iter().find(|p| p.rel_rmse <= error).copied()
 }
 
-/// `spp,depth,sampler,time_s,rel_rmse,pareto` with one row per point.
+/// `spp,depth,sampler,time_s,rel_rmse,rel_rmse_body,pareto` with one row per point
+/// (`pareto`: on the front of `rel_rmse`).
 pub fn to_csv(points: &[TradePoint], front: &[TradePoint]) -> String {
-    let mut s = String::from("spp,depth,sampler,time_s,rel_rmse,pareto\n");
+    let mut s = String::from("spp,depth,sampler,time_s,rel_rmse,rel_rmse_body,pareto\n");
     for p in points {
         let on = front.iter().any(|f| f == p);
         let _ = writeln!(
             s,
-            "{},{},{},{:.6},{:.6},{}",
+            "{},{},{},{:.6},{:.6},{:.6},{}",
             p.spp,
             p.depth,
             sampler_name(p.sampler),
             p.time_s,
             p.rel_rmse,
+            p.rel_rmse_body,
             on as u8
         );
     }
