@@ -6,6 +6,7 @@
 //! `(cx, cy)` is the principal point's offset from the array centre, in pixels.
 
 pub mod distortion;
+mod lens_spans;
 pub mod silhouette;
 pub mod view;
 

@@ -17,12 +17,14 @@
 //! that hull between the extreme abscissae of the corners inside the band and of the
 //! band edges' crossings of the 28 corner-to-corner segments (the hull's edges are among
 //! them; the other segments lie inside it). A span is the intersection of both bounds.
+//! Through a distorting lens the same two regions are bent; `lens_spans` bounds them.
 
 use super::View;
+use super::lens_spans::lens_spans;
 use glam::DVec3;
 
 /// The bounding sphere's image, ready to answer per-row column spans.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Silhouette {
     c: DVec3,
     /// `|c|² − r²`.
@@ -32,6 +34,8 @@ pub struct Silhouette {
     right: (f64, f64),
     /// Projected box corners `(u, v)`, when all eight lie in front of the camera.
     corners: Option<[(f64, f64); 8]>,
+    /// Through a distorting lens: per-row pixel x-ranges (`lens_spans`), used instead.
+    lens: Option<Vec<(f64, f64)>>,
     pp: [f64; 2],
     focal_px: f64,
     width: u32,
@@ -39,14 +43,15 @@ pub struct Silhouette {
 
 /// Columns added on each side of a span: the roots are rounded, the span never narrowed.
 const MARGIN_PX: f64 = 1.0;
+/// Through a lens the boundaries are sampled: a wider margin covers chords and Newton's
+/// tolerance in the renderer's undistortion.
+const LENS_MARGIN_PX: f64 = 2.0;
 
 impl Silhouette {
-    /// `None` when the span test does not apply: a distorting lens, or a sphere not wholly
-    /// in front of the camera (its image is then not an ellipse); use the rectangle then.
+    /// `None` when the span test does not apply: a sphere not wholly in front of the
+    /// camera (its image is then not an ellipse), or, through a lens, bounds reaching
+    /// beyond the field the lens is valid over; use the rectangle then.
     pub fn new(view: &View) -> Option<Silhouette> {
-        if view.distortion.is_some() {
-            return None;
-        }
         let c = view.cam_to_render.transpose() * (view.bounds.centre - view.origin);
         let r = view.bounds.radius;
         if c.z.is_nan() || c.z <= r * 1.000_001 {
@@ -74,14 +79,28 @@ impl Silhouette {
             in_front &= q.z > 0.0;
             *out = (q.x / q.z, q.y / q.z);
         }
+        let corners = in_front.then_some(corners);
+        let focal_px = 1.0 / view.inv_focal_px;
+        let lens = match &view.distortion {
+            None => None,
+            Some(d) => {
+                // The field `Distortion::validate` is run over by the sensor config: the
+                // half-diagonal from the principal point, 5 % margin, normalised.
+                let hw = f64::from(view.width) / 2.0 + (view.pp[0] - f64::from(view.width) / 2.0).abs();
+                let hh = f64::from(view.height) / 2.0 + (view.pp[1] - f64::from(view.height) / 2.0).abs();
+                let max_r = 1.05 * (hw * hw + hh * hh).sqrt() / focal_px;
+                Some(lens_spans(d, c, r, corners.as_ref(), view.pp, focal_px, view.height, max_r)?)
+            }
+        };
         Some(Silhouette {
             c,
             k,
             left: (ul, v_at(ul)),
             right: (ur, v_at(ur)),
-            corners: in_front.then_some(corners),
+            corners,
+            lens,
             pp: view.pp,
-            focal_px: 1.0 / view.inv_focal_px,
+            focal_px,
             width: view.width,
         })
     }
@@ -104,6 +123,10 @@ impl Silhouette {
     /// Columns `[col0, col1)` of pixel row `row` whose area `[col, col+1) × [row, row+1)`
     /// can meet the sphere's image (one pixel of margin), or `None` if none can.
     pub fn columns(&self, row: u32) -> Option<(u32, u32)> {
+        if let Some(rows) = &self.lens {
+            let &(lo, hi) = rows.get(row as usize)?;
+            return self.to_columns(lo, hi, LENS_MARGIN_PX);
+        }
         let v_of = |y: f64| (y - self.pp[1]) / self.focal_px;
         let (v0, v1) = (v_of(f64::from(row)), v_of(f64::from(row) + 1.0));
         // The u-extremes of (ellipse ∩ band) lie on the band's edges or at the ellipse's
@@ -125,11 +148,16 @@ impl Silhouette {
             lo = lo.max(blo);
             hi = hi.min(bhi);
         }
+        self.to_columns(lo * self.focal_px + self.pp[0], hi * self.focal_px + self.pp[0], MARGIN_PX)
+    }
+
+    /// Pixel x-range → columns `[col0, col1)` with `margin` on each side.
+    fn to_columns(&self, lo: f64, hi: f64, margin: f64) -> Option<(u32, u32)> {
         if lo > hi {
             return None;
         }
-        let x0 = (lo * self.focal_px + self.pp[0]).floor() - MARGIN_PX;
-        let x1 = (hi * self.focal_px + self.pp[0]).ceil() + MARGIN_PX;
+        let x0 = lo.floor() - margin;
+        let x1 = hi.ceil() + margin;
         let w = f64::from(self.width);
         let (c0, c1) = (x0.clamp(0.0, w) as u32, x1.clamp(0.0, w) as u32);
         (c0 < c1).then_some((c0, c1))
