@@ -171,6 +171,7 @@ class HilcamScene:
     parts: list[MeshPart]
     materials: dict[str, float]  # name → Lambert ρ
     lambertized: dict[str, str] = field(default_factory=dict)
+    distortion: dict = field(default_factory=dict)  # the camera's non-zero Brown–Conrady terms (dropped)
     sun_irradiance: float = 593.1
     background: float = 0.0
     camera: Camera | None = None
@@ -282,9 +283,24 @@ def read_obj(path: Path):
     return positions, groups
 
 
+# Material presets (src/bsdf/spec.rs `BsdfSpec::build`): the fields a preset supplies when
+# the scene file does not give them. Only the scalar diffuse ones matter here.
+PRESETS = {
+    ("lambert", "white_paint"): {"rho": 0.522},
+    ("lambert", "gold_polyimide"): {"rho": 0.3717},
+    ("blinn_phong", "gold_polyimide"): {"rho_d": 0.3717},
+    ("improved_blinn_phong", "gold_polyimide"): {"rho_d": 0.3717},
+    ("cook_torrance", "gold_polyimide"): {"rho_d": 0.3717},
+}
+
+
 def lambert_albedo(name: str, spec: dict, lambertize: bool, overrides: dict[str, float]):
     """ρ of a material; a non-Lambert one only with --lambertize (→ stated albedo)."""
     model = spec.get("model")
+    if "preset" in spec:
+        if (model, spec["preset"]) not in PRESETS:
+            raise ExportError(f"material `{name}`: preset `{spec['preset']}` of model `{model}` unknown to the exporter")
+        spec = {**PRESETS[(model, spec["preset"])], **spec}
     if model == "lambert":
         return float(spec["rho"]), None
     if not lambertize:
@@ -314,10 +330,15 @@ def load_scene(path: Path, lambertize: bool = False, overrides: dict[str, float]
         if note:
             lamb[name] = note
     if src.get("camera") is not None:
-        c = src["camera"]
+        c, file_sensor = src["camera"], {}
     else:
-        c = tomllib.loads((base / src["camera_file"]).read_text())["camera"]
+        cf = tomllib.loads((base / src["camera_file"]).read_text())
+        c, file_sensor = cf["camera"], cf.get("sensor", {})
     cam = Camera(c["width"], c["height"], c["pitch_um"], c["focal_mm"], tuple(c.get("principal_point_px", (0.0, 0.0))))
+    # `hilcam render` applies [sensor.optics] distortion (the scene's [sensor], else the camera
+    # file's) to the rendered rays even without --sensor (src/pipeline.rs `radiance`).
+    sensor = src.get("sensor", file_sensor)
+    distortion = {k: v for k, v in (sensor.get("optics", {}).get("distortion") or {}).items() if v != 0}
     parts, raw = [], []
     for k, e in enumerate(src.get("mesh", [])):
         raw.append(dict(e, obj=str((base / e["obj"]).resolve())))
@@ -339,6 +360,7 @@ def load_scene(path: Path, lambertize: bool = False, overrides: dict[str, float]
         parts=parts,
         materials=mats,
         lambertized=lamb,
+        distortion=distortion,
         sun_irradiance=float(src.get("sun", {}).get("irradiance", 593.1)),
         background=float(src.get("background", {}).get("radiance", 0.0)),
         camera=cam,
@@ -376,7 +398,9 @@ def write_part_obj(part: MeshPart, path: Path) -> None:
             f.write(f"f {remap[a] + 1} {remap[b] + 1} {remap[c] + 1}\n")
 
 
-def mitsuba_scene(mi, sc: HilcamScene, cam: Camera, depth: int, sampler: str, spp: int, mesh_dir: Path) -> dict:
+def mitsuba_scene(
+    mi, sc: HilcamScene, cam: Camera, depth: int, sampler: str, spp: int, mesh_dir: Path, roulette: bool = False
+) -> dict:
     """The Mitsuba 3 scene dict that renders what `hilcam render` renders.
 
     Image orientation: hilcam's camera frame has +X toward increasing column and +Y toward
@@ -436,8 +460,16 @@ def mitsuba_scene(mi, sc: HilcamScene, cam: Camera, depth: int, sampler: str, sp
         sensor["principal_point_offset_y"] = -cam.pp[1] / cam.height
     d = {
         "type": "scene",
-        # hilcam runs with --no-roulette: keep Mitsuba's off too (rr_depth past max_depth).
-        "integrator": {"type": "path", "max_depth": depth + 1, "rr_depth": depth + 2, "hide_emitters": True},
+        # Without --roulette hilcam runs with --no-roulette and Mitsuba's is off too (rr_depth
+        # past max_depth). With it, both play roulette on the path continuation sampled at the
+        # second surface interaction and later (hilcam: bounce ≥ 1, survival min(β, 1);
+        # Mitsuba: depth ≥ rr_depth = 2 counted after the interaction, survival min(β, 0.95)).
+        "integrator": {
+            "type": "path",
+            "max_depth": depth + 1,
+            "rr_depth": 2 if roulette else depth + 2,
+            "hide_emitters": True,
+        },
         "sensor": sensor,
         "sun": {
             "type": "directional",
@@ -484,17 +516,19 @@ SUMMARY = re.compile(r": ([0-9.]+) s, (\d+) rays \(([0-9.]+) Mrays/s\)")
 
 
 class Hilcam:
-    def __init__(self, exe: Path, scene_file: Path, cam: Camera, depth: int, sampler: str, tmp: Path):
-        self.exe, self.scene_file, self.cam, self.depth, self.sampler, self.tmp = exe, scene_file, cam, depth, sampler, tmp
+    def __init__(
+        self, exe: Path, scene_file: Path, cam: Camera, depth: int, sampler: str, sequence: str, tmp: Path, roulette=False
+    ):
+        self.exe, self.scene_file, self.cam, self.depth, self.tmp = exe, scene_file, cam, depth, tmp
+        self.sampler, self.sequence, self.roulette = sampler, sequence, roulette
 
     def render(self, spp: int, seed: int, scene_file: Path | None = None):
         out = self.tmp / "hilcam.pfm"
         cmd = [
             str(self.exe), "render", str(scene_file or self.scene_file), "--out", str(out),
-            "--spp", str(spp), "--depth", str(self.depth), "--sampler", self.sampler, "--seed", str(seed),
+            "--spp", str(spp), "--depth", str(self.depth), "--sampler", self.sampler, "--sequence", self.sequence, "--seed", str(seed),
             "--width", str(self.cam.width), "--height", str(self.cam.height),
-            "--no-roulette",  # Mitsuba runs with rr_depth past max_depth: neither uses roulette
-        ]  # fmt: skip
+        ] + ([] if self.roulette else ["--no-roulette"])  # fmt: skip
         r = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if r.returncode != 0:
             raise RuntimeError(f"hilcam failed: {' '.join(cmd)}\n{r.stderr}")
@@ -522,6 +556,18 @@ class Mitsuba:
         img = np.array(mi.render(self.scene, spp=spp, seed=seed))
         t = time.perf_counter() - t0
         return img[..., 0].astype(np.float64), t
+
+    def render_passes(self, spp: int, seed: int, pass_spp: int):
+        """The mean of ceil(spp / pass_spp) renders with distinct seeds (a 1024² launch at
+        thousands of spp would exceed drjit's 2³² wavefront limit and this machine's memory)."""
+        n = max(1, math.ceil(spp / pass_spp))
+        t0 = time.perf_counter()
+        acc = None
+        for k in range(n):
+            s = min(pass_spp, spp - k * pass_spp)
+            img = self.np.array(self.mi.render(self.scene, spp=s, seed=seed + 7919 * k))[..., 0].astype(self.np.float64)
+            acc = img * s if acc is None else acc + img * s
+        return acc / spp, time.perf_counter() - t0
 
 
 def rel_rmse(img, ref) -> float:
@@ -623,8 +669,10 @@ def verify(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Pat
     """Both renderers at high spp on a small image: image and mean radiance must agree."""
     cam = sc.camera.scaled(args.verify_width, None)
     checks = []
-    h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, tmp)
-    m = Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, args.sampler, args.verify_spp, tmp / "meshes"))
+    h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette)
+    m = Mitsuba(
+        mi, np, mitsuba_scene(mi, sc, cam, depth, args.sampler[0], args.verify_spp, tmp / "meshes", args.roulette)
+    )
     a, _ = h.render(args.verify_spp, seed=777)
     b, _ = m.render(args.verify_spp, seed=777)
     tag = f"{scene_path.name} {cam.width}x{cam.height} depth {depth} @ {args.verify_spp} spp"
@@ -705,16 +753,22 @@ def interp_time(points: list[tuple[float, float]], err: float) -> float | None:
 
 def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path, exe: Path) -> list[dict]:
     cam = sc.camera.scaled(args.width, args.height)
-    tag = f"{scene_path.stem}_{cam.width}x{cam.height}_d{depth}_{args.sampler}"
-    h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, tmp)
-    m = Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, args.sampler, 1, tmp / "meshes"))
+    rr = "_rr" if args.roulette else ""
+    tag = f"{scene_path.stem}_{cam.width}x{cam.height}_d{depth}{rr}_{'+'.join(args.sampler)}"
+    h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette)
+    ms = {
+        smp: Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, smp, 1, tmp / "meshes", args.roulette))
+        for smp in args.sampler
+    }
 
     log(
-        f"\n== {scene_path.name}: {cam.width}x{cam.height}, depth {depth}, hilcam sampler {args.hilcam_sampler}, Mitsuba sampler {args.sampler}"
+        f"\n== {scene_path.name}: {cam.width}x{cam.height}, depth {depth}, hilcam {args.hilcam_sequence} sequence + "
+        f"{args.hilcam_sampler} bounces, Mitsuba sampler {', '.join(args.sampler)}, "
+        f"Russian roulette {'on in both' if args.roulette else 'off in both'}"
     )
     t0 = time.perf_counter()
     ref_h, th = h.render(args.ref_spp, seed=1_000_003)
-    ref_m, tm = m.render(args.ref_spp, seed=1_000_003)
+    ref_m, tm = ms[args.sampler[0]].render_passes(args.ref_spp, 1_000_003, args.ref_pass_spp)
     ref = 0.5 * (ref_h + ref_m)
     # The reference's own noise adds to every measured error: E|img − ref|² = err² + var(ref).
     # With independent halves, var(ref) ≈ |ref_h − ref_m|² / 4 (no bias between them, which
@@ -722,27 +776,34 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
     mask = ref > 0
     ref_noise = float(np.sqrt(np.mean((ref_h[mask] - ref_m[mask]) ** 2) / 4) / np.mean(ref[mask]))
     log(
-        f"reference: mean of hilcam and Mitsuba at {args.ref_spp} spp each (hilcam {th:.2f} s, Mitsuba {tm:.2f} s; "
-        f"they differ by rel. RMSE {_rel_diff(ref_h, ref_m) * 100:.2f} %, wall {time.perf_counter() - t0:.0f} s); "
-        f"reference noise {ref_noise * 100:.3f} % (subtracted in quadrature from each error)"
+        f"reference: mean of hilcam and Mitsuba ({args.sampler[0]}) at {args.ref_spp} spp each (hilcam {th:.2f} s, "
+        f"Mitsuba {tm:.2f} s; they differ by rel. RMSE {_rel_diff(ref_h, ref_m) * 100:.2f} %, wall "
+        f"{time.perf_counter() - t0:.0f} s); reference noise {ref_noise * 100:.3f} % (subtracted in quadrature)"
     )
 
+    renderers = [("hilcam", args.hilcam_sequence, h)] + [("mitsuba", smp, m) for smp, m in ms.items()]
     rows = []
     for spp in args.spp:
         for rep in range(args.reps):
             seed = 1 + rep
-            # Alternate renderers (order flipped every repetition) so machine load hits both.
-            order = [("hilcam", h), ("mitsuba", m)] if rep % 2 == 0 else [("mitsuba", m), ("hilcam", h)]
-            for name, r in order:
+            # Alternate renderers (order rotated every repetition) so machine load hits all.
+            k = rep % len(renderers)
+            for name, smp, r in renderers[k:] + renderers[:k]:
+                if not timed(name, smp, spp):
+                    continue
                 img, t = r.render(spp, seed)
                 raw = rel_rmse(img, ref)
                 rows.append({"scene": scene_path.stem, "width": cam.width, "height": cam.height, "depth": depth,
-                                 "sampler": args.sampler, "renderer": name, "spp": spp, "rep": rep, "time_s": t,
-                                 "rel_rmse_raw": raw, "rel_rmse": math.sqrt(max(0.0, raw**2 - ref_noise**2))})  # fmt: skip
+                             "sampler": smp, "renderer": name, "spp": spp, "rep": rep, "time_s": t,
+                             "rel_rmse_raw": raw, "rel_rmse": math.sqrt(max(0.0, raw**2 - ref_noise**2)),
+                             "ref_noise": ref_noise})  # fmt: skip
         cur = [r for r in rows if r["spp"] == spp]
-        ht = statistics.median(r["time_s"] for r in cur if r["renderer"] == "hilcam")
-        mt = statistics.median(r["time_s"] for r in cur if r["renderer"] == "mitsuba")
-        log(f"  spp {spp:>4}: hilcam {ht * 1e3:9.2f} ms   Mitsuba {mt * 1e3:9.2f} ms")
+        times = "   ".join(
+            f"{label(n, smp)} {statistics.median(r['time_s'] for r in cur if (r['renderer'], r['sampler']) == (n, smp)) * 1e3:9.2f} ms"
+            for n, smp, _ in renderers
+            if timed(n, smp, spp)
+        )
+        log(f"  spp {spp:>4}: {times}")
 
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     with (OUT_DIR / f"{tag}.csv").open("w", newline="") as f:
@@ -755,10 +816,34 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
     return rows
 
 
-def curve(rows, renderer):
+def mitsuba_spp(sampler: str, spp: int) -> int:
+    """The sample count Mitsuba really takes: `multijitter` rounds up to a near-square grid
+    (resx = ⌊√spp⌋, resy = ⌈spp/resx⌉; 32 → 35, 128 → 132, with a warning) and is then also
+    several times slower per sample (measured: 2.5× at 32 and 128), so such counts are skipped."""
+    if sampler != "multijitter":
+        return spp
+    rx = max(1, math.isqrt(spp))
+    return rx * -(-spp // rx)
+
+
+def timed(renderer: str, sampler: str, spp: int) -> bool:
+    return renderer == "hilcam" or mitsuba_spp(sampler, spp) == spp
+
+
+def label(renderer: str, sampler: str) -> str:
+    return "hilcam" if renderer == "hilcam" else f"Mitsuba[{sampler}]"
+
+
+def mitsuba_samplers(rows) -> list[str]:
+    return list(dict.fromkeys(r["sampler"] for r in rows if r["renderer"] == "mitsuba"))
+
+
+def curve(rows, renderer, sampler=None):
     out = []
-    for spp in sorted({r["spp"] for r in rows}):
-        cur = [r for r in rows if r["spp"] == spp and r["renderer"] == renderer]
+    sel = [r for r in rows if r["renderer"] == renderer and (sampler is None or r["sampler"] == sampler)]
+    sel = [r for r in sel if timed(r["renderer"], r["sampler"], r["spp"])]
+    for spp in sorted({r["spp"] for r in sel}):
+        cur = [r for r in sel if r["spp"] == spp]
         # Median time; error as the RMS over repetitions (its expectation is what matters).
         t = statistics.median(r["time_s"] for r in cur)
         e = math.sqrt(statistics.mean(r["rel_rmse"] ** 2 for r in cur))
@@ -767,24 +852,42 @@ def curve(rows, renderer):
 
 
 def report(rows, tag):
-    hc, mc = curve(rows, "hilcam"), curve(rows, "mitsuba")
-    log(f"\n{tag}  (median of {max(r['rep'] for r in rows) + 1} alternate runs; error = rel. RMSE vs reference over lit pixels)")
-    log("| spp | hilcam ms | hilcam err % | Mitsuba ms | Mitsuba err % | time ratio M/h |")
-    log("|---:|---:|---:|---:|---:|---:|")
-    for (spp, ht, he), (_, mt, me) in zip(hc, mc):
-        log(f"| {spp} | {ht * 1e3:.2f} | {he * 100:.2f} | {mt * 1e3:.2f} | {me * 100:.2f} | {mt / ht:.2f} |")
+    """Print the table and the equal-error ratios; returns [(sampler, err, t_hilcam, t_mitsuba)]."""
+    hc = curve(rows, "hilcam")
+    smps = mitsuba_samplers(rows)
+    mcs = {smp: curve(rows, "mitsuba", smp) for smp in smps}
+    noise = {r.get("ref_noise") for r in rows if r.get("ref_noise") not in (None, "")}
+    note = f"; reference noise {float(next(iter(noise))) * 100:.3f} % subtracted" if len(noise) == 1 else ""
+    log(f"\n{tag}  (median of {max(r['rep'] for r in rows) + 1} alternate runs; error = rel. RMSE vs reference over lit pixels{note})")
+    head = "| spp | hilcam ms | hilcam err % |" + "".join(
+        f" M[{smp}] ms | M[{smp}] err % | ratio M/h |" for smp in smps
+    )
+    log(head)
+    log("|" + "---:|" * (3 + 3 * len(smps)))
+    by_spp = {spp: (t, e) for spp, t, e in hc}
+    for spp, ht, he in hc:
+        cells = f"| {spp} | {ht * 1e3:.1f} | {he * 100:.2f} |"
+        for smp in smps:
+            m = {s: (t, e) for s, t, e in mcs[smp]}.get(spp)
+            cells += f" {m[0] * 1e3:.1f} | {m[1] * 100:.2f} | {m[0] / by_spp[spp][0]:.2f} |" if m else " | | |"
+        log(cells)
     hp = [(t, e) for _, t, e in hc]
-    mp = [(t, e) for _, t, e in mc]
     summary = []
-    log("equal-error speed ratio (Mitsuba time / hilcam time; > 1 means hilcam is faster):")
-    for err in EQUAL_ERRORS:
-        th, tm = interp_time(hp, err), interp_time(mp, err)
-        if th and tm:
-            log(f"  at {err * 100:4.0f} % error: hilcam {th * 1e3:9.2f} ms, Mitsuba {tm * 1e3:9.2f} ms, ratio {tm / th:.2f}")
-            summary.append((err, th, tm))
-        else:
-            missing = " and ".join(n for n, v in (("hilcam", th), ("Mitsuba", tm)) if not v)
-            log(f"  at {err * 100:4.0f} % error: outside the measured range of {missing}")
+    for smp in smps:
+        mp = [(t, e) for _, t, e in mcs[smp]]
+        log(f"equal-error speed ratio vs Mitsuba[{smp}] (Mitsuba time / hilcam time; > 1 means hilcam is faster):")
+        for err in EQUAL_ERRORS:
+            th, tm = interp_time(hp, err), interp_time(mp, err)
+            if th and tm:
+                log(f"  at {err * 100:4.0f} % error: hilcam {th * 1e3:9.2f} ms, Mitsuba {tm * 1e3:9.2f} ms, ratio {tm / th:.2f}")
+                summary.append((smp, err, th, tm))
+            else:
+                missing = " and ".join(n for n, v in (("hilcam", th), ("Mitsuba", tm)) if not v)
+                log(f"  at {err * 100:4.0f} % error: outside the measured range of {missing}")
+    for who, pts in [("hilcam", hp)] + [(f"Mitsuba[{smp}]", [(t, e) for _, t, e in mcs[smp]]) for smp in smps]:
+        c = curve(rows, "hilcam") if who == "hilcam" else mcs[who[8:-1]]
+        t10, s10 = interp_time(pts, 0.10), interp_time([(spp, e) for spp, _, e in c], 0.10)
+        log(f"  {who} reaches 10 % at " + (f"{t10 * 1e3:.1f} ms ({1 / t10:.1f} frames/s), {s10:.1f} spp" if t10 else "(outside the measured range)"))
     return summary
 
 
@@ -795,9 +898,13 @@ def plot(rows, summary, tag):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    for name, label, style in (("hilcam", "hilcam", "o-"), ("mitsuba", "Mitsuba 3 (llvm_ad_mono)", "s-")):
-        c = curve(rows, name)
-        ax.loglog([t for _, t, _ in c], [e * 100 for _, _, e in c], style, label=label)
+    lines = [("hilcam", None, "hilcam", "o-")] + [
+        ("mitsuba", smp, f"Mitsuba 3 (llvm_ad_mono, {smp})", st)
+        for smp, st in zip(mitsuba_samplers(rows), ("s-", "^-", "v-"))
+    ]
+    for name, smp, text, style in lines:
+        c = curve(rows, name, smp)
+        ax.loglog([t for _, t, _ in c], [e * 100 for _, _, e in c], style, label=text)
         for spp, t, e in c:
             ax.annotate(str(spp), (t, e * 100), textcoords="offset points", xytext=(4, 4), fontsize=7)
     ax.set_xlabel("render time per frame (s)")
@@ -815,11 +922,15 @@ def plot(rows, summary, tag):
 
 
 def hilcam_scene_file(path: Path, sc: HilcamScene, tmp: Path) -> Path:
-    """The file hilcam renders: the scene itself, or its all-Lambert copy if lambertized."""
-    if not sc.lambertized:
+    """The file hilcam renders: the scene itself, or a rewritten copy (all-Lambert, pinhole
+    camera) if materials were lambertized or the camera has lens distortion, which Mitsuba's
+    `perspective` sensor cannot model (the copy's [camera] has no distortion)."""
+    if not sc.lambertized and not sc.distortion:
         return path
     for name, note in sc.lambertized.items():
         log(f"NOTE: --lambertize: material `{name}`: {note} (for both renderers)")
+    if sc.distortion:
+        log(f"NOTE: camera distortion {sc.distortion} dropped: both renderers render a pinhole camera")
     out = tmp / f"{path.stem}.toml"
     out.write_text(sc.lambert_toml())
     return out
@@ -834,12 +945,29 @@ def main() -> int:
     ap.add_argument("--width", type=int, default=None, help="image width (default: the camera's)")
     ap.add_argument("--height", type=int, default=None)
     ap.add_argument("--ref-spp", type=int, default=1024, help="spp of each half of the reference")
-    ap.add_argument("--sampler", choices=["independent", "multijitter"], default="independent", help="Mitsuba's sampler")
+    ap.add_argument("--ref-pass-spp", type=int, default=256, help="Mitsuba's reference is rendered in passes of this many spp")
+    ap.add_argument(
+        "--sampler",
+        choices=["independent", "multijitter"],
+        action="append",
+        help="Mitsuba's sampler (repeatable: each is timed in the same alternation; default independent)",
+    )
+    ap.add_argument(
+        "--hilcam-sequence",
+        choices=["sobol", "independent"],
+        default="sobol",
+        help="hilcam's random-number sequence (default sobol, hilcam's own default)",
+    )
     ap.add_argument(
         "--hilcam-sampler",
         choices=["cosine", "uniform", "brdf"],
         default="cosine",
         help="hilcam's bounce sampler (cosine = Mitsuba's diffuse BSDF sampling)",
+    )
+    ap.add_argument(
+        "--roulette",
+        action="store_true",
+        help="Russian roulette in both (hilcam's default; Mitsuba rr_depth = 2) instead of off in both",
     )
     ap.add_argument("--verify-spp", type=int, default=1024)
     ap.add_argument("--verify-width", type=int, default=256)
@@ -856,11 +984,12 @@ def main() -> int:
         bootstrap()  # for matplotlib
         with args.report.open() as f:
             rows = [
-                {k: (float(v) if k in ("time_s", "rel_rmse", "rel_rmse_raw") else int(v) if k in ("spp", "rep", "width", "height", "depth") else v) for k, v in r.items()}
+                {k: (float(v) if k in ("time_s", "rel_rmse", "rel_rmse_raw", "ref_noise") else int(v) if k in ("spp", "rep", "width", "height", "depth") else v) for k, v in r.items()}
                 for r in csv.DictReader(f)
             ]  # fmt: skip
         plot(rows, report(rows, args.report.stem), args.report.stem)
         return 0
+    args.sampler = list(dict.fromkeys(args.sampler or ["independent"]))
     if args.quick:
         args.width, args.spp, args.reps, args.ref_spp = 128, [1, 2, 4, 8, 16], 2, 256
         args.verify_width, args.verify_spp = 128, 1024
