@@ -111,6 +111,8 @@ fn bench_sampling_runs_on_a_tiny_image() {
         seed: 0,
         fold_seed: 0,
         sobol: false,
+        sun: 100.0,
+        sky: 0.0,
         out: None,
     };
     let res = run_table1(&cfg).unwrap();

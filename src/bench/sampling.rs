@@ -4,7 +4,8 @@
 //!
 //! The scene is the paper's §3.2 set-up: a fold plane (1 m-radius disk, normal +X) seen
 //! along its normal by a far camera with a long focal length (nearly orthographic; the
-//! disk fills the frame), a parallel sun at θi from the normal, black sky. RMSE is the
+//! disk fills the frame), a parallel sun at θi from the normal, a uniform sky (black by
+//! default; [`PlaneCase::with_sky`]) that escaping rays collect. RMSE is the
 //! absolute radiance error (W·sr⁻¹·m⁻²) over the pixels whose centre ray hits the disk,
 //! against a converged reference of the same scene rendered as two independent halves, so
 //! the reference's own noise is measured (`ref_noise`) rather than assumed.
@@ -86,8 +87,22 @@ impl PlaneCase {
 
     /// The paper's Table 1 scene: Lambert 0.3717, 100 W/m² at θi = 10°.
     pub fn paper_lambert(mesh: TriMesh, size: u32) -> PlaneCase {
+        PlaneCase::paper_lambert_lit(mesh, size, PAPER_IRRADIANCE, 0.0)
+    }
+
+    /// The paper's Table 1 scene with the sun irradiance `sun` (W/m²) and a uniform sky of
+    /// radiance `sky` (W·sr⁻¹·m⁻²) collected by escaping rays: the reading of §3.2 / Fig. 2
+    /// in which the source's "radiance 100" is also what an escaped ray accumulates.
+    pub fn paper_lambert_lit(mesh: TriMesh, size: u32, sun: f64, sky: f64) -> PlaneCase {
         let bsdf = Bsdf::Lambert(Lambert::new(PAPER_RHO).expect("0.3717 is a valid albedo"));
-        PlaneCase::new(mesh, bsdf, PAPER_IRRADIANCE, 10.0, size)
+        PlaneCase::new(mesh, bsdf, sun, 10.0, size).with_sky(sky)
+    }
+
+    /// This case with escaping rays collecting a uniform sky of radiance `sky`
+    /// (W·sr⁻¹·m⁻²): the scene's background radiance.
+    pub fn with_sky(mut self, sky: f64) -> PlaneCase {
+        self.scene.background = sky as f32;
+        self
     }
 
     /// Render with `settings`; returns the image and the wall time (s).
@@ -126,6 +141,8 @@ pub struct Reference {
     pub direct: RadianceImage,
     /// RMS error of the averaged reference itself, estimated as rms(A − B)/2.
     pub noise: f64,
+    /// Mean radiance of `image` over the disk pixels (the scale the RMSEs compare with).
+    pub mean: f64,
     pub spp: u32,
     pub time_s: f64,
 }
@@ -137,8 +154,11 @@ pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u
     let (b, tb) = case.render(&s(2_000_003));
     let noise = rmse(&a, &b, &case.mask) / 2.0;
     let direct = |seed| case.render(&RenderSettings { depth: 1, ..s(seed) }).0;
+    let image = average(&a, &b);
+    let disk: Vec<f64> = image.data.iter().zip(&case.mask).filter(|(_, m)| **m).map(|(v, _)| f64::from(*v)).collect();
     Reference {
-        image: average(&a, &b),
+        mean: disk.iter().sum::<f64>() / disk.len().max(1) as f64,
+        image,
         direct: average(&direct(1_000_001), &direct(2_000_003)),
         noise,
         spp: 2 * half_spp,
@@ -331,6 +351,40 @@ mod tests {
                 if (-1..=1).all(|dr| (-1..=1).all(|dc| inside(c + dc, r + dr))) {
                     let v = f64::from(img.data[(r * 16 + c) as usize]);
                     assert!((v - want).abs() < 1e-3 * want, "pixel ({c}, {r}): {v} vs {want}");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 100, "{checked}");
+    }
+
+    #[test]
+    fn sky_lights_escaping_rays_of_the_bench_scene() {
+        // Flat disk, sun 100 W/m² at 10° and sky L: a fully covered pixel sees
+        // ρ·E·cosθi/π + ρ·L. Cosine sampling of a Lambert plate under a uniform sky has zero
+        // variance (f·cos/pdf = ρ), so with depth 2 every interior pixel is exact.
+        let (sun, sky) = (100.0, 50.0);
+        let rho = f64::from(PAPER_RHO);
+        let want = rho * sun * 10f64.to_radians().cos() / std::f64::consts::PI + rho * sky;
+        assert_eq!(PlaneCase::paper_lambert(crate::fold::disk::reference_disk(), 8).scene.background, 0.0);
+        let case = PlaneCase::paper_lambert_lit(crate::fold::disk::reference_disk(), 16, sun, sky);
+        assert_eq!(case.scene.background, sky as f32);
+        let s = RenderSettings {
+            spp: 4,
+            depth: 2,
+            sampler: SamplerKind::Cosine,
+            sequence: Sequence::Independent,
+            roulette: false,
+            seed: 5,
+        };
+        let (img, _) = case.render(&s);
+        let inside = |c: i32, r: i32| (0..16).contains(&c) && (0..16).contains(&r) && case.mask[(r * 16 + c) as usize];
+        let mut checked = 0;
+        for r in 0..16 {
+            for c in 0..16 {
+                if (-1..=1).all(|dr| (-1..=1).all(|dc| inside(c + dc, r + dr))) {
+                    let v = f64::from(img.data[(r * 16 + c) as usize]);
+                    assert!((v - want).abs() < 1e-4 * want, "pixel ({c}, {r}): {v} vs {want}");
                     checked += 1;
                 }
             }

@@ -50,6 +50,10 @@ pub struct Table1Config {
     pub fold_seed: u64,
     /// Also run every sampler with the Sobol sequence (what stratification adds).
     pub sobol: bool,
+    /// Sun irradiance, W/m² (the paper: 100).
+    pub sun: f64,
+    /// Radiance of the uniform sky escaping rays collect, W·sr⁻¹·m⁻² (0: black).
+    pub sky: f64,
     pub out: Option<PathBuf>,
 }
 
@@ -59,6 +63,8 @@ pub struct LevelResult {
     pub disk_pixels: usize,
     pub ref_spp: u32,
     pub ref_noise: f64,
+    /// Mean radiance of the reference over the disk pixels.
+    pub ref_mean: f64,
     pub cells: Vec<Cell>,
 }
 
@@ -93,19 +99,24 @@ fn out_dir(out: &Option<PathBuf>) -> Result<Option<&Path>, BenchError> {
 pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
     let out = out_dir(&cfg.out)?;
     let mut results = Vec::new();
-    let mut csv = String::from("level,sequence,sampler,spp,rmse,rmse_indirect,time_s,ref_spp,ref_noise\n");
+    let mut csv =
+        String::from("level,sequence,sampler,spp,rmse,rmse_indirect,time_s,ref_spp,ref_noise,ref_mean,sun,sky\n");
     for &level in &cfg.levels {
         let plane = generate_plane(level.target(), cfg.fold_seed)?;
-        let case = PlaneCase::paper_lambert(plane.mesh, cfg.size);
+        let case = PlaneCase::paper_lambert_lit(plane.mesh, cfg.size, cfg.sun, cfg.sky);
         let r: Reference = reference(&case, SamplerKind::Cosine, cfg.ref_half_spp, cfg.depth);
         println!(
-            "{}: E_PLANE {:.4} Var {:.4}; {} disk pixels; reference {} spp (cosine, Sobol) in {:.1} s, its own RMS noise {:.4}",
+            "{}: E_PLANE {:.4} Var {:.4}; sun {} W/m², sky {} W/sr/m²; {} disk pixels; reference {} spp (cosine, \
+             Sobol) in {:.1} s, mean {:.4}, its own RMS noise {:.4}",
             level.name(),
             plane.stats.e_plane,
             plane.stats.var,
+            cfg.sun,
+            cfg.sky,
             case.disk_pixels(),
             r.spp,
             r.time_s,
+            r.mean,
             r.noise
         );
         let mut grid: Vec<Vec<RadianceImage>> = vec![Vec::new(); SAMPLERS.len()];
@@ -120,7 +131,7 @@ pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
         for c in &cells {
             let _ = writeln!(
                 csv,
-                "{},{},{},{},{:.6},{:.6},{:.4},{},{:.6}",
+                "{},{},{},{},{:.6},{:.6},{:.4},{},{:.6},{:.6},{},{}",
                 level.name(),
                 sequence_name(c.sequence),
                 sampler_name(c.sampler),
@@ -129,7 +140,10 @@ pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
                 c.rmse_indirect,
                 c.time_s,
                 r.spp,
-                r.noise
+                r.noise,
+                r.mean,
+                cfg.sun,
+                cfg.sky
             );
         }
         if let Some(dir) = out {
@@ -139,10 +153,22 @@ pub fn run_table1(cfg: &Table1Config) -> Result<Vec<LevelResult>, BenchError> {
             let p = dir.join(format!("rmse_{}.png", level.name()));
             rmse_chart(&format!("Table 1, {} fold", level.name()), &cells).save_png(&p)?;
         }
-        let res = LevelResult { level, disk_pixels: case.disk_pixels(), ref_spp: r.spp, ref_noise: r.noise, cells };
+        let res = LevelResult {
+            level,
+            disk_pixels: case.disk_pixels(),
+            ref_spp: r.spp,
+            ref_noise: r.noise,
+            ref_mean: r.mean,
+            cells,
+        };
         results.push(res);
     }
-    let text = table1_text(&results, &cfg.spps, cfg.sobol);
+    let text = format!(
+        "sun {} W/m² at θi = 10°, sky {} W·sr⁻¹·m⁻²\n{}",
+        cfg.sun,
+        cfg.sky,
+        table1_text(&results, &cfg.spps, cfg.sobol)
+    );
     print!("{text}");
     if let Some(dir) = out {
         write(&dir.join("table1.csv"), &csv)?;
@@ -226,13 +252,14 @@ pub fn table1_text(results: &[LevelResult], spps: &[u32], sobol: bool) -> String
             let _ = writeln!(
                 t,
                 "{:<7} average reduction vs uniform: cosine {:.2} % (paper {:.2} %), brdf {:.2} %; \
-                 indirect part: cosine {:.2} %, brdf {:.2} %; reference noise {:.4}",
+                 indirect part: cosine {:.2} %, brdf {:.2} %; reference mean {:.4}, noise {:.4}",
                 r.level.name(),
                 avg(SamplerKind::Cosine, false),
                 paper_average_reduction(r.level),
                 avg(SamplerKind::Brdf, false),
                 avg(SamplerKind::Cosine, true),
                 avg(SamplerKind::Brdf, true),
+                r.ref_mean,
                 r.ref_noise
             );
         }

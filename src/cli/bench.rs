@@ -67,6 +67,13 @@ pub struct SamplingBenchArgs {
     /// Skip the second table (all samplers again with the Sobol sequence).
     #[arg(long)]
     pub no_sobol: bool,
+    /// Parallel sun's irradiance, W/m².
+    #[arg(long, default_value_t = crate::bench::sampling::PAPER_IRRADIANCE)]
+    pub sun: f64,
+    /// Radiance of the uniform sky that escaping rays collect, W·sr⁻¹·m⁻² (0 = black sky;
+    /// 100 reads the paper's "radiance 100" as also lighting escaped rays, Fig. 2 step 2).
+    #[arg(long, default_value_t = 0.0)]
+    pub sky: f64,
     /// Directory for table1.csv/.txt, rmse_<level>.png and grid_<level>.png.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -136,6 +143,10 @@ fn sampling(a: SamplingBenchArgs) -> anyhow::Result<()> {
     let levels =
         if a.level.eq_ignore_ascii_case("all") { FoldLevel::ALL.to_vec() } else { vec![a.level.parse::<FoldLevel>()?] };
     anyhow::ensure!(a.size > 0 && !a.spp.is_empty() && a.spp.iter().all(|n| *n > 0), "--size and --spp must be > 0");
+    anyhow::ensure!(
+        a.sun.is_finite() && a.sun >= 0.0 && a.sky.is_finite() && a.sky >= 0.0,
+        "--sun and --sky must be finite and ≥ 0"
+    );
     let cfg = Table1Config {
         levels,
         size: a.size,
@@ -145,6 +156,8 @@ fn sampling(a: SamplingBenchArgs) -> anyhow::Result<()> {
         seed: a.seed,
         fold_seed: a.fold_seed,
         sobol: !a.no_sobol,
+        sun: a.sun,
+        sky: a.sky,
         out: a.out,
     };
     run_table1(&cfg)?;
