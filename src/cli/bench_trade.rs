@@ -107,31 +107,21 @@ pub fn run(a: TradeArgs) -> anyhow::Result<()> {
         }
     }
     if let Some(e) = a.error {
-        match best_for_error(&front, e) {
-            Some(p) => println!(
-                "for rel RMSE ≤ {e}: spp {} depth {} {} — {:.2} ms ({:.1} fps), rel RMSE {:.4}",
-                p.spp,
-                p.depth,
-                sampler_name(p.sampler),
-                p.time_s * 1e3,
-                1.0 / p.time_s,
-                p.rel_rmse
-            ),
-            None => println!("for rel RMSE ≤ {e}: no measured setting is accurate enough"),
-        }
-        // The same on the body error (glints left out; see `bench::trade`).
+        // On the relative RMSE, then on the body error (glints left out; see `bench::trade`).
         let body: Vec<_> = points.iter().map(|p| p.by_body_error()).collect();
-        match best_for_error(&pareto_front(&body), e) {
-            Some(p) => println!(
-                "for body rel RMSE ≤ {e}: spp {} depth {} {} — {:.2} ms ({:.1} fps), body rel RMSE {:.4}",
-                p.spp,
-                p.depth,
-                sampler_name(p.sampler),
-                p.time_s * 1e3,
-                1.0 / p.time_s,
-                p.rel_rmse
-            ),
-            None => println!("for body rel RMSE ≤ {e}: no measured setting is accurate enough"),
+        for (metric, front) in [("rel RMSE", front.clone()), ("body rel RMSE", pareto_front(&body))] {
+            match best_for_error(&front, e) {
+                Some(p) => println!(
+                    "for {metric} ≤ {e}: spp {} depth {} {} — {:.2} ms ({:.1} fps), {metric} {:.4}",
+                    p.spp,
+                    p.depth,
+                    sampler_name(p.sampler),
+                    p.time_s * 1e3,
+                    1.0 / p.time_s,
+                    p.rel_rmse
+                ),
+                None => println!("for {metric} ≤ {e}: no measured setting is accurate enough"),
+            }
         }
     }
     Ok(())
