@@ -65,21 +65,7 @@ impl Silhouette {
         let (mid, half) = (c.x.atan2(c.z), (r / rho).asin());
         let v_at = |u: f64| c.y * (c.x * u + c.z) / (k - c.y * c.y);
         let (ul, ur) = ((mid - half).tan(), (mid + half).tan());
-        let render_to_cam = view.cam_to_render.transpose();
-        let b = &view.bounds;
-        let mut corners = [(0.0, 0.0); 8];
-        let mut in_front = true;
-        for (i, out) in corners.iter_mut().enumerate() {
-            let p = DVec3::new(
-                if i & 1 == 0 { b.min.x } else { b.max.x },
-                if i & 2 == 0 { b.min.y } else { b.max.y },
-                if i & 4 == 0 { b.min.z } else { b.max.z },
-            );
-            let q = render_to_cam * (p - view.origin);
-            in_front &= q.z > 0.0;
-            *out = (q.x / q.z, q.y / q.z);
-        }
-        let corners = in_front.then_some(corners);
+        let corners = view.box_corners_image();
         let focal_px = 1.0 / view.inv_focal_px;
         let lens = match &view.distortion {
             None => None,

@@ -135,6 +135,27 @@ impl View {
         Some(Ray { origin: (self.origin + d * start).as_vec3(), dir: d.as_vec3().normalize(), tmax: f32::INFINITY })
     }
 
+    /// The target box's eight corners on the ideal image plane, `(x/z, y/z)` in the camera
+    /// frame, or `None` unless all lie in front of the camera.
+    pub(super) fn box_corners_image(&self) -> Option<[(f64, f64); 8]> {
+        let render_to_cam = self.cam_to_render.transpose();
+        let b = &self.bounds;
+        let mut corners = [(0.0, 0.0); 8];
+        for (i, out) in corners.iter_mut().enumerate() {
+            let p = DVec3::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let q = render_to_cam * (p - self.origin);
+            if q.z <= 0.0 || q.z.is_nan() {
+                return None;
+            }
+            *out = (q.x / q.z, q.y / q.z);
+        }
+        Some(corners)
+    }
+
     /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
     /// the bounds are entirely outside the image or behind the camera.
     pub fn pixel_rect(&self) -> Option<PixelRect> {
@@ -166,20 +187,9 @@ impl View {
         let (mut x0, mut x1) = extent(c.x)?;
         let (mut y0, mut y1) = extent(c.y)?;
         // The AABB's corners give a tighter box for elongated targets when all are in front.
-        let corners: Vec<DVec3> = (0..8)
-            .map(|i| {
-                let b = &self.bounds;
-                let p = DVec3::new(
-                    if i & 1 == 0 { b.min.x } else { b.max.x },
-                    if i & 2 == 0 { b.min.y } else { b.max.y },
-                    if i & 4 == 0 { b.min.z } else { b.max.z },
-                );
-                render_to_cam * (p - self.origin)
-            })
-            .collect();
-        if corners.iter().all(|p| p.z > 0.0) {
-            let xs = corners.iter().map(|p| p.x / p.z);
-            let ys = corners.iter().map(|p| p.y / p.z);
+        if let Some(corners) = self.box_corners_image() {
+            let xs = corners.iter().map(|p| p.0);
+            let ys = corners.iter().map(|p| p.1);
             x0 = x0.max(xs.clone().fold(f64::INFINITY, f64::min));
             x1 = x1.min(xs.fold(f64::NEG_INFINITY, f64::max));
             y0 = y0.max(ys.clone().fold(f64::INFINITY, f64::min));
