@@ -8,7 +8,7 @@ use crate::camera::{CameraModel, View};
 use crate::film::{Pixels, RadianceImage};
 use crate::integrator::RenderSettings;
 use crate::pose::Pose;
-use crate::render::{RenderStats, render_view};
+use crate::render::{PrimaryVisibility, RenderStats, render_view_with};
 use crate::sampling::mix64;
 use crate::scene::Scene;
 use crate::sensor::{AutoExposure, Sensor, SensorError};
@@ -35,6 +35,7 @@ pub struct FramePipeline {
     camera: CameraModel,
     sensor: Sensor,
     auto_exposure: Option<AutoExposure>,
+    primary: PrimaryVisibility,
 }
 
 impl FramePipeline {
@@ -42,7 +43,14 @@ impl FramePipeline {
     pub fn new(scene: Arc<Scene>, camera: CameraModel) -> Result<Self, SensorError> {
         let sensor = Sensor::new(&camera, &scene.sensor)?;
         let auto_exposure = sensor.auto_exposure();
-        Ok(FramePipeline { scene, camera, sensor, auto_exposure })
+        Ok(FramePipeline { scene, camera, sensor, auto_exposure, primary: PrimaryVisibility::default() })
+    }
+
+    /// Find primary hits this way (default: rasterised where exact; tracing is for
+    /// comparisons).
+    pub fn with_primary(mut self, primary: PrimaryVisibility) -> Self {
+        self.primary = primary;
+        self
     }
 
     pub fn camera(&self) -> &CameraModel {
@@ -67,7 +75,8 @@ impl FramePipeline {
     pub fn radiance(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> (RadianceImage, RenderStats) {
         let view = View::new(&self.camera, pose, self.scene.frame_origin_body, self.scene.bounds)
             .with_distortion(self.scene.sensor.optics.distortion);
-        render_view(&self.scene, &self.camera, &view, settings, index)
+        let (img, stats, _) = render_view_with::<()>(&self.scene, &self.camera, &view, settings, index, self.primary);
+        (img, stats)
     }
 
     /// Render and convert frame `index` at `pose`.

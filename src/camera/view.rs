@@ -118,7 +118,50 @@ impl View {
     /// about the exact entry point, i.e. micrometres across the target, whatever the range.
     #[inline]
     pub fn primary_ray(&self, x: f64, y: f64) -> Option<Ray> {
-        let d = self.cam_to_render * self.camera_dir(x, y);
+        self.ray_along(self.camera_dir(x, y))
+    }
+
+    /// [`View::primary_ray`] and where its line crosses the ideal (undistorted) image
+    /// plane, in pixels (`(x, y)` itself for a pinhole): rasterised visibility bins the
+    /// samples there, where triangles project to triangles.
+    #[inline]
+    pub fn primary_ray_ideal(&self, x: f64, y: f64) -> Option<(Ray, [f64; 2])> {
+        let dir = self.camera_dir(x, y);
+        let ideal = if self.distortion.is_some() { self.ideal_px(dir) } else { [x, y] };
+        self.ray_along(dir).map(|r| (r, ideal))
+    }
+
+    /// Where the sample at pixel coordinate `(x, y)` lies on the ideal image plane.
+    pub fn ideal_of_pixel(&self, x: f64, y: f64) -> [f64; 2] {
+        if self.distortion.is_some() { self.ideal_px(self.camera_dir(x, y)) } else { [x, y] }
+    }
+
+    /// True when a lens model bends the rays.
+    pub fn has_distortion(&self) -> bool {
+        self.distortion.is_some()
+    }
+
+    /// A render-frame point in the camera frame (x right, y down, z along the boresight).
+    #[inline]
+    pub fn to_camera(&self, p: DVec3) -> DVec3 {
+        self.cam_to_render.transpose() * (p - self.origin)
+    }
+
+    /// Ideal-image pixel coordinate of a camera-frame point with `z > 0`.
+    #[inline]
+    pub fn ideal_px(&self, q: DVec3) -> [f64; 2] {
+        let f = 1.0 / self.inv_focal_px;
+        [q.x / q.z * f + self.pp[0], q.y / q.z * f + self.pp[1]]
+    }
+
+    /// Focal length in pixels.
+    pub fn focal_px(&self) -> f64 {
+        1.0 / self.inv_focal_px
+    }
+
+    #[inline]
+    fn ray_along(&self, dir_cam: DVec3) -> Option<Ray> {
+        let d = self.cam_to_render * dir_cam;
         let oc = self.origin - self.bounds.centre;
         let a = d.length_squared();
         let b = oc.dot(d);

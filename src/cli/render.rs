@@ -51,6 +51,10 @@ pub struct RenderArgs {
     /// (digital numbers, or radiance after the optics) instead of entrance-pupil radiance.
     #[arg(long)]
     pub sensor: bool,
+    /// How primary hits are found: raster (default; exact, falls back to tracing where it
+    /// cannot be) or trace (every primary ray through the BVH, for comparison).
+    #[arg(long, value_enum, default_value = "raster")]
+    pub primary: crate::render::PrimaryVisibility,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -74,7 +78,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         None => scene.pose,
     };
     let scene = std::sync::Arc::new(scene);
-    let mut pipeline = FramePipeline::new(scene.clone(), camera.clone())?;
+    let mut pipeline = FramePipeline::new(scene.clone(), camera.clone())?.with_primary(a.primary);
     let (info, stats) = if a.sensor {
         let f = pipeline.frame(&pose, &settings, a.frame)?;
         crate::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;

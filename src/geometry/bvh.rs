@@ -53,6 +53,17 @@ enum Tree {
     Cw(CwBvh),
 }
 
+/// A ray prepared once for many triangle tests ([`Accel::primitive_t`]).
+#[derive(Clone, Copy)]
+pub struct TestRay(ObRay);
+
+impl TestRay {
+    #[inline]
+    pub fn new(r: &Ray) -> Self {
+        TestRay(Accel::ob_ray(r))
+    }
+}
+
 /// BVH plus the triangles laid out in the BVH's primitive order (no indirection while
 /// intersecting; one lookup of the original index per hit).
 pub struct Accel {
@@ -61,6 +72,8 @@ pub struct Accel {
     original: Vec<u32>,
     /// Material of each primitive, BVH order.
     material: Vec<u32>,
+    /// Vertex indices of each primitive into the mesh's positions, BVH order.
+    vertices: Vec<[u32; 3]>,
     pub build_time: Duration,
 }
 
@@ -93,7 +106,8 @@ impl Accel {
         };
         let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
         let material = original.iter().map(|&i| mesh.material.get(i as usize).copied().unwrap_or(0)).collect();
-        Accel { tree, tris: rt, original, material, build_time: t0.elapsed() }
+        let vertices = original.iter().map(|&i| mesh.indices[i as usize]).collect();
+        Accel { tree, tris: rt, original, material, vertices, build_time: t0.elapsed() }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -118,11 +132,41 @@ impl Accel {
             Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
             Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
         };
-        found.then(|| {
-            let k = hit.primitive_id as usize;
-            let normal = Vec3::from(self.tris[k].compute_normal());
-            Hit { tri: self.original[k], t: hit.t, normal, material: self.material[k] }
-        })
+        found.then(|| self.primitive_hit(hit.primitive_id, hit.t))
+    }
+
+    /// Number of triangles; primitive `k` (BVH order, `0..len`) is the k-th one laid out.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Original triangle index of primitive `k`.
+    #[inline]
+    pub fn original(&self, k: u32) -> u32 {
+        self.original[k as usize]
+    }
+
+    /// Vertex indices (into the mesh's positions) of primitive `k`.
+    #[inline]
+    pub fn vertex_indices(&self, k: u32) -> [u32; 3] {
+        self.vertices[k as usize]
+    }
+
+    /// Distance at which `ray` hits primitive `k` by exactly the test the traversal runs,
+    /// or infinity: callers that pick candidates some other way (rasterised primary
+    /// visibility) get the same hits as the tree.
+    #[inline(always)]
+    pub fn primitive_t(&self, k: u32, ray: &TestRay) -> f32 {
+        self.tris[k as usize].intersect(&ray.0)
+    }
+
+    /// The [`Hit`] record of primitive `k` at distance `t` (what [`Accel::intersect`]
+    /// returns when `k` is the closest).
+    #[inline]
+    pub fn primitive_hit(&self, k: u32, t: f32) -> Hit {
+        let k = k as usize;
+        let normal = Vec3::from(self.tris[k].compute_normal());
+        Hit { tri: self.original[k], t, normal, material: self.material[k] }
     }
 
     /// True when anything blocks the ray within `(0, tmax]` (stops at the first hit).

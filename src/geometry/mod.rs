@@ -3,5 +3,5 @@
 pub mod bvh;
 pub mod mesh;
 
-pub use bvh::{Accel, BvhLayout, Hit, Ray};
+pub use bvh::{Accel, BvhLayout, Hit, Ray, TestRay};
 pub use mesh::TriMesh;

@@ -15,8 +15,10 @@ use crate::pose::Pose;
 use crate::sampling::{PerSample, Rng, Sequence, SobolStream};
 use crate::scene::Scene;
 use tile::{Scratch, TILE_PATHS, TileJob};
+use visibility::PrimaryRaster;
 
 mod tile;
+pub mod visibility;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -29,6 +31,19 @@ pub struct RenderStats {
     /// the target is out of view).
     pub traced_pixels: u64,
     pub rect: Option<PixelRect>,
+    /// True when the primary hits were rasterised (`visibility`), false when traced.
+    pub primary_rasterised: bool,
+}
+
+/// How primary hits are found. Both give the same hits (see `visibility`); tracing is
+/// kept for comparison and for views the rasteriser declines.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum PrimaryVisibility {
+    /// Rasterise the triangles onto the samples when exact, else trace.
+    #[default]
+    Raster,
+    /// Trace every primary ray through the BVH.
+    Trace,
 }
 
 impl RenderStats {
@@ -80,17 +95,37 @@ fn render_view_logged<L: RayLog + Default + Send>(
     settings: &RenderSettings,
     frame: u64,
 ) -> (RadianceImage, RenderStats, Vec<L>) {
+    render_view_with(scene, camera, view, settings, frame, PrimaryVisibility::default())
+}
+
+/// Render one frame through `view`, choosing how primary hits are found, and hand every
+/// traced ray to a per-band `L` (benchmarks and tests).
+pub fn render_view_with<L: RayLog + Default + Send>(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+    primary: PrimaryVisibility,
+) -> (RadianceImage, RenderStats, Vec<L>) {
     let t0 = Instant::now();
     let mut img = RadianceImage::new(camera.width, camera.height, scene.background);
     let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
     let mut logs = Vec::new();
     let mut traced = 0u64;
+    let mut primary_rasterised = false;
     if let Some(rect) = rect {
         let ctx = PathContext::new(scene, view.sun, settings);
+        let raster = match primary {
+            PrimaryVisibility::Raster => PrimaryRaster::new(scene, view, rect),
+            PrimaryVisibility::Trace => None,
+        };
+        primary_rasterised = raster.is_some();
         let job = TileJob {
             view,
             ctx: &ctx,
+            raster: raster.as_ref(),
             seed: settings.seed,
             frame,
             spp: settings.spp.max(1),
@@ -118,7 +153,7 @@ fn render_view_logged<L: RayLog + Default + Send>(
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
-    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect };
+    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised };
     (img, stats, logs)
 }
 
@@ -126,7 +161,7 @@ fn render_view_logged<L: RayLog + Default + Send>(
 /// columns × all its rows, so a tile is compact on the image.
 const BAND_ROWS: usize = 8;
 
-/// Render the rectangle's rows band by band (rayon over bands), each band tile by tile.
+/// Render the rectangle's rows band by band (rayon over bands), each band pass by pass.
 fn render_bands<S: PerSample + Send, L: RayLog + Default + Send>(
     job: &TileJob,
     img: &mut RadianceImage,
@@ -134,47 +169,51 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send>(
     span: &(dyn Fn(u32) -> (u32, u32) + Sync),
 ) -> Vec<(RayCounts, L, u64)> {
     let w = job.width;
-    let spp = job.spp as usize;
     let inv_spp = 1.0 / job.spp as f32;
-    // Tile width in columns: about TILE_PATHS camera samples per tile.
-    let tile_cols = (TILE_PATHS / (BAND_ROWS * spp)).max(1) as u32;
+    // Tile width in columns: about TILE_PATHS pixels per tile.
+    let tile_cols = (TILE_PATHS / BAND_ROWS).max(1) as u32;
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
     img.data[row0 * w..row1 * w]
         .par_chunks_mut(w * BAND_ROWS)
         .enumerate()
         .map_init(
-            || (Scratch::<S>::default(), Vec::new()),
-            |(scratch, pixels), (band, out)| {
+            || (Scratch::<S>::default(), Vec::new(), Vec::new()),
+            |(scratch, pixels, sums), (band, out)| {
                 let first_row = row0 + band * BAND_ROWS;
                 let rows = (first_row..first_row + out.len() / w).map(|r| r as u32);
                 let spans: Vec<(u32, u32)> = rows.clone().map(span).collect();
                 let mut counts = RayCounts::default();
                 let mut log = L::default();
-                let n: u64 = spans.iter().map(|&(a, b)| u64::from(b.saturating_sub(a))).sum();
+                // The band's pixels in tile order: blocks of `tile_cols` columns × all rows.
+                pixels.clear();
                 let c_min = spans.iter().filter(|s| s.0 < s.1).map(|s| s.0).min().unwrap_or(0);
                 let c_max = spans.iter().filter(|s| s.0 < s.1).map(|s| s.1).max().unwrap_or(0);
-                let mut c0 = c_min;
-                while c0 < c_max {
+                for c0 in (c_min..c_max).step_by(tile_cols as usize) {
                     let c1 = (c0 + tile_cols).min(c_max);
-                    pixels.clear();
                     for (row, &(a, b)) in rows.clone().zip(&spans) {
-                        pixels.extend((a.max(c0)..b.min(c1)).map(|col| (row, col)));
-                    }
-                    let samples = job.trace(pixels, scratch, &mut counts, &mut log);
-                    for (&(row, col), v) in pixels.iter().zip(samples.chunks_exact(spp)) {
-                        let mut sum = 0.0f32;
-                        for &v in v {
-                            if v.is_finite() {
-                                sum += v;
-                            } else {
-                                counts.nonfinite += 1;
-                            }
+                        let cols = a.max(c0)..b.min(c1);
+                        match job.raster {
+                            Some(r) => pixels.extend(cols.filter(|&col| r.may_hit(row, col)).map(|col| (row, col))),
+                            None => pixels.extend(cols.map(|col| (row, col))),
                         }
-                        out[(row as usize - first_row) * w + col as usize] = sum * inv_spp;
                     }
-                    c0 = c1;
                 }
-                (counts, log, n)
+                sums.clear();
+                sums.resize(pixels.len(), 0.0f32);
+                for s in 0..job.spp {
+                    let samples = job.trace_pass(pixels, s, scratch, &mut counts, &mut log);
+                    for (sum, &v) in sums.iter_mut().zip(samples) {
+                        if v.is_finite() {
+                            *sum += v;
+                        } else {
+                            counts.nonfinite += 1;
+                        }
+                    }
+                }
+                for (&(row, col), &sum) in pixels.iter().zip(sums.iter()) {
+                    out[(row as usize - first_row) * w + col as usize] = sum * inv_spp;
+                }
+                (counts, log, pixels.len() as u64)
             },
         )
         .collect()

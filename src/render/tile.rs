@@ -1,15 +1,20 @@
-//! Tiles traced in waves: all paths of a tile take their next step together.
+//! A band's camera samples traced pass by pass, each pass in tiles, each tile in waves.
 //!
-//! Tracing one sample to the end before the next interleaves primary, shadow and bounce
-//! rays, each of which walks a different part of the BVH and evicts the others' nodes
-//! from the cache; measured on the shipped satellite, the same rays took ~1.8× longer
-//! inside the renderer than re-traced in bulk. Here a tile's paths advance one
-//! interaction at a time: all closest-hit rays, then all shading, then all shadow rays
-//! (parallel, toward the one sun direction, from neighbouring points). Each path keeps its
-//! own random-number stream and runs exactly the steps of [`PathContext::radiance`]
-//! (shared through [`PathContext::scatter`]) in the same order, so the image has the same
-//! bytes as tracing sample by sample.
+//! A pass is one camera sample (index `s`) in every pixel of the band. Its primary hits
+//! come from the rasteriser (`visibility`) when it applies, all at once; then its paths
+//! are cut into tiles of [`TILE_PATHS`] and a tile's paths advance one interaction at a
+//! time: all closest-hit rays, then all shading, then all shadow rays (parallel, toward
+//! the one sun direction, from neighbouring points). Tracing one sample to the end before
+//! the next interleaves primary, shadow and bounce rays, each of which walks a different
+//! part of the BVH and evicts the others' nodes from the cache; measured on the shipped
+//! satellite, the same rays took ~1.8× longer that way than re-traced in bulk.
+//!
+//! Each path keeps its own random-number stream and runs exactly the steps of
+//! [`PathContext::radiance`] (shared through [`PathContext::scatter`]) in the same order,
+//! and each pixel sums its samples in index order, so the image has the same bytes as
+//! tracing sample by sample.
 
+use super::visibility::{PrimaryRaster, RasterScratch};
 use crate::camera::View;
 use crate::geometry::{Hit, Ray};
 use crate::integrator::{PathContext, RayCounts, RayLog};
@@ -24,30 +29,50 @@ struct Path<S> {
     ray: Ray,
     beta: f32,
     l: f32,
-    /// Index of this sample's result in the tile's sample buffer.
+    /// Index of this sample's pixel in the pass's pixel list.
     slot: u32,
     alive: bool,
 }
 
-/// Buffers reused from tile to tile (no allocation per tile once warmed up).
+/// Buffers reused from pass to pass (no allocation once warmed up).
 pub struct Scratch<S> {
+    /// Every path of the pass (one camera sample in each pixel that sees the bounds).
     paths: Vec<Path<S>>,
+    /// Primary rays and their ideal image points, for the rasteriser.
+    rays: Vec<Ray>,
+    ideal: Vec<[f64; 2]>,
+    primary: Vec<Option<Hit>>,
+    raster: RasterScratch,
+    /// Paths of the current tile still going.
+    active: Vec<u32>,
     hits: Vec<Option<Hit>>,
     shadows: Vec<(u32, Ray, f32)>,
-    /// Radiance of each camera sample of the tile, `pixel_in_tile × spp + sample`.
+    /// Radiance of the pass's sample in each pixel.
     samples: Vec<f32>,
 }
 
 impl<S> Default for Scratch<S> {
     fn default() -> Self {
-        Scratch { paths: Vec::new(), hits: Vec::new(), shadows: Vec::new(), samples: Vec::new() }
+        Scratch {
+            paths: Vec::new(),
+            rays: Vec::new(),
+            ideal: Vec::new(),
+            primary: Vec::new(),
+            raster: RasterScratch::default(),
+            active: Vec::new(),
+            hits: Vec::new(),
+            shadows: Vec::new(),
+            samples: Vec::new(),
+        }
     }
 }
 
-/// Where a tile's pixels are and how they are sampled.
+/// Where a band's pixels are and how they are sampled.
 pub struct TileJob<'a> {
     pub view: &'a View,
     pub ctx: &'a PathContext<'a>,
+    /// Rasterised primary visibility for this frame, when it applies.
+    pub raster: Option<&'a PrimaryRaster>,
     pub seed: u64,
     pub frame: u64,
     pub spp: u32,
@@ -55,85 +80,103 @@ pub struct TileJob<'a> {
 }
 
 impl TileJob<'_> {
-    /// Trace the camera samples of `pixels` (`(row, col)`, image coordinates) and return
-    /// each sample's radiance in `scratch.samples`, `spp` per pixel in pixel order.
-    pub fn trace<'s, S: PerSample, L: RayLog>(
+    /// Trace camera sample `s` of every pixel in `pixels` (`(row, col)`, image
+    /// coordinates, in tile order) and return its radiance per pixel.
+    pub fn trace_pass<'s, S: PerSample, L: RayLog>(
         &self,
         pixels: &[(u32, u32)],
+        s: u32,
         scratch: &'s mut Scratch<S>,
         counts: &mut RayCounts,
         log: &mut L,
     ) -> &'s [f32] {
         let ctx = self.ctx;
         let scene = ctx.scene;
-        let Scratch { paths, hits, shadows, samples } = scratch;
+        let Scratch { paths, rays, ideal, primary, raster, active, hits, shadows, samples } = scratch;
         samples.clear();
-        samples.resize(pixels.len() * self.spp as usize, scene.background);
+        samples.resize(pixels.len(), scene.background);
         paths.clear();
+        rays.clear();
+        ideal.clear();
         for (i, &(row, col)) in pixels.iter().enumerate() {
             let pixel = row as u64 * self.width as u64 + u64::from(col);
-            for s in 0..self.spp {
-                let mut rng = S::for_sample(self.seed, self.frame, pixel, s);
-                let j = rng.next_2d();
-                let (x, y) = (f64::from(col) + f64::from(j.x), f64::from(row) + f64::from(j.y));
-                // A ray that misses the bounding sphere sees the background (already set).
-                if let Some(ray) = self.view.primary_ray(x, y) {
-                    let slot = (i * self.spp as usize + s as usize) as u32;
-                    paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot, alive: true });
-                }
+            let mut rng = S::for_sample(self.seed, self.frame, pixel, s);
+            let j = rng.next_2d();
+            let (x, y) = (f64::from(col) + f64::from(j.x), f64::from(row) + f64::from(j.y));
+            // A ray that misses the bounding sphere sees the background (already set).
+            let traced = if self.raster.is_some() {
+                self.view.primary_ray_ideal(x, y).map(|(ray, at)| {
+                    rays.push(ray);
+                    ideal.push(at);
+                    ray
+                })
+            } else {
+                self.view.primary_ray(x, y)
+            };
+            if let Some(ray) = traced {
+                paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot: i as u32, alive: true });
             }
+        }
+        if let Some(r) = self.raster {
+            r.closest_hits(&scene.accel, rays, ideal, raster, primary);
         }
 
-        for bounce in 0..ctx.depth {
-            if paths.is_empty() {
-                break;
-            }
-            // Wave 1: closest hits.
-            hits.clear();
-            for p in paths.iter() {
-                log.closest(&p.ray);
-                hits.push(scene.accel.intersect(&p.ray));
-            }
-            if bounce == 0 {
-                counts.primary += paths.len() as u64;
-            } else {
-                counts.bounce += paths.len() as u64;
-            }
-            // Wave 2: shading, which queues shadow rays and draws the next directions.
-            shadows.clear();
-            for (i, (p, hit)) in paths.iter_mut().zip(hits.iter()).enumerate() {
-                let Some(hit) = hit else {
-                    p.l += p.beta * scene.background;
-                    p.alive = false;
-                    continue;
-                };
-                let sc = ctx.scatter(&p.ray, hit, p.beta, bounce, &mut p.rng);
-                if let Some((ray, contribution)) = sc.shadow {
-                    shadows.push((i as u32, ray, contribution));
+        for tile in (0..paths.len()).step_by(TILE_PATHS) {
+            let end = (tile + TILE_PATHS).min(paths.len());
+            active.clear();
+            active.extend(tile as u32..end as u32);
+            for bounce in 0..ctx.depth {
+                if active.is_empty() {
+                    break;
                 }
-                match sc.next {
-                    Some((ray, beta)) => (p.ray, p.beta) = (ray, beta),
-                    None => p.alive = false,
+                // Wave 1: closest hits (the primary ones rasterised, when they are).
+                hits.clear();
+                for &i in active.iter() {
+                    let p = &paths[i as usize];
+                    log.closest(&p.ray);
+                    hits.push(if bounce == 0 && self.raster.is_some() {
+                        primary[i as usize]
+                    } else {
+                        scene.accel.intersect(&p.ray)
+                    });
                 }
+                if bounce == 0 {
+                    counts.primary += active.len() as u64;
+                } else {
+                    counts.bounce += active.len() as u64;
+                }
+                // Wave 2: shading, which queues shadow rays and draws the next directions.
+                shadows.clear();
+                for (&i, hit) in active.iter().zip(hits.iter()) {
+                    let p = &mut paths[i as usize];
+                    let Some(hit) = hit else {
+                        p.l += p.beta * scene.background;
+                        p.alive = false;
+                        continue;
+                    };
+                    let sc = ctx.scatter(&p.ray, hit, p.beta, bounce, &mut p.rng);
+                    if let Some((ray, contribution)) = sc.shadow {
+                        shadows.push((i, ray, contribution));
+                    }
+                    match sc.next {
+                        Some((ray, beta)) => (p.ray, p.beta) = (ray, beta),
+                        None => p.alive = false,
+                    }
+                }
+                // Wave 3: shadow rays toward the sun.
+                counts.shadow += shadows.len() as u64;
+                for (i, ray, contribution) in shadows.iter() {
+                    log.shadow(ray);
+                    if !scene.accel.occluded(ray) {
+                        paths[*i as usize].l += contribution;
+                    }
+                }
+                active.retain(|&i| paths[i as usize].alive);
             }
-            // Wave 3: shadow rays toward the sun.
-            counts.shadow += shadows.len() as u64;
-            for (i, ray, contribution) in shadows.iter() {
-                log.shadow(ray);
-                if !scene.accel.occluded(ray) {
-                    paths[*i as usize].l += contribution;
-                }
+            // Every path of the tile has ended (or used its last interaction).
+            for p in &paths[tile..end] {
+                samples[p.slot as usize] = p.l;
             }
-            paths.retain(|p| {
-                if !p.alive {
-                    samples[p.slot as usize] = p.l;
-                }
-                p.alive
-            });
-        }
-        // Paths still alive after the last interaction (depth exhausted) are finished too.
-        for p in paths.iter() {
-            samples[p.slot as usize] = p.l;
         }
         samples
     }

@@ -1,0 +1,347 @@
+//! Primary visibility by rasterisation, exact for the sample positions used.
+//!
+//! Primary rays are more than half the rays of a frame and most of the pixels they start
+//! in miss the target, yet each walks the BVH from its root. Here the triangles are
+//! projected once per frame onto the ideal (undistorted) image plane, where a triangle in
+//! front of the camera is a triangle, and each one tests only the camera samples whose
+//! ideal image point lies in its (slightly enlarged) bounding box — with the very
+//! triangle test the BVH runs ([`Accel::primitive_t`]) on the very f32 ray that would be
+//! traced. The closest of those hits is the BVH's closest hit: the boxes only decide which
+//! triangles are tried, and every triangle a ray can hit is tried. (Two triangles hit at
+//! bit-identical distances — a sample exactly on a shared edge — may be resolved in a
+//! different order than the traversal's; `tests/primary_raster.rs` measures that.)
+//!
+//! Through a distorting lens the samples' ideal image points are where the lens model
+//! sends them, so the same binning holds; samples whose ideal point falls outside the
+//! region binned at frame start are traced through the BVH instead.
+
+use crate::camera::{PixelRect, View};
+use crate::geometry::{Accel, Hit, Ray, TestRay};
+use crate::scene::Scene;
+use rayon::prelude::*;
+
+/// Ideal-image rows per bucket of the per-frame triangle binning (the renderer's bands are
+/// 8 rows, so a pinhole band reads one bucket).
+const BUCKET_ROWS: i32 = 8;
+
+/// One frame's triangles binned on the ideal image plane.
+pub struct PrimaryRaster {
+    /// Inclusive ideal-pixel cell range `[x0, x1, y0, y1]` of primitive `k` (BVH order),
+    /// clipped to the binned region; `x0 > x1` when the triangle lies outside it.
+    boxes: Vec<[i32; 4]>,
+    /// Bucket `b` covers rows `y_lo + b·BUCKET_ROWS ..`; its primitives are
+    /// `bucket_tris[bucket_start[b]..bucket_start[b + 1]]`, in BVH order.
+    bucket_start: Vec<u32>,
+    bucket_tris: Vec<u32>,
+    /// The binned region, ideal pixels (inclusive cells).
+    x_lo: i32,
+    x_hi: i32,
+    y_lo: i32,
+    y_hi: i32,
+    /// Pinhole only (ideal cells are pixels): bit per pixel of the region, set where some
+    /// triangle's box covers it. A pixel with no bit set cannot see any triangle, so its
+    /// samples are not even generated.
+    covered: Option<Vec<u64>>,
+    /// Words per row of `covered`.
+    stride: usize,
+}
+
+/// Samples of one pass, binned into ideal-pixel cells (reused from band to band).
+#[derive(Default)]
+pub struct RasterScratch {
+    cell_start: Vec<u32>,
+    cell_samples: Vec<u32>,
+    best_t: Vec<f32>,
+    best_k: Vec<u32>,
+    rays: Vec<TestRay>,
+    coords: Vec<(i32, i32)>,
+}
+
+impl PrimaryRaster {
+    /// Bin the scene's triangles for `view`, covering the ideal image points of pixels in
+    /// `rect`. `None` when rasterising would not be exact or would not pay: a vertex at or
+    /// behind the camera plane (camera among the triangles), or a lens whose ideal image
+    /// of the rectangle is unbounded.
+    pub fn new(scene: &Scene, view: &View, rect: PixelRect) -> Option<PrimaryRaster> {
+        let mesh = &scene.mesh;
+        let accel = &scene.accel;
+        if accel.is_empty() {
+            return None;
+        }
+        // Region of the ideal image plane the samples can fall in.
+        let (x_lo, x_hi, y_lo, y_hi) = ideal_region(view, rect)?;
+        // Each vertex on the ideal image plane; the nearest depth bounds the pixel size of
+        // the f32 rays' own rounding (see `margin`).
+        let mut projected = Vec::new();
+        mesh.positions
+            .par_iter()
+            .map(|p| {
+                let q = view.to_camera(p.as_dvec3());
+                let [x, y] = view.ideal_px(q);
+                (x, y, q.z)
+            })
+            .collect_into_vec(&mut projected);
+        let z_min = projected.par_iter().map(|v| v.2).reduce(|| f64::INFINITY, f64::min);
+        if z_min.is_nan() || z_min <= 0.0 {
+            return None; // a vertex at or behind the camera plane
+        }
+        // A traced ray deviates from the exact line through its sample by the f32 rounding
+        // of its origin and direction: a few 1e-7 of the target's size, at most. Enlarge
+        // every box by 40× that, seen from the nearest vertex, plus 1e-3 px.
+        let margin = 4e-6 * scene.bounds.radius * view.focal_px() / z_min + 1e-3;
+        if !margin.is_finite() || margin > 4.0 {
+            return None; // camera almost touching the target: the boxes would be huge
+        }
+        let mut boxes = Vec::new();
+        (0..accel.len() as u32)
+            .into_par_iter()
+            .map(|k| {
+                let [a, b, c] = accel.vertex_indices(k);
+                let (pa, pb, pc) = (projected[a as usize], projected[b as usize], projected[c as usize]);
+                let x0 = pa.0.min(pb.0).min(pc.0) - margin;
+                let x1 = pa.0.max(pb.0).max(pc.0) + margin;
+                let y0 = pa.1.min(pb.1).min(pc.1) - margin;
+                let y1 = pa.1.max(pb.1).max(pc.1) + margin;
+                let clip = |v: f64, lo: i32, hi: i32| floor_i32(v.clamp(f64::from(lo) - 1.0, f64::from(hi) + 1.0));
+                let bx = [clip(x0, x_lo, x_hi), clip(x1, x_lo, x_hi), clip(y0, y_lo, y_hi), clip(y1, y_lo, y_hi)];
+                let inside = bx[0] <= x_hi && bx[1] >= x_lo && bx[2] <= y_hi && bx[3] >= y_lo;
+                if inside { [bx[0].max(x_lo), bx[1].min(x_hi), bx[2].max(y_lo), bx[3].min(y_hi)] } else { [1, 0, 1, 0] }
+            })
+            .collect_into_vec(&mut boxes);
+        // Bucket the boxes by rows (counting sort, BVH order within a bucket).
+        let buckets = ((y_hi - y_lo) / BUCKET_ROWS + 1) as usize;
+        let mut bucket_start = vec![0u32; buckets + 1];
+        let bucket_range =
+            |b: &[i32; 4]| ((b[2] - y_lo) / BUCKET_ROWS) as usize..=((b[3] - y_lo) / BUCKET_ROWS) as usize;
+        for b in boxes.iter().filter(|b| b[0] <= b[1]) {
+            for i in bucket_range(b) {
+                bucket_start[i + 1] += 1;
+            }
+        }
+        for i in 0..buckets {
+            bucket_start[i + 1] += bucket_start[i];
+        }
+        let mut fill = bucket_start.clone();
+        let mut bucket_tris = vec![0u32; bucket_start[buckets] as usize];
+        for (k, b) in boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[1]) {
+            for i in bucket_range(b) {
+                bucket_tris[fill[i] as usize] = k as u32;
+                fill[i] += 1;
+            }
+        }
+        // Coverage bits, a row of `stride` words per ideal row; buckets own disjoint rows,
+        // so they are filled in parallel.
+        let stride = ((x_hi - x_lo + 1) as usize).div_ceil(64);
+        let covered = (!view.has_distortion()).then(|| {
+            let mut bits = vec![0u64; stride * (y_hi - y_lo + 1) as usize];
+            bits.par_chunks_mut(stride * BUCKET_ROWS as usize).enumerate().for_each(|(bucket, rows)| {
+                let first_row = y_lo + bucket as i32 * BUCKET_ROWS;
+                let tris = &bucket_tris[bucket_start[bucket] as usize..bucket_start[bucket + 1] as usize];
+                for &k in tris {
+                    let b = boxes[k as usize];
+                    let (y0, y1) = (b[2].max(first_row), b[3].min(first_row + BUCKET_ROWS - 1));
+                    for y in y0..=y1 {
+                        let row = &mut rows[(y - first_row) as usize * stride..][..stride];
+                        set_bits(row, (b[0] - x_lo) as usize, (b[1] - x_lo) as usize);
+                    }
+                }
+            });
+            bits
+        });
+        Some(PrimaryRaster { boxes, bucket_start, bucket_tris, x_lo, x_hi, y_lo, y_hi, covered, stride })
+    }
+
+    /// False when no sample of pixel `(row, col)` can hit a triangle (it sees the
+    /// background); true when it may, or when that is not known (through a lens).
+    #[inline]
+    pub fn may_hit(&self, row: u32, col: u32) -> bool {
+        let Some(bits) = &self.covered else { return true };
+        let (x, y) = (col as i32, row as i32);
+        if x < self.x_lo || x > self.x_hi || y < self.y_lo || y > self.y_hi {
+            return false;
+        }
+        let x = (x - self.x_lo) as usize;
+        bits[(y - self.y_lo) as usize * self.stride + x / 64] & (1 << (x % 64)) != 0
+    }
+
+    /// Closest hit of each ray `rays[i]`, whose sample lies at ideal pixel `ideal[i]`,
+    /// written to `hits[i]`: the same as `accel.intersect(&rays[i])`.
+    pub fn closest_hits(
+        &self,
+        accel: &Accel,
+        rays: &[Ray],
+        ideal: &[[f64; 2]],
+        scratch: &mut RasterScratch,
+        hits: &mut Vec<Option<Hit>>,
+    ) {
+        let n = rays.len();
+        let RasterScratch { cell_start, cell_samples, best_t, best_k, rays: test_rays, coords } = scratch;
+        hits.clear();
+        hits.resize(n, None);
+        test_rays.clear();
+        test_rays.extend(rays.iter().map(TestRay::new));
+        best_t.clear();
+        best_t.resize(n, f32::INFINITY);
+        best_k.clear();
+        best_k.resize(n, 0);
+        // The cell of each sample (`OUTSIDE` beyond the binned region), and their box.
+        coords.clear();
+        let (mut cx0, mut cx1, mut cy0, mut cy1) = (i32::MAX, i32::MIN, i32::MAX, i32::MIN);
+        for (i, &[x, y]) in ideal.iter().enumerate() {
+            let inside = x >= f64::from(self.x_lo)
+                && x < f64::from(self.x_hi) + 1.0
+                && y >= f64::from(self.y_lo)
+                && y < f64::from(self.y_hi) + 1.0;
+            if inside {
+                let (cx, cy) = (floor_i32(x), floor_i32(y));
+                (cx0, cx1, cy0, cy1) = (cx0.min(cx), cx1.max(cx), cy0.min(cy), cy1.max(cy));
+                coords.push((cx, cy));
+            } else {
+                coords.push(OUTSIDE);
+                hits[i] = accel.intersect(&rays[i]);
+            }
+        }
+        if cx0 > cx1 {
+            return;
+        }
+        // Counting sort of the samples into cells.
+        let w = (cx1 - cx0 + 1) as usize;
+        let h = (cy1 - cy0 + 1) as usize;
+        let cell = |(cx, cy): (i32, i32)| (cy - cy0) as usize * w + (cx - cx0) as usize;
+        cell_start.clear();
+        cell_start.resize(w * h + 1, 0);
+        for &c in coords.iter().filter(|&&c| c != OUTSIDE) {
+            cell_start[cell(c) + 1] += 1;
+        }
+        for i in 0..w * h {
+            cell_start[i + 1] += cell_start[i];
+        }
+        cell_samples.clear();
+        cell_samples.resize(cell_start[w * h] as usize, 0);
+        for (i, &c) in coords.iter().enumerate().filter(|&(_, &c)| c != OUTSIDE) {
+            // `cell_start[c]` is used as the fill cursor, then restored below.
+            let c = cell(c);
+            cell_samples[cell_start[c] as usize] = i as u32;
+            cell_start[c] += 1;
+        }
+        for c in (1..=w * h).rev() {
+            cell_start[c] = cell_start[c - 1];
+        }
+        cell_start[0] = 0;
+        // Every triangle whose box meets the cells, once: in the first bucket of the cells'
+        // rows that it overlaps.
+        let b0 = ((cy0 - self.y_lo) / BUCKET_ROWS) as usize;
+        let b1 = ((cy1 - self.y_lo) / BUCKET_ROWS) as usize;
+        for b in b0..=b1 {
+            let tris = &self.bucket_tris[self.bucket_start[b] as usize..self.bucket_start[b + 1] as usize];
+            for &k in tris {
+                let bx = self.boxes[k as usize];
+                if ((bx[2].max(cy0) - self.y_lo) / BUCKET_ROWS) as usize != b {
+                    continue;
+                }
+                let (x0, x1) = (bx[0].max(cx0), bx[1].min(cx1));
+                let (y0, y1) = (bx[2].max(cy0), bx[3].min(cy1));
+                if x0 > x1 || y0 > y1 {
+                    continue;
+                }
+                for cy in y0..=y1 {
+                    let s0 = cell_start[cell((x0, cy))] as usize;
+                    let s1 = cell_start[cell((x1, cy)) + 1] as usize;
+                    for &i in &cell_samples[s0..s1] {
+                        let i = i as usize;
+                        let t = accel.primitive_t(k, &test_rays[i]);
+                        if t < best_t[i] {
+                            best_t[i] = t;
+                            best_k[i] = k;
+                        }
+                    }
+                }
+            }
+        }
+        for (i, hit) in hits.iter_mut().enumerate() {
+            if best_t[i] < f32::INFINITY {
+                *hit = Some(accel.primitive_hit(best_k[i], best_t[i]));
+            }
+        }
+    }
+}
+
+/// `⌊v⌋` for |v| < 2³¹ (a truncating conversion: `f64::floor` is a libm call on the
+/// x86-64 baseline).
+#[inline(always)]
+fn floor_i32(v: f64) -> i32 {
+    let t = v as i32;
+    if f64::from(t) > v { t - 1 } else { t }
+}
+
+/// Set bits `a..=b` of a bit row.
+fn set_bits(row: &mut [u64], a: usize, b: usize) {
+    let (wa, wb) = (a / 64, b / 64);
+    let lo = !0u64 << (a % 64);
+    let hi = !0u64 >> (63 - b % 64);
+    if wa == wb {
+        row[wa] |= lo & hi;
+    } else {
+        row[wa] |= lo;
+        row[wa + 1..wb].fill(!0);
+        row[wb] |= hi;
+    }
+}
+
+/// Cell of a sample outside the binned region.
+const OUTSIDE: (i32, i32) = (i32::MIN, i32::MIN);
+
+/// The ideal-image cells (inclusive) that samples of pixels in `rect` can fall in: `rect`
+/// itself for a pinhole; through a lens, the bounding box of the rectangle's outline
+/// mapped to the ideal plane, with a margin.
+fn ideal_region(view: &View, rect: PixelRect) -> Option<(i32, i32, i32, i32)> {
+    let (c0, c1, r0, r1) = (f64::from(rect.col0), f64::from(rect.col1), f64::from(rect.row0), f64::from(rect.row1));
+    let mut lo = (c0, r0);
+    let mut hi = (c1, r1);
+    if view.has_distortion() {
+        let steps = 256;
+        for i in 0..=steps {
+            let a = f64::from(i) / f64::from(steps);
+            for (x, y) in
+                [(c0 + a * (c1 - c0), r0), (c0 + a * (c1 - c0), r1), (c0, r0 + a * (r1 - r0)), (c1, r0 + a * (r1 - r0))]
+            {
+                let [ix, iy] = view.ideal_of_pixel(x, y);
+                if !ix.is_finite() || !iy.is_finite() {
+                    return None;
+                }
+                lo = (lo.0.min(ix), lo.1.min(iy));
+                hi = (hi.0.max(ix), hi.1.max(iy));
+            }
+        }
+        let pad = 0.02 * (hi.0 - lo.0).max(hi.1 - lo.1) + 2.0;
+        lo = (lo.0 - pad, lo.1 - pad);
+        hi = (hi.0 + pad, hi.1 + pad);
+        if (hi.0 - lo.0).max(hi.1 - lo.1) > 1e6 {
+            return None;
+        }
+    }
+    Some((lo.0.floor() as i32, hi.0.floor() as i32, lo.1.floor() as i32, hi.1.floor() as i32))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floor_i32_matches_floor() {
+        for v in [-3.5, -3.0, -0.5, -1e-12, 0.0, 1e-12, 0.5, 2.0, 2.999_999, 1e6 + 0.25, -1e6 - 0.25] {
+            assert_eq!(floor_i32(v), v.floor() as i32, "{v}");
+        }
+    }
+
+    #[test]
+    fn set_bits_sets_exactly_the_range() {
+        for (a, b) in [(0, 0), (3, 9), (0, 63), (63, 64), (5, 130), (64, 127), (70, 191)] {
+            let mut row = [0u64; 3];
+            set_bits(&mut row, a, b);
+            for i in 0..192 {
+                assert_eq!(row[i / 64] >> (i % 64) & 1 == 1, (a..=b).contains(&i), "bit {i} of {a}..={b}");
+            }
+        }
+    }
+}
