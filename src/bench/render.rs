@@ -8,7 +8,7 @@
 
 use super::median;
 use crate::camera::CameraModel;
-use crate::geometry::Ray;
+use crate::geometry::{Ray, SunShadow};
 use crate::integrator::{RecordedRays, RenderSettings};
 use crate::pose::Pose;
 use crate::render::{render, render_logged};
@@ -28,6 +28,18 @@ pub struct RenderBenchRow {
     pub rays: u64,
     pub render_mrays: f64,
     pub raw_mrays: f64,
+    /// Shadow rays toward the sun, re-traced through the sun grid and through the BVH.
+    pub shadow_rays: u64,
+    pub grid_mrays: f64,
+    pub bvh_shadow_mrays: f64,
+    /// Building the sun grid for this frame's sun (median), milliseconds.
+    pub grid_build_ms: f64,
+    /// Rebuilding it in place for another direction (buffers reused), milliseconds.
+    pub grid_rebuild_ms: f64,
+    pub grid_entries: usize,
+    /// Mean cell entries read and triangle tests run per shadow ray by the grid.
+    pub grid_reads: f64,
+    pub grid_tests: f64,
 }
 
 impl RenderBenchRow {
@@ -82,6 +94,20 @@ fn trace_raw(scene: &Scene, logs: &[RecordedRays]) -> f64 {
     t0.elapsed().as_secs_f64()
 }
 
+/// Shadow rays re-traced through the sun grid (`Some`) or the BVH (`None`), seconds.
+fn trace_shadow(scene: &Scene, grid: Option<&SunShadow>, rays: &[Ray]) -> f64 {
+    let t0 = Instant::now();
+    let occluded: usize = rays
+        .par_chunks(4096)
+        .map(|c| match grid {
+            Some(g) => c.iter().filter(|r| g.occluded(r).unwrap_or_else(|| scene.accel.occluded(r))).count(),
+            None => c.iter().filter(|r| scene.accel.occluded(r)).count(),
+        })
+        .sum();
+    std::hint::black_box(occluded);
+    t0.elapsed().as_secs_f64()
+}
+
 /// Measure one configuration: `rounds` alternating renderer / raw-traversal runs.
 pub fn measure(
     scene: &Scene,
@@ -102,6 +128,23 @@ pub fn measure(
         t_raw.push(trace_raw(scene, &logs));
     }
     let (tr, tw) = (median(t_render), median(t_raw));
+    // Shadow rays: sun grid and BVH alternately on the same rays; the grid's build time.
+    let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
+    let sun = shadow.first().map_or(glam::Vec3::Z, |r| r.dir);
+    let (mut t_grid, mut t_bvh, mut t_build, mut t_rebuild) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut grid = SunShadow::build(&scene.mesh, sun);
+    for _ in 0..rounds.max(1) {
+        let g = SunShadow::build(&scene.mesh, sun);
+        t_build.push(g.stats.build_time.as_secs_f64());
+        // In place for a slightly different sun and back, as consecutive frames would.
+        grid.rebuild(glam::Vec3::new(sun.x, sun.y + 1e-3, sun.z).normalize());
+        grid.rebuild(sun);
+        t_rebuild.push(grid.stats.build_time.as_secs_f64());
+        t_grid.push(trace_shadow(scene, Some(&grid), &shadow));
+        t_bvh.push(trace_shadow(scene, None, &shadow));
+    }
+    let n_shadow = shadow.len() as f64;
+    let (read, tests) = shadow.iter().filter_map(|r| grid.cost_of(r)).fold((0, 0), |(a, b), (r, t)| (a + r, b + t));
     RenderBenchRow {
         label: label.to_string(),
         range_m: pose.position.length(),
@@ -111,6 +154,14 @@ pub fn measure(
         rays: recorded,
         render_mrays: recorded as f64 / tr / 1e6,
         raw_mrays: recorded as f64 / tw / 1e6,
+        shadow_rays: shadow.len() as u64,
+        grid_mrays: n_shadow / median(t_grid) / 1e6,
+        bvh_shadow_mrays: n_shadow / median(t_bvh) / 1e6,
+        grid_build_ms: median(t_build) * 1e3,
+        grid_rebuild_ms: median(t_rebuild) * 1e3,
+        grid_entries: grid.stats.entries,
+        grid_reads: read as f64 / n_shadow,
+        grid_tests: tests as f64 / n_shadow,
     }
 }
 
@@ -132,6 +183,38 @@ pub fn print_table(rows: &[RenderBenchRow]) {
             r.render_mrays,
             r.raw_mrays,
             r.ratio() * 100.0
+        );
+    }
+}
+
+/// The shadow-ray table: sun grid against the BVH on the same recorded rays.
+pub fn print_shadow_table(rows: &[RenderBenchRow]) {
+    println!(
+        "{:<28} {:>10} {:>11} {:>10} {:>7} {:>9} {:>11} {:>10} {:>8} {:>8}",
+        "shadow rays",
+        "rays",
+        "grid Mr/s",
+        "BVH Mr/s",
+        "ratio",
+        "build ms",
+        "rebuild ms",
+        "entries",
+        "reads/ray",
+        "tests/ray"
+    );
+    for r in rows {
+        println!(
+            "{:<28} {:>10} {:>11.2} {:>10.2} {:>6.2}x {:>9.1} {:>11.1} {:>10} {:>8.2} {:>8.2}",
+            r.label,
+            r.shadow_rays,
+            r.grid_mrays,
+            r.bvh_shadow_mrays,
+            r.grid_mrays / r.bvh_shadow_mrays,
+            r.grid_build_ms,
+            r.grid_rebuild_ms,
+            r.grid_entries,
+            r.grid_reads,
+            r.grid_tests
         );
     }
 }
