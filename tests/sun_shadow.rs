@@ -215,21 +215,46 @@ fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
     let cam = small_camera(&scene, 80);
     let mut turned = scene.pose;
     turned.attitude = glam::DQuat::from_rotation_y(0.4) * turned.attitude;
+    let bits = |img: &hilcam::film::RadianceImage| img.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
     for (pose, sequence) in
         [(scene.pose, Sequence::Sobol), (turned, Sequence::Independent), (scene.pose, Sequence::Sobol)]
     {
         let settings =
             RenderSettings { spp: 3, depth: 4, sampler: SamplerKind::Brdf, sequence, roulette: true, seed: 11 };
-        scene.sun_shadow.set_enabled(true);
-        let (with, s1) = render(&scene, &cam, &pose, &settings, 5);
-        let view = hilcam::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds);
-        let used = scene.sun_shadow.get(&scene.mesh, view.sun).unwrap();
-        assert_eq!(used.dir().to_array().map(f32::to_bits), view.sun.to_array().map(f32::to_bits));
+        let sun = hilcam::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds).sun;
         scene.sun_shadow.set_enabled(false);
-        let (without, s2) = render(&scene, &cam, &pose, &settings, 5);
-        assert!(s1.rays.shadow > 1000, "too few shadow rays to compare: {}", s1.rays.shadow);
-        assert_eq!(s1.rays, s2.rays);
-        let bits = |img: &hilcam::film::RadianceImage| img.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
-        assert_eq!(bits(&with), bits(&without), "image bytes differ");
+        let (bvh, s0) = render(&scene, &cam, &pose, &settings, 5);
+        assert!(s0.rays.shadow > 1000, "too few shadow rays to compare: {}", s0.rays.shadow);
+        scene.sun_shadow.set_enabled(true);
+        // The first frame with a new sun uses the BVH, the second builds and uses the grid.
+        let (first, s1) = render(&scene, &cam, &pose, &settings, 5);
+        let (second, s2) = render(&scene, &cam, &pose, &settings, 5);
+        let built = scene.sun_shadow.built_for().unwrap();
+        assert_eq!(built.to_array().map(f32::to_bits), sun.to_array().map(f32::to_bits));
+        assert_eq!((s0.rays, s0.rays), (s1.rays, s2.rays));
+        assert_eq!(bits(&bvh), bits(&first));
+        assert_eq!(bits(&bvh), bits(&second), "image bytes differ with the grid");
     }
+}
+
+#[test]
+fn the_cache_builds_on_the_second_request_and_reuses() {
+    let scene = satellite_small_soup();
+    let (a, b) = (Vec3::new(0.2, 0.3, 0.9).normalize(), Vec3::new(-0.5, 0.1, 0.8).normalize());
+    let cache = hilcam::geometry::SunShadowCache::default();
+    assert!(cache.get(&scene, a).is_none(), "first request: BVH");
+    let g1 = cache.get(&scene, a).expect("second request builds");
+    let g2 = cache.get(&scene, a).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&g1, &g2), "same sun reuses");
+    assert!(cache.get(&scene, b).is_none());
+    drop((g1, g2));
+    let g3 = cache.get(&scene, b).unwrap();
+    assert_eq!(g3.dir(), b);
+    cache.set_eager(true);
+    assert_eq!(cache.get(&scene, a).unwrap().dir(), a, "eager builds at once");
+}
+
+fn satellite_small_soup() -> TriMesh {
+    let mut rng = Rng::from_state(7);
+    soup(&mut rng, 1.0, Vec3::Z, 60)
 }

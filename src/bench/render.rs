@@ -37,6 +37,8 @@ pub struct RenderBenchRow {
     /// Rebuilding it in place for another direction (buffers reused), milliseconds.
     pub grid_rebuild_ms: f64,
     pub grid_entries: usize,
+    /// Frame time with shadow rays through the BVH only (`frame_s` uses the sun grid).
+    pub frame_bvh_s: f64,
     /// Mean cell entries read and triangle tests run per shadow ray by the grid.
     pub grid_reads: f64,
     pub grid_tests: f64,
@@ -122,10 +124,16 @@ pub fn measure(
     // Every ray the renderer traced must be re-traced, or the ratio compares different work.
     assert_eq!(recorded, stats.rays.total(), "ray log incomplete");
     let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
+    // Frames with the sun grid (built by the first of them: the sun repeats) and with
+    // shadow rays through the BVH only, alternating.
+    let mut t_render_bvh = Vec::new();
     for _ in 0..rounds.max(1) {
         let (_, s) = render(scene, camera, pose, settings, 0);
         t_render.push(s.time.as_secs_f64());
         t_raw.push(trace_raw(scene, &logs));
+        scene.sun_shadow.set_enabled(false);
+        t_render_bvh.push(render(scene, camera, pose, settings, 0).1.time.as_secs_f64());
+        scene.sun_shadow.set_enabled(true);
     }
     let (tr, tw) = (median(t_render), median(t_raw));
     // Shadow rays: sun grid and BVH alternately on the same rays; the grid's build time.
@@ -160,6 +168,7 @@ pub fn measure(
         grid_build_ms: median(t_build) * 1e3,
         grid_rebuild_ms: median(t_rebuild) * 1e3,
         grid_entries: grid.stats.entries,
+        frame_bvh_s: median(t_render_bvh),
         grid_reads: read as f64 / n_shadow,
         grid_tests: tests as f64 / n_shadow,
     }
@@ -204,7 +213,7 @@ pub fn print_shadow_table(rows: &[RenderBenchRow]) {
     );
     for r in rows {
         println!(
-            "{:<28} {:>10} {:>11.2} {:>10.2} {:>6.2}x {:>9.1} {:>11.1} {:>10} {:>8.2} {:>8.2}",
+            "{:<28} {:>10} {:>10.2} {:>9.2} {:>6.2}x {:>9.1} {:>10.1} {:>8} {:>9.2} {:>9.2} {:>12.1} {:>11.1}",
             r.label,
             r.shadow_rays,
             r.grid_mrays,
@@ -214,7 +223,9 @@ pub fn print_shadow_table(rows: &[RenderBenchRow]) {
             r.grid_rebuild_ms,
             r.grid_entries,
             r.grid_reads,
-            r.grid_tests
+            r.grid_tests,
+            r.frame_s * 1e3,
+            r.frame_bvh_s * 1e3
         );
     }
 }

@@ -546,46 +546,77 @@ fn round_up_f32(x: f64) -> f32 {
     if f64::from(k) < x { k.next_up() } else { k }
 }
 
-/// The structure for the current sun direction, cached on the scene: consecutive frames
-/// with the same sun (bit-identical direction) reuse it; a new direction rebuilds it,
-/// in place when no frame still holds the old one.
+/// The structure for the current sun direction, cached on the scene: frames with the
+/// same sun (bit-identical direction) reuse it; a new direction rebuilds it, in place when
+/// no frame still holds the old one.
+///
+/// By default a direction is built for only when it is asked for a second time in a row:
+/// on the satellite one build costs more than the shadow rays of one frame save
+/// (docs/performance.md), so a sun that moves every frame keeps using the BVH and a sun
+/// that stays put pays the build once. [`Self::set_eager`] builds on the first request.
 pub struct SunShadowCache {
-    slot: Mutex<Option<Arc<SunShadow>>>,
+    slot: Mutex<CacheSlot>,
     enabled: AtomicBool,
+    eager: AtomicBool,
+}
+
+#[derive(Default)]
+struct CacheSlot {
+    built: Option<Arc<SunShadow>>,
+    /// The last direction asked for without a structure being built.
+    last_request: Option<[u32; 3]>,
 }
 
 impl Default for SunShadowCache {
     fn default() -> Self {
-        SunShadowCache { slot: Mutex::new(None), enabled: AtomicBool::new(true) }
+        SunShadowCache {
+            slot: Mutex::new(CacheSlot::default()),
+            enabled: AtomicBool::new(true),
+            eager: AtomicBool::new(false),
+        }
     }
 }
 
 impl SunShadowCache {
-    /// The structure for rays along `dir`, built if needed; `None` when disabled or when
-    /// `dir` is not a usable direction (callers then use the BVH).
+    /// The structure for rays along `dir`, built if due; `None` when disabled, not (yet)
+    /// built for `dir`, or `dir` is not a usable direction (callers then use the BVH).
     pub fn get(&self, mesh: &TriMesh, dir: Vec3) -> Option<Arc<SunShadow>> {
         if !self.enabled.load(Ordering::Relaxed) || !dir.is_finite() || dir == Vec3::ZERO {
             return None;
         }
+        let bits = dir.to_array().map(f32::to_bits);
         let mut slot = self.slot.lock().unwrap_or_else(|e| e.into_inner());
-        let same = |s: &SunShadow| s.dir.to_array().map(f32::to_bits) == dir.to_array().map(f32::to_bits);
-        match slot.as_mut() {
-            Some(s) if same(s) => return Some(s.clone()),
-            Some(s) => {
-                if let Some(m) = Arc::get_mut(s) {
-                    m.rebuild(dir);
-                } else {
-                    *s = Arc::new(SunShadow::build(mesh, dir));
-                }
-            }
-            None => *slot = Some(Arc::new(SunShadow::build(mesh, dir))),
+        if let Some(s) = slot.built.as_ref().filter(|s| s.dir.to_array().map(f32::to_bits) == bits) {
+            return Some(s.clone());
         }
-        slot.clone()
+        if !self.eager.load(Ordering::Relaxed) && slot.last_request != Some(bits) {
+            slot.last_request = Some(bits);
+            return None;
+        }
+        slot.last_request = None;
+        match slot.built.as_mut() {
+            Some(s) => match Arc::get_mut(s) {
+                Some(m) => m.rebuild(dir),
+                None => *s = Arc::new(SunShadow::build(mesh, dir)),
+            },
+            None => slot.built = Some(Arc::new(SunShadow::build(mesh, dir))),
+        }
+        slot.built.clone()
+    }
+
+    /// The direction the cached structure answers for, if one is built.
+    pub fn built_for(&self) -> Option<Vec3> {
+        self.slot.lock().unwrap_or_else(|e| e.into_inner()).built.as_ref().map(|s| s.dir)
     }
 
     /// Turn the structure off (every shadow ray goes through the BVH) or back on; for
     /// comparisons and benchmarks.
     pub fn set_enabled(&self, on: bool) {
         self.enabled.store(on, Ordering::Relaxed);
+    }
+
+    /// Build on the first request for a direction instead of the second.
+    pub fn set_eager(&self, on: bool) {
+        self.eager.store(on, Ordering::Relaxed);
     }
 }
