@@ -242,6 +242,8 @@ fn the_cache_builds_on_the_second_request_and_reuses() {
     let scene = satellite_small_soup();
     let (a, b) = (Vec3::new(0.2, 0.3, 0.9).normalize(), Vec3::new(-0.5, 0.1, 0.8).normalize());
     let cache = hilcam::geometry::SunShadowCache::default();
+    assert!(cache.get(&scene, a).is_none() && cache.get(&scene, a).is_none(), "off by default");
+    cache.set_enabled(true);
     assert!(cache.get(&scene, a).is_none(), "first request: BVH");
     let g1 = cache.get(&scene, a).expect("second request builds");
     let g2 = cache.get(&scene, a).unwrap();

@@ -44,8 +44,8 @@ pub struct Scene {
     pub sensor: SensorConfig,
     pub pose: Pose,
     pub render: RenderSettings,
-    /// Shadow-ray structure for the current sun direction (built by the first frame that
-    /// needs it, rebuilt when the sun moves in the render frame).
+    /// Shadow-ray structure for the current sun direction (off by default; built when a
+    /// sun direction repeats, rebuilt when it moves in the render frame).
     pub sun_shadow: SunShadowCache,
 }
 
