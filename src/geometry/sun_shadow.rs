@@ -1,7 +1,11 @@
 //! Occlusion of rays that all travel along one direction `s` (the parallel sun): every
 //! triangle is projected orthographically onto the plane ⊥ `s` and binned into a 2D grid;
 //! a shadow ray only tests the triangles of the cell its origin projects into, and in
-//! that cell only those that can lie ahead of the origin along `s`.
+//! that cell only those that can lie ahead of the origin along `s` (entries sorted by the
+//! largest origin depth at which they can be hit, so the scan stops early). Each entry also
+//! carries its region's box and the triangle's plane (an origin in front of it gives
+//! `t < 0`), so most candidates are rejected without reading the triangle.
+//! [`SunShadowCache`] keeps the structure for the current sun on the `Scene`.
 //!
 //! Exactness. A query runs obvhs's own triangle test (`RtTriangle::intersect`, the same
 //! stored triangles and the same `Ray` the BVH passes it) on its candidates, and any-hit
