@@ -9,7 +9,7 @@
 //! - [`pose`]: the `Pose` type (f64), validation, and the wire codecs (pure, over bytes).
 //! - [`camera`]: pinhole camera at the real pixel geometry; pose → render frame.
 //! - [`scene`]: TOML scene files, OBJ/MTL loading, material mapping.
-//! - [`geometry`]: triangles and the obvhs BVH (the only module that imports obvhs).
+//! - [`geometry`]: triangles, the obvhs BVH and the sun-aligned shadow grid (the only modules that import obvhs).
 //! - [`fold`]: fold (wrinkled MLI) planes: generate, measure E_PLANE/Var, wrap onto meshes.
 //! - [`model`]: procedural models (the Jason-like satellite), written as OBJ + MTL.
 //! - [`bsdf`]: BRDF models (Lambert, Blinn-Phong, improved Blinn-Phong, Cook-Torrance).

@@ -8,7 +8,7 @@
 
 use super::median;
 use crate::camera::CameraModel;
-use crate::geometry::Ray;
+use crate::geometry::{Ray, SunShadow};
 use crate::integrator::{RecordedRays, RenderSettings};
 use crate::pose::Pose;
 use crate::render::{render, render_logged};
@@ -28,6 +28,20 @@ pub struct RenderBenchRow {
     pub rays: u64,
     pub render_mrays: f64,
     pub raw_mrays: f64,
+    /// Shadow rays toward the sun, re-traced through the sun grid and through the BVH.
+    pub shadow_rays: u64,
+    pub grid_mrays: f64,
+    pub bvh_shadow_mrays: f64,
+    /// Building the sun grid for this frame's sun (median), milliseconds.
+    pub grid_build_ms: f64,
+    /// Rebuilding it in place for another direction (buffers reused), milliseconds.
+    pub grid_rebuild_ms: f64,
+    pub grid_entries: usize,
+    /// Frame time with shadow rays through the BVH only (`frame_s` uses the sun grid).
+    pub frame_bvh_s: f64,
+    /// Mean cell entries read and triangle tests run per shadow ray by the grid.
+    pub grid_reads: f64,
+    pub grid_tests: f64,
 }
 
 impl RenderBenchRow {
@@ -82,6 +96,20 @@ fn trace_raw(scene: &Scene, logs: &[RecordedRays]) -> f64 {
     t0.elapsed().as_secs_f64()
 }
 
+/// Shadow rays re-traced through the sun grid (`Some`) or the BVH (`None`), seconds.
+fn trace_shadow(scene: &Scene, grid: Option<&SunShadow>, rays: &[Ray]) -> f64 {
+    let t0 = Instant::now();
+    let occluded: usize = rays
+        .par_chunks(4096)
+        .map(|c| match grid {
+            Some(g) => c.iter().filter(|r| g.occluded(r).unwrap_or_else(|| scene.accel.occluded(r))).count(),
+            None => c.iter().filter(|r| scene.accel.occluded(r)).count(),
+        })
+        .sum();
+    std::hint::black_box(occluded);
+    t0.elapsed().as_secs_f64()
+}
+
 /// Measure one configuration: `rounds` alternating renderer / raw-traversal runs.
 pub fn measure(
     scene: &Scene,
@@ -91,17 +119,42 @@ pub fn measure(
     rounds: usize,
     label: &str,
 ) -> RenderBenchRow {
+    // The sun grid on: this first frame asks for it, the first timed frame builds it.
+    scene.sun_shadow.set_enabled(true);
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
     let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();
     // Every ray the renderer traced must be re-traced, or the ratio compares different work.
     assert_eq!(recorded, stats.rays.total(), "ray log incomplete");
     let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
+    // Frames with the sun grid (built by the first of them: the sun repeats) and with
+    // shadow rays through the BVH only, alternating.
+    let mut t_render_bvh = Vec::new();
     for _ in 0..rounds.max(1) {
         let (_, s) = render(scene, camera, pose, settings, 0);
         t_render.push(s.time.as_secs_f64());
         t_raw.push(trace_raw(scene, &logs));
+        scene.sun_shadow.set_enabled(false);
+        t_render_bvh.push(render(scene, camera, pose, settings, 0).1.time.as_secs_f64());
+        scene.sun_shadow.set_enabled(true);
     }
     let (tr, tw) = (median(t_render), median(t_raw));
+    // Shadow rays: sun grid and BVH alternately on the same rays; the grid's build time.
+    let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
+    let sun = shadow.first().map_or(glam::Vec3::Z, |r| r.dir);
+    let (mut t_grid, mut t_bvh, mut t_build, mut t_rebuild) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut grid = SunShadow::build(&scene.mesh, sun);
+    for _ in 0..rounds.max(1) {
+        let g = SunShadow::build(&scene.mesh, sun);
+        t_build.push(g.stats.build_time.as_secs_f64());
+        // In place for a slightly different sun and back, as consecutive frames would.
+        grid.rebuild(glam::Vec3::new(sun.x, sun.y + 1e-3, sun.z).normalize());
+        grid.rebuild(sun);
+        t_rebuild.push(grid.stats.build_time.as_secs_f64());
+        t_grid.push(trace_shadow(scene, Some(&grid), &shadow));
+        t_bvh.push(trace_shadow(scene, None, &shadow));
+    }
+    let n_shadow = shadow.len() as f64;
+    let (read, tests) = shadow.iter().filter_map(|r| grid.cost_of(r)).fold((0, 0), |(a, b), (r, t)| (a + r, b + t));
     RenderBenchRow {
         label: label.to_string(),
         range_m: pose.position.length(),
@@ -111,6 +164,15 @@ pub fn measure(
         rays: recorded,
         render_mrays: recorded as f64 / tr / 1e6,
         raw_mrays: recorded as f64 / tw / 1e6,
+        shadow_rays: shadow.len() as u64,
+        grid_mrays: n_shadow / median(t_grid) / 1e6,
+        bvh_shadow_mrays: n_shadow / median(t_bvh) / 1e6,
+        grid_build_ms: median(t_build) * 1e3,
+        grid_rebuild_ms: median(t_rebuild) * 1e3,
+        grid_entries: grid.stats.entries,
+        frame_bvh_s: median(t_render_bvh),
+        grid_reads: read as f64 / n_shadow,
+        grid_tests: tests as f64 / n_shadow,
     }
 }
 
@@ -132,6 +194,42 @@ pub fn print_table(rows: &[RenderBenchRow]) {
             r.render_mrays,
             r.raw_mrays,
             r.ratio() * 100.0
+        );
+    }
+}
+
+/// The shadow-ray table: sun grid against the BVH on the same recorded rays.
+pub fn print_shadow_table(rows: &[RenderBenchRow]) {
+    println!(
+        "{:<28} {:>10} {:>10} {:>9} {:>7} {:>9} {:>10} {:>8} {:>9} {:>9} {:>12} {:>11}",
+        "shadow rays",
+        "rays",
+        "grid Mr/s",
+        "BVH Mr/s",
+        "ratio",
+        "build ms",
+        "rebuild ms",
+        "entries",
+        "reads/ray",
+        "tests/ray",
+        "frame ms grid",
+        "frame ms BVH"
+    );
+    for r in rows {
+        println!(
+            "{:<28} {:>10} {:>10.2} {:>9.2} {:>6.2}x {:>9.1} {:>10.1} {:>8} {:>9.2} {:>9.2} {:>12.1} {:>11.1}",
+            r.label,
+            r.shadow_rays,
+            r.grid_mrays,
+            r.bvh_shadow_mrays,
+            r.grid_mrays / r.bvh_shadow_mrays,
+            r.grid_build_ms,
+            r.grid_rebuild_ms,
+            r.grid_entries,
+            r.grid_reads,
+            r.grid_tests,
+            r.frame_s * 1e3,
+            r.frame_bvh_s * 1e3
         );
     }
 }

@@ -1,5 +1,5 @@
-//! The acceleration structure: obvhs BVHs over the scene's triangles. This is the only
-//! module that imports obvhs.
+//! The acceleration structure: obvhs BVHs over the scene's triangles. Only this module
+//! and `sun_shadow` (which must run the very same triangle test) import obvhs.
 //!
 //! Both obvhs layouts are kept: the binary BVH2 is the faster of the two for the
 //! coherent rays that dominate our frames (primary and parallel-sun shadow rays), the

@@ -2,6 +2,8 @@
 
 pub mod bvh;
 pub mod mesh;
+pub mod sun_shadow;
 
 pub use bvh::{Accel, BvhLayout, Hit, Ray, TestRay};
 pub use mesh::TriMesh;
+pub use sun_shadow::{SunShadow, SunShadowCache};

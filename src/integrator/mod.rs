@@ -6,13 +6,14 @@
 //! (depth 1 = direct only; Mitsuba's `max_depth` = depth + 1). Surfaces are two-sided:
 //! the shading normal is flipped to face the incoming ray. Shading uses face normals.
 
-use crate::geometry::{Hit, Ray};
+use crate::geometry::{Hit, Ray, SunShadow};
 use crate::sampling::{
     Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, cosine_hemisphere_pdf, uniform_hemisphere,
 };
 use crate::scene::Scene;
 use glam::Vec3;
 use serde::Deserialize;
+use std::sync::Arc;
 
 /// How indirect directions are drawn.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize, clap::ValueEnum)]
@@ -142,6 +143,8 @@ pub struct PathContext<'a> {
     /// False when no bounce can carry energy (depth 1 or all materials black).
     pub indirect: bool,
     pub roulette: bool,
+    /// Occlusion structure for rays toward `sun` (`None`: shadow rays use the BVH).
+    pub sun_shadow: Option<Arc<SunShadow>>,
 }
 
 impl<'a> PathContext<'a> {
@@ -154,6 +157,17 @@ impl<'a> PathContext<'a> {
             sampler: settings.sampler,
             indirect,
             roulette: settings.roulette,
+            sun_shadow: scene.sun_shadow.get(&scene.mesh, sun),
+        }
+    }
+
+    /// Whether anything blocks `ray` (a shadow ray): through the sun structure when the ray
+    /// runs along `sun`, otherwise through the BVH; the same answer either way.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        match self.sun_shadow.as_ref().and_then(|s| s.occluded(ray)) {
+            Some(b) => b,
+            None => self.scene.accel.occluded(ray),
         }
     }
 
@@ -192,7 +206,7 @@ impl<'a> PathContext<'a> {
             if let Some((shadow, contribution)) = sc.shadow {
                 counts.shadow += 1;
                 log.shadow(&shadow);
-                if !scene.accel.occluded(&shadow) {
+                if !self.occluded(&shadow) {
                     l += contribution;
                 }
             }

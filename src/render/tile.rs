@@ -167,7 +167,7 @@ impl TileJob<'_> {
                 counts.shadow += shadows.len() as u64;
                 for (i, ray, contribution) in shadows.iter() {
                     log.shadow(ray);
-                    if !scene.accel.occluded(ray) {
+                    if !ctx.occluded(ray) {
                         paths[*i as usize].l += contribution;
                     }
                 }

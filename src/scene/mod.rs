@@ -6,7 +6,7 @@ pub mod obj;
 
 use crate::bsdf::Bsdf;
 use crate::camera::{CameraModel, TargetBounds};
-use crate::geometry::{Accel, BvhLayout, TriMesh};
+use crate::geometry::{Accel, BvhLayout, SunShadowCache, TriMesh};
 use crate::integrator::RenderSettings;
 use crate::pose::Pose;
 use crate::sensor::SensorConfig;
@@ -44,6 +44,9 @@ pub struct Scene {
     pub sensor: SensorConfig,
     pub pose: Pose,
     pub render: RenderSettings,
+    /// Shadow-ray structure for the current sun direction (off by default; built when a
+    /// sun direction repeats, rebuilt when it moves in the render frame).
+    pub sun_shadow: SunShadowCache,
 }
 
 /// What a scene is made of before the acceleration structure is built.
@@ -93,6 +96,7 @@ impl Scene {
             sensor,
             pose,
             render,
+            sun_shadow: SunShadowCache::default(),
         }
     }
 
