@@ -11,7 +11,8 @@ use crate::camera::CameraModel;
 use crate::geometry::{Ray, SunShadow};
 use crate::integrator::{RecordedRays, RenderSettings};
 use crate::pose::Pose;
-use crate::render::{render, render_logged};
+use crate::camera::View;
+use crate::render::{PrimaryVisibility, render, render_logged, render_view_with};
 use crate::scene::Scene;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -37,8 +38,12 @@ pub struct RenderBenchRow {
     /// Rebuilding it in place for another direction (buffers reused), milliseconds.
     pub grid_rebuild_ms: f64,
     pub grid_entries: usize,
-    /// Frame time with shadow rays through the BVH only (`frame_s` uses the sun grid).
-    pub frame_bvh_s: f64,
+    /// Frame time with the sun grid on (`frame_s`: the defaults, shadow rays through the
+    /// BVH).
+    pub frame_grid_s: f64,
+    /// Frame time with every primary ray traced through the BVH (`frame_s`: rasterised).
+    pub frame_traced_s: f64,
+    pub traced_pixels_traced: u64,
     /// Mean cell entries read and triangle tests run per shadow ray by the grid.
     pub grid_reads: f64,
     pub grid_tests: f64,
@@ -119,23 +124,26 @@ pub fn measure(
     rounds: usize,
     label: &str,
 ) -> RenderBenchRow {
-    // The sun grid on: this first frame asks for it, the first timed frame builds it.
-    scene.sun_shadow.set_enabled(true);
+    // The defaults (sun grid off, primary hits rasterised) with every ray recorded.
+    scene.sun_shadow.set_enabled(false);
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
     let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();
     // Every ray the renderer traced must be re-traced, or the ratio compares different work.
     assert_eq!(recorded, stats.rays.total(), "ray log incomplete");
-    let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
-    // Frames with the sun grid (built by the first of them: the sun repeats) and with
-    // shadow rays through the BVH only, alternating.
-    let mut t_render_bvh = Vec::new();
+    let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
+    let traced = |s: &RenderSettings| render_view_with::<()>(scene, camera, &view, s, 0, PrimaryVisibility::Trace).1;
+    let traced_pixels_traced = traced(settings).traced_pixels;
+    // Alternating: the defaults, the raw re-trace, the sun grid on (built by the first of
+    // these frames, the sun repeats), every primary ray traced.
+    let (mut t_render, mut t_raw, mut t_render_grid, mut t_render_traced) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
         let (_, s) = render(scene, camera, pose, settings, 0);
         t_render.push(s.time.as_secs_f64());
         t_raw.push(trace_raw(scene, &logs));
-        scene.sun_shadow.set_enabled(false);
-        t_render_bvh.push(render(scene, camera, pose, settings, 0).1.time.as_secs_f64());
         scene.sun_shadow.set_enabled(true);
+        t_render_grid.push(render(scene, camera, pose, settings, 0).1.time.as_secs_f64());
+        scene.sun_shadow.set_enabled(false);
+        t_render_traced.push(traced(settings).time.as_secs_f64());
     }
     let (tr, tw) = (median(t_render), median(t_raw));
     // Shadow rays: sun grid and BVH alternately on the same rays; the grid's build time.
@@ -170,7 +178,9 @@ pub fn measure(
         grid_build_ms: median(t_build) * 1e3,
         grid_rebuild_ms: median(t_rebuild) * 1e3,
         grid_entries: grid.stats.entries,
-        frame_bvh_s: median(t_render_bvh),
+        frame_grid_s: median(t_render_grid),
+        frame_traced_s: median(t_render_traced),
+        traced_pixels_traced,
         grid_reads: read as f64 / n_shadow,
         grid_tests: tests as f64 / n_shadow,
     }
@@ -228,8 +238,27 @@ pub fn print_shadow_table(rows: &[RenderBenchRow]) {
             r.grid_entries,
             r.grid_reads,
             r.grid_tests,
+            r.frame_grid_s * 1e3,
+            r.frame_s * 1e3
+        );
+    }
+}
+
+/// Rasterised against traced primary hits: frame times of the same frame, alternated.
+pub fn print_primary_table(rows: &[RenderBenchRow]) {
+    println!(
+        "{:<28} {:>13} {:>13} {:>14} {:>14} {:>8}",
+        "primary hits", "raster px", "traced px", "raster ms", "traced ms", "speed-up"
+    );
+    for r in rows {
+        println!(
+            "{:<28} {:>13} {:>13} {:>14.1} {:>14.1} {:>7.2}x",
+            r.label,
+            r.traced_pixels,
+            r.traced_pixels_traced,
             r.frame_s * 1e3,
-            r.frame_bvh_s * 1e3
+            r.frame_traced_s * 1e3,
+            r.frame_traced_s / r.frame_s
         );
     }
 }

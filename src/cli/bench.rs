@@ -1,6 +1,6 @@
 //! `hilcam bench …`: measurements that print ratios side by side in one run.
 
-use crate::bench::render::{measure, pose_for_coverage, print_shadow_table, print_table};
+use crate::bench::render::{measure, pose_for_coverage, print_primary_table, print_shadow_table, print_table};
 use crate::bench::table1::{GlintConfig, Table1Config, run_glints, run_table1};
 use crate::fold::FoldLevel;
 use crate::geometry::BvhLayout;
@@ -213,6 +213,7 @@ fn render(a: RenderBenchArgs) -> anyhow::Result<()> {
         }
     }
     print_table(&rows);
+    print_primary_table(&rows);
     print_shadow_table(&rows);
     // Cost against covered pixels, per layout: the far case should cost about its share.
     for pair in rows.chunks(a.coverage.len()) {
