@@ -18,6 +18,7 @@
 //! the box.
 
 use obvhs::{bvh2::Bvh2, ray::Ray as ObRay, rt_triangle::RtTriangle};
+use std::mem::MaybeUninit;
 
 /// Exit distances are scaled by this before `entry <= exit`: covers the few roundings of
 /// the slab test and of the triangle's own `t` (a hit on a box face must not be culled).
@@ -42,7 +43,7 @@ const EMPTY: Node4 = Node4 {
     count: [0; 4],
 };
 
-/// A pending subtree: inner node (`count == 0`) or leaf range, and its entry distance.
+/// A child: inner node (`count == 0`) or leaf range, and its entry distance.
 #[derive(Clone, Copy, Default)]
 struct Entry {
     index: u32,
@@ -140,9 +141,9 @@ impl Bvh4 {
     #[inline]
     pub fn intersect(&self, ray: &ObRay, tris: &[RtTriangle]) -> Option<(u32, f32)> {
         if self.stack_need() <= STACK {
-            self.traverse::<false>(ray, tris, &mut [Entry::default(); STACK])
+            self.traverse::<false>(ray, tris, &mut [MaybeUninit::uninit(); STACK])
         } else {
-            self.traverse::<false>(ray, tris, &mut vec![Entry::default(); self.stack_need()])
+            self.traverse::<false>(ray, tris, &mut vec![MaybeUninit::uninit(); self.stack_need()])
         }
     }
 
@@ -150,15 +151,22 @@ impl Bvh4 {
     #[inline]
     pub fn occluded(&self, ray: &ObRay, tris: &[RtTriangle]) -> bool {
         let found = if self.stack_need() <= STACK {
-            self.traverse::<true>(ray, tris, &mut [Entry::default(); STACK])
+            self.traverse::<true>(ray, tris, &mut [MaybeUninit::uninit(); STACK])
         } else {
-            self.traverse::<true>(ray, tris, &mut vec![Entry::default(); self.stack_need()])
+            self.traverse::<true>(ray, tris, &mut vec![MaybeUninit::uninit(); self.stack_need()])
         };
         found.is_some()
     }
 
     #[inline(always)]
-    fn traverse<const ANY: bool>(&self, ray: &ObRay, tris: &[RtTriangle], stack: &mut [Entry]) -> Option<(u32, f32)> {
+    /// `stack` is left uninitialised (zeroing it costs as much as a short traversal): only
+    /// entries below `sp` are read, and each was written first.
+    fn traverse<const ANY: bool>(
+        &self,
+        ray: &ObRay,
+        tris: &[RtTriangle],
+        stack: &mut [MaybeUninit<Entry>],
+    ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -166,30 +174,11 @@ impl Bvh4 {
         let boxes = Boxes::new(&p, ray.tmin);
         let mut ray = *ray;
         let mut best: Option<(u32, f32)> = None;
-        stack[0] = Entry { index: 0, count: 0, t: ray.tmin };
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let e = stack[sp];
-            if e.t > ray.tmax * SLACK {
-                continue;
-            }
-            if e.count > 0 {
-                for k in e.index..e.index + e.count {
-                    let t = tris[k as usize].intersect(&ray);
-                    if t < ray.tmax {
-                        ray.tmax = t;
-                        best = Some((k, t));
-                        if ANY {
-                            return best;
-                        }
-                    }
-                }
-                continue;
-            }
-            let node = &self.nodes[e.index as usize];
+        let mut sp = 0;
+        let mut node = &self.nodes[0];
+        loop {
             let (mut mask, tnear) = boxes.test(node, &p, ray.tmax);
-            // Collect the hit children, then push far to near so the nearest pops first.
+            // Hit children sorted far to near (`hit[n - 1]` is the nearest).
             let mut hit = [Entry::default(); 4];
             let mut n = 0;
             while mask != 0 {
@@ -204,10 +193,45 @@ impl Bvh4 {
                 hit[j] = c;
                 n += 1;
             }
-            stack[sp..sp + n].copy_from_slice(&hit[..n]);
-            sp += n;
+            // Leaves at once, near to far (as obvhs's Bvh2): a hit shortens the ray before
+            // the inner children are visited.
+            for c in hit[..n].iter().rev() {
+                if c.count > 0 && c.t <= ray.tmax * SLACK {
+                    for k in c.index..c.index + c.count {
+                        let t = tris[k as usize].intersect(&ray);
+                        if t < ray.tmax {
+                            ray.tmax = t;
+                            best = Some((k, t));
+                            if ANY {
+                                return best;
+                            }
+                        }
+                    }
+                }
+            }
+            // Inner children: the nearest next, the others pushed far to near.
+            let mut next: Option<Entry> = None;
+            for c in &hit[..n] {
+                if c.count == 0 {
+                    if let Some(far) = next {
+                        stack[sp] = MaybeUninit::new(far);
+                        sp += 1;
+                    }
+                    next = Some(*c);
+                }
+            }
+            let mut next = next.filter(|c| c.t <= ray.tmax * SLACK);
+            while next.is_none() {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                // SAFETY: `stack[..sp]` has been written (pushed children).
+                let e = unsafe { stack[sp].assume_init() };
+                next = Some(e).filter(|c| c.t <= ray.tmax * SLACK);
+            }
+            node = &self.nodes[next.map_or(0, |c| c.index) as usize];
         }
-        best
     }
 }
 
