@@ -37,11 +37,7 @@ struct Node4 {
     count: [u32; 4],
 }
 
-const EMPTY: Node4 = Node4 {
-    bounds: [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3],
-    child: [0; 4],
-    count: [0; 4],
-};
+const EMPTY: Node4 = Node4 { bounds: [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3], child: [0; 4], count: [0; 4] };
 
 /// A child: inner node (`count == 0`) or leaf range, and its entry distance.
 #[derive(Clone, Copy, Default)]
@@ -83,7 +79,11 @@ impl Bvh4 {
         if b.nodes.is_empty() {
             return out;
         }
-        let root = if b.nodes[0].is_leaf() { vec![0] } else { vec![b.nodes[0].first_index as usize, b.nodes[0].first_index as usize + 1] };
+        let root = if b.nodes[0].is_leaf() {
+            vec![0]
+        } else {
+            vec![b.nodes[0].first_index as usize, b.nodes[0].first_index as usize + 1]
+        };
         out.depth = out.add(b, root, 1);
         out
     }
@@ -92,7 +92,11 @@ impl Bvh4 {
     fn add(&mut self, b: &Bvh2, mut kids: Vec<usize>, level: usize) -> usize {
         while kids.len() < 4 {
             let area = |k: usize| b.nodes[k].aabb().half_area();
-            let open = kids.iter().enumerate().filter(|(_, k)| !b.nodes[**k].is_leaf()).max_by(|x, y| area(*x.1).total_cmp(&area(*y.1)));
+            let open = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| !b.nodes[**k].is_leaf())
+                .max_by(|x, y| area(*x.1).total_cmp(&area(*y.1)));
             let Some((i, &k)) = open else { break };
             let first = b.nodes[k].first_index as usize;
             kids[i] = first;
@@ -174,6 +178,25 @@ impl Bvh4 {
         let boxes = Boxes::new(&p, ray.tmin);
         let mut ray = *ray;
         let mut best: Option<(u32, f32)> = None;
+        // Tests a leaf's triangles in order; true when one was hit.
+        let leaf = |c: &Entry, ray: &mut ObRay, best: &mut Option<(u32, f32)>| {
+            if c.t > ray.tmax * SLACK {
+                return false;
+            }
+            let mut found = false;
+            for k in c.index..c.index + c.count {
+                let t = tris[k as usize].intersect(ray);
+                if t < ray.tmax {
+                    ray.tmax = t;
+                    *best = Some((k, t));
+                    found = true;
+                    if ANY {
+                        break;
+                    }
+                }
+            }
+            found
+        };
         let mut sp = 0;
         let mut node = &self.nodes[0];
         loop {
@@ -193,26 +216,27 @@ impl Bvh4 {
                 hit[j] = c;
                 n += 1;
             }
-            // Leaves at once, near to far (as obvhs's Bvh2): a hit shortens the ray before
-            // the inner children are visited.
-            for c in hit[..n].iter().rev() {
-                if c.count > 0 && c.t <= ray.tmax * SLACK {
-                    for k in c.index..c.index + c.count {
-                        let t = tris[k as usize].intersect(&ray);
-                        if t < ray.tmax {
-                            ray.tmax = t;
-                            best = Some((k, t));
-                            if ANY {
-                                return best;
-                            }
-                        }
+            // Leaves first, near to far (as obvhs's Bvh2): a hit shortens the ray before the
+            // inner children are visited. For the closest hit only the leaves nearer than
+            // every inner child; farther ones wait on the stack in distance order.
+            let mut rest = n;
+            if ANY {
+                for c in hit[..n].iter().rev().filter(|c| c.count > 0) {
+                    if leaf(c, &mut ray, &mut best) {
+                        return best;
                     }
                 }
+            } else {
+                while rest > 0 && hit[rest - 1].count > 0 {
+                    leaf(&hit[rest - 1], &mut ray, &mut best);
+                    rest -= 1;
+                }
             }
-            // Inner children: the nearest next, the others pushed far to near.
+            // The nearest inner child next; the others (and, for the closest hit, the
+            // remaining leaves) pushed far to near.
             let mut next: Option<Entry> = None;
-            for c in &hit[..n] {
-                if c.count == 0 {
+            for c in &hit[..rest] {
+                if c.count == 0 || !ANY {
                     if let Some(far) = next {
                         stack[sp] = MaybeUninit::new(far);
                         sp += 1;
@@ -228,7 +252,12 @@ impl Bvh4 {
                 sp -= 1;
                 // SAFETY: `stack[..sp]` has been written (pushed children).
                 let e = unsafe { stack[sp].assume_init() };
-                next = Some(e).filter(|c| c.t <= ray.tmax * SLACK);
+                if e.count > 0 {
+                    // Only the closest-hit traversal pushes leaves.
+                    leaf(&e, &mut ray, &mut best);
+                } else {
+                    next = Some(e).filter(|c| c.t <= ray.tmax * SLACK);
+                }
             }
             node = &self.nodes[next.map_or(0, |c| c.index) as usize];
         }
@@ -356,7 +385,12 @@ mod tests {
             if i % 5 == 0 {
                 d[(i + 1) % 3] = -0.0;
             }
-            let ray = ObRay::new(glam::Vec3A::new(f(3.0), f(3.0), f(3.0)), d, 0.0, if i % 2 == 0 { f32::INFINITY } else { f(4.0).abs() });
+            let ray = ObRay::new(
+                glam::Vec3A::new(f(3.0), f(3.0), f(3.0)),
+                d,
+                0.0,
+                if i % 2 == 0 { f32::INFINITY } else { f(4.0).abs() },
+            );
             let p = Prep::new(&ray);
             let b = Boxes::new(&p, ray.tmin);
             let (m1, t1) = b.test(&node, &p, ray.tmax);
