@@ -303,7 +303,7 @@ impl Boxes {
 fn scalar_test(node: &Node4, p: &Prep, tmin: f32, tmax: f32) -> (u32, [f32; 4]) {
     let mut mask = 0;
     let mut tnear = [0.0; 4];
-    for slot in 0..4 {
+    for (slot, entry) in tnear.iter_mut().enumerate() {
         let t = |axis: usize, side: usize| (node.bounds[axis][side][slot] - p.org[axis]) * p.inv[axis];
         let (nx, ny, nz) = (t(0, p.near[0]), t(1, p.near[1]), t(2, p.near[2]));
         let (fx, fy, fz) = (t(0, 1 - p.near[0]), t(1, 1 - p.near[1]), t(2, 1 - p.near[2]));
@@ -311,7 +311,7 @@ fn scalar_test(node: &Node4, p: &Prep, tmin: f32, tmax: f32) -> (u32, [f32; 4]) 
         let near = nx.max(ny.max(nz.max(tmin)));
         let far = fx.min(fy.min(fz.min(tmax))) * SLACK;
         mask |= ((near <= far) as u32) << slot;
-        tnear[slot] = near;
+        *entry = near;
     }
     (mask, tnear)
 }
