@@ -7,7 +7,8 @@
 //! the only new arithmetic, and it is made conservative (a relative slack on the exit
 //! distance; a ray lying in a box's face plane is not culled) so it never culls a box
 //! holding a triangle the triangle test would accept: the closest `t` equals the
-//! brute-force minimum bit for bit.
+//! brute-force minimum bit for bit (up to the sign of a zero `t` when two triangles tie
+//! at the origin; which of exactly tied triangles is reported depends on visit order).
 //!
 //! Zero direction components: the reciprocal is ±inf, and `(bound - origin) * inv` is NaN
 //! exactly when the origin lies on that bound's plane. Such an axis must not constrain the
@@ -15,7 +16,9 @@
 //! min/max order (`_mm_max_ps(x, acc)` returns `acc` when `x` is NaN, as `f32::max`
 //! ignores NaN). Clamping the direction (Embree's `rcp_safe`, obvhs's `safe_inverse`)
 //! would instead make the face plane an exit at `t = 0` for one sign of zero and cull
-//! the box.
+//! the box (obvhs's `Bvh2` misses such a hit; see `tests/bvh4.rs`'s axis rays). Not
+//! covered: a tiny non-zero component with the origin exactly on a face, where the
+//! triangle test's rounding could accept a point just outside the box.
 
 use obvhs::{bvh2::Bvh2, ray::Ray as ObRay, rt_triangle::RtTriangle};
 use std::mem::MaybeUninit;
