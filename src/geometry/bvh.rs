@@ -7,6 +7,7 @@
 //! `docs/performance.md`); `hilcam bench render` measures both on the same rays.
 
 use super::TriMesh;
+use super::bvh4::Bvh4;
 use glam::{Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
@@ -27,6 +28,8 @@ pub enum BvhLayout {
     Bvh2,
     /// Compressed 8-wide BVH (obvhs `CwBvh`).
     Cwbvh,
+    /// 4-wide BVH collapsed from the obvhs `Bvh2`, four boxes per step in SSE (`Bvh4`).
+    Bvh4,
 }
 
 /// A ray in the render frame (f32). `dir` need not be normalised; `t` is in its units.
@@ -51,6 +54,7 @@ pub struct Hit {
 enum Tree {
     Bvh2(Bvh2),
     Cw(CwBvh),
+    Bvh4(Bvh4),
 }
 
 /// A ray prepared once for many triangle tests ([`Accel::primitive_t`]).
@@ -102,6 +106,11 @@ impl Accel {
                     let idx = b.primitive_indices.clone();
                     (Tree::Cw(b), idx)
                 }
+                BvhLayout::Bvh4 => {
+                    let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Bvh4(Bvh4::from_bvh2(&b)), idx)
+                }
             }
         };
         let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
@@ -131,6 +140,7 @@ impl Accel {
         let found = match &self.tree {
             Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
             Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
+            Tree::Bvh4(b) => b.intersect(&ray, tris).map(|(k, t)| (hit.primitive_id, hit.t) = (k, t)).is_some(),
         };
         found.then(|| self.primitive_hit(hit.primitive_id, hit.t))
     }
@@ -180,6 +190,7 @@ impl Accel {
         let miss = match &self.tree {
             Tree::Bvh2(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
             Tree::Cw(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
+            Tree::Bvh4(b) => !b.occluded(&ray, tris),
         };
         !miss
     }

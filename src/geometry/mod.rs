@@ -1,6 +1,7 @@
 //! Geometry: triangle meshes, bounds and the obvhs BVH.
 
 pub mod bvh;
+pub mod bvh4;
 pub mod mesh;
 pub mod sun_shadow;
 
