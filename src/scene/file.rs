@@ -33,7 +33,7 @@
 //! depth = 2
 //! sampler = "cosine"
 //! seed = 0
-//! bvh = "bvh2"
+//! bvh = "bvh4"
 //! ```
 
 use super::obj::load_obj;
