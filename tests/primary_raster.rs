@@ -131,3 +131,20 @@ fn camera_among_the_triangles_falls_back_to_tracing() {
     assert!(trace.rays.primary > 0);
     assert_eq!(differ, 0);
 }
+
+#[test]
+fn auto_rasterises_only_with_enough_samples_per_triangle() {
+    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let cam = small_nav(&scene, 160, 120);
+    let view = View::new(&cam, &scene.pose, scene.frame_origin_body, scene.bounds);
+    let settings = RenderSettings { spp: 1, depth: 1, ..RenderSettings::default() };
+    // ~7 000 samples for 145 616 triangles: the per-frame binning would cost more.
+    let (_, few, _) = render_view_with::<()>(&scene, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
+    assert!(!few.primary_rasterised);
+    // The 2-triangle plate: a handful of samples already pays.
+    let plate = hilcam::scene::file::load(std::path::Path::new("scenes/plate.toml")).unwrap();
+    let cam = small_nav(&plate, 64, 64);
+    let view = View::new(&cam, &plate.pose, plate.frame_origin_body, plate.bounds);
+    let (_, many, _) = render_view_with::<()>(&plate, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
+    assert!(many.primary_rasterised);
+}

@@ -8,10 +8,10 @@
 
 use super::median;
 use crate::camera::CameraModel;
+use crate::camera::View;
 use crate::geometry::{Ray, SunShadow};
 use crate::integrator::{RecordedRays, RenderSettings};
 use crate::pose::Pose;
-use crate::camera::View;
 use crate::render::{PrimaryVisibility, render, render_logged, render_view_with};
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -41,9 +41,14 @@ pub struct RenderBenchRow {
     /// Frame time with the sun grid on (`frame_s`: the defaults, shadow rays through the
     /// BVH).
     pub frame_grid_s: f64,
-    /// Frame time with every primary ray traced through the BVH (`frame_s`: rasterised).
+    /// Frame times with every primary ray traced through the BVH, and with all rasterised
+    /// (`frame_s`: the default, which rasterises when it pays).
     pub frame_traced_s: f64,
+    pub frame_raster_s: f64,
     pub traced_pixels_traced: u64,
+    pub traced_pixels_raster: u64,
+    /// Whether the default rasterised this frame.
+    pub rasterised: bool,
     /// Mean cell entries read and triangle tests run per shadow ray by the grid.
     pub grid_reads: f64,
     pub grid_tests: f64,
@@ -131,11 +136,13 @@ pub fn measure(
     // Every ray the renderer traced must be re-traced, or the ratio compares different work.
     assert_eq!(recorded, stats.rays.total(), "ray log incomplete");
     let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
-    let traced = |s: &RenderSettings| render_view_with::<()>(scene, camera, &view, s, 0, PrimaryVisibility::Trace).1;
-    let traced_pixels_traced = traced(settings).traced_pixels;
+    let with = |p| render_view_with::<()>(scene, camera, &view, settings, 0, p).1;
+    let traced_pixels_traced = with(PrimaryVisibility::Trace).traced_pixels;
+    let traced_pixels_raster = with(PrimaryVisibility::Raster).traced_pixels;
     // Alternating: the defaults, the raw re-trace, the sun grid on (built by the first of
-    // these frames, the sun repeats), every primary ray traced.
-    let (mut t_render, mut t_raw, mut t_render_grid, mut t_render_traced) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // these frames, the sun repeats), every primary ray traced, all rasterised.
+    let (mut t_render, mut t_raw, mut t_render_grid) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut t_render_traced, mut t_render_raster) = (Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
         let (_, s) = render(scene, camera, pose, settings, 0);
         t_render.push(s.time.as_secs_f64());
@@ -143,7 +150,8 @@ pub fn measure(
         scene.sun_shadow.set_enabled(true);
         t_render_grid.push(render(scene, camera, pose, settings, 0).1.time.as_secs_f64());
         scene.sun_shadow.set_enabled(false);
-        t_render_traced.push(traced(settings).time.as_secs_f64());
+        t_render_traced.push(with(PrimaryVisibility::Trace).time.as_secs_f64());
+        t_render_raster.push(with(PrimaryVisibility::Raster).time.as_secs_f64());
     }
     let (tr, tw) = (median(t_render), median(t_raw));
     // Shadow rays: sun grid and BVH alternately on the same rays; the grid's build time.
@@ -180,7 +188,10 @@ pub fn measure(
         grid_entries: grid.stats.entries,
         frame_grid_s: median(t_render_grid),
         frame_traced_s: median(t_render_traced),
+        frame_raster_s: median(t_render_raster),
         traced_pixels_traced,
+        traced_pixels_raster,
+        rasterised: stats.primary_rasterised,
         grid_reads: read as f64 / n_shadow,
         grid_tests: tests as f64 / n_shadow,
     }
@@ -247,18 +258,19 @@ pub fn print_shadow_table(rows: &[RenderBenchRow]) {
 /// Rasterised against traced primary hits: frame times of the same frame, alternated.
 pub fn print_primary_table(rows: &[RenderBenchRow]) {
     println!(
-        "{:<28} {:>13} {:>13} {:>14} {:>14} {:>8}",
-        "primary hits", "raster px", "traced px", "raster ms", "traced ms", "speed-up"
+        "{:<28} {:>11} {:>11} {:>11} {:>11} {:>10} {:>16}",
+        "primary hits", "raster px", "traced px", "raster ms", "traced ms", "speed-up", "default"
     );
     for r in rows {
         println!(
-            "{:<28} {:>13} {:>13} {:>14.1} {:>14.1} {:>7.2}x",
+            "{:<28} {:>11} {:>11} {:>11.1} {:>11.1} {:>9.2}x {:>16}",
             r.label,
-            r.traced_pixels,
+            r.traced_pixels_raster,
             r.traced_pixels_traced,
-            r.frame_s * 1e3,
+            r.frame_raster_s * 1e3,
             r.frame_traced_s * 1e3,
-            r.frame_traced_s / r.frame_s
+            r.frame_traced_s / r.frame_raster_s,
+            if r.rasterised { "rasterises" } else { "traces" }
         );
     }
 }

@@ -51,9 +51,10 @@ pub struct RenderArgs {
     /// (digital numbers, or radiance after the optics) instead of entrance-pupil radiance.
     #[arg(long)]
     pub sensor: bool,
-    /// How primary hits are found: raster (default; exact, falls back to tracing where it
-    /// cannot be) or trace (every primary ray through the BVH, for comparison).
-    #[arg(long, value_enum, default_value = "raster")]
+    /// How primary hits are found: auto (default: rasterised when that pays, ≥ 2 camera
+    /// samples per triangle), raster (whenever exact), trace (every primary ray through
+    /// the BVH). All give the same image.
+    #[arg(long, value_enum, default_value = "auto")]
     pub primary: crate::render::PrimaryVisibility,
     /// Worker threads (default: all cores).
     #[arg(long)]
