@@ -250,7 +250,9 @@ impl PrimaryRaster {
                     for &i in &cell_samples[s0..s1] {
                         let i = i as usize;
                         let t = accel.primitive_t(k, &test_rays[i]);
-                        if t < best_t[i] {
+                        // Exact ties (coplanar overlapping triangles) go to the lowest
+                        // primitive, whatever order the buckets visit them in.
+                        if t < best_t[i] || (t == best_t[i] && t < f32::INFINITY && k < best_k[i]) {
                             best_t[i] = t;
                             best_k[i] = k;
                         }
