@@ -127,13 +127,19 @@ impl View {
     #[inline]
     pub fn primary_ray_ideal(&self, x: f64, y: f64) -> Option<(Ray, [f64; 2])> {
         let dir = self.camera_dir(x, y);
-        let ideal = if self.distortion.is_some() { self.ideal_px(dir) } else { [x, y] };
-        self.ray_along(dir).map(|r| (r, ideal))
+        self.ray_along(dir).map(|r| (r, self.ideal_along(x, y, dir)))
     }
 
     /// Where the sample at pixel coordinate `(x, y)` lies on the ideal image plane.
     pub fn ideal_of_pixel(&self, x: f64, y: f64) -> [f64; 2] {
-        if self.distortion.is_some() { self.ideal_px(self.camera_dir(x, y)) } else { [x, y] }
+        self.ideal_along(x, y, self.camera_dir(x, y))
+    }
+
+    /// Ideal image point of the sample at `(x, y)` whose camera direction is `dir`: the
+    /// pixel coordinate itself for a pinhole (no rounding through the direction).
+    #[inline]
+    fn ideal_along(&self, x: f64, y: f64, dir: DVec3) -> [f64; 2] {
+        if self.distortion.is_some() { self.ideal_px(dir) } else { [x, y] }
     }
 
     /// True when a lens model bends the rays.
