@@ -29,6 +29,10 @@ pub struct PrimaryRaster {
     /// Inclusive ideal-pixel cell range `[x0, x1, y0, y1]` of primitive `k` (BVH order),
     /// clipped to the binned region; `x0 > x1` when the triangle lies outside it.
     boxes: Vec<[i32; 4]>,
+    /// The triangle's three edges on the ideal plane, pushed outward by the margin plus
+    /// the f32 rounding of their evaluation (see [`Edges`]): a sample outside any of them
+    /// cannot hit it, so its box's other samples skip the ray-triangle test.
+    edges: Vec<Edges>,
     /// Bucket `b` covers rows `y_lo + b·BUCKET_ROWS ..`; its primitives are
     /// `bucket_tris[bucket_start[b]..bucket_start[b + 1]]`, in BVH order.
     bucket_start: Vec<u32>,
@@ -55,6 +59,57 @@ pub struct RasterScratch {
     best_k: Vec<u32>,
     rays: Vec<TestRay>,
     coords: Vec<(i32, i32)>,
+    /// Ideal image point of `cell_samples[j]`, relative to the binned region's corner.
+    cell_xy: Vec<[f32; 2]>,
+}
+
+/// Three half-planes `a·x + b·y + c ≥ 0` (ideal pixels relative to the binned region's
+/// corner) whose intersection holds every point the f32 rays of the triangle's samples can
+/// hit it from: its edges at unit normal scale, moved outward by the box margin and the
+/// rounding of evaluating them in f32. A degenerate edge or triangle gets `a = b = 0`,
+/// `c = +∞` (never rejects; the box alone decides).
+#[derive(Clone, Copy, Default)]
+struct Edges([[f32; 3]; 3]);
+
+impl Edges {
+    const PASS: [f32; 3] = [0.0, 0.0, f32::INFINITY];
+
+    /// Edges of the triangle with ideal-plane vertices `p` (relative to the region's
+    /// corner), pushed out by `tol` pixels.
+    fn new(p: [[f64; 2]; 3], tol: f64) -> Edges {
+        let cross =
+            |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+        let area2 = cross(p[0], p[1], p[2]);
+        let longest =
+            (0..3).map(|i| (p[(i + 1) % 3][0] - p[i][0]).hypot(p[(i + 1) % 3][1] - p[i][1])).fold(0.0, f64::max);
+        // Orientation is only trusted when the triangle is clearly wider than the f64
+        // rounding of its vertices; a sliver seen edge-on keeps its box only.
+        if area2.is_nan() || area2.abs() <= 1e-9 * longest * longest.max(1.0) {
+            return Edges([Self::PASS; 3]);
+        }
+        let sign = area2.signum();
+        Edges(std::array::from_fn(|i| {
+            let (o, e) = (p[i], p[(i + 1) % 3]);
+            let (dx, dy) = (e[0] - o[0], e[1] - o[1]);
+            let len = dx.hypot(dy);
+            if len.is_nan() || len <= 0.0 {
+                return Self::PASS;
+            }
+            // Signed distance from the edge line, positive toward the third vertex.
+            let (a, b) = (-sign * dy / len, sign * dx / len);
+            let c = -(a * o[0] + b * o[1]) + tol;
+            [a as f32, b as f32, c as f32]
+        }))
+    }
+
+    /// False when the point lies outside one of the (pushed-out) edges.
+    #[inline(always)]
+    fn may_contain(&self, [x, y]: [f32; 2]) -> bool {
+        let e = &self.0;
+        (e[0][0] * x + e[0][1] * y + e[0][2] >= 0.0)
+            & (e[1][0] * x + e[1][1] * y + e[1][2] >= 0.0)
+            & (e[2][0] * x + e[2][1] * y + e[2][2] >= 0.0)
+    }
 }
 
 impl PrimaryRaster {
@@ -92,7 +147,11 @@ impl PrimaryRaster {
         if !margin.is_finite() || margin > 4.0 {
             return None; // camera almost touching the target: the boxes would be huge
         }
-        let mut boxes = Vec::new();
+        // Evaluating an edge in f32 at coordinates up to the region's extent R rounds by a
+        // few 1e-7·R (coefficients, sample point, four operations); 4e-6·R covers it.
+        let extent = f64::from((x_hi - x_lo).max(y_hi - y_lo) + 1);
+        let tol = margin + 1e-3 + 4e-6 * extent;
+        let (mut boxes, mut edges) = (Vec::new(), Vec::new());
         (0..accel.len() as u32)
             .into_par_iter()
             .map(|k| {
@@ -105,9 +164,16 @@ impl PrimaryRaster {
                 let clip = |v: f64, lo: i32, hi: i32| floor_i32(v.clamp(f64::from(lo) - 1.0, f64::from(hi) + 1.0));
                 let bx = [clip(x0, x_lo, x_hi), clip(x1, x_lo, x_hi), clip(y0, y_lo, y_hi), clip(y1, y_lo, y_hi)];
                 let inside = bx[0] <= x_hi && bx[1] >= x_lo && bx[2] <= y_hi && bx[3] >= y_lo;
-                if inside { [bx[0].max(x_lo), bx[1].min(x_hi), bx[2].max(y_lo), bx[3].min(y_hi)] } else { [1, 0, 1, 0] }
+                if !inside {
+                    return ([1, 0, 1, 0], Edges::default());
+                }
+                let rel = |p: (f64, f64, f64)| [p.0 - f64::from(x_lo), p.1 - f64::from(y_lo)];
+                (
+                    [bx[0].max(x_lo), bx[1].min(x_hi), bx[2].max(y_lo), bx[3].min(y_hi)],
+                    Edges::new([rel(pa), rel(pb), rel(pc)], tol),
+                )
             })
-            .collect_into_vec(&mut boxes);
+            .unzip_into_vecs(&mut boxes, &mut edges);
         // Bucket the boxes by rows (counting sort, BVH order within a bucket).
         let buckets = ((y_hi - y_lo) / BUCKET_ROWS + 1) as usize;
         let mut bucket_start = vec![0u32; buckets + 1];
@@ -139,16 +205,27 @@ impl PrimaryRaster {
                 let tris = &bucket_tris[bucket_start[bucket] as usize..bucket_start[bucket + 1] as usize];
                 for &k in tris {
                     let b = boxes[k as usize];
+                    let [ia, ib, ic] = accel.vertex_indices(k);
+                    let tri = [ia, ib, ic].map(|i| (projected[i as usize].0, projected[i as usize].1));
                     let (y0, y1) = (b[2].max(first_row), b[3].min(first_row + BUCKET_ROWS - 1));
                     for y in y0..=y1 {
-                        let row = &mut rows[(y - first_row) as usize * stride..][..stride];
-                        set_bits(row, (b[0] - x_lo) as usize, (b[1] - x_lo) as usize);
+                        // Pixels of row y whose square, grown by the margin, meets the
+                        // triangle: its x-extent within the row's grown slab.
+                        let m = margin + 1e-6;
+                        let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
+                        let Some((xa, xb)) = slab_x_extent(tri, slab) else { continue };
+                        let (c0, c1) =
+                            (floor_i32((xa - 1.0 - m).max(-1e9)).max(b[0]), floor_i32((xb + m).min(1e9)).min(b[1]));
+                        if c0 <= c1 {
+                            let row = &mut rows[(y - first_row) as usize * stride..][..stride];
+                            set_bits(row, (c0 - x_lo) as usize, (c1 - x_lo) as usize);
+                        }
                     }
                 }
             });
             bits
         });
-        Some(PrimaryRaster { boxes, bucket_start, bucket_tris, x_lo, x_hi, y_lo, y_hi, covered, stride })
+        Some(PrimaryRaster { boxes, edges, bucket_start, bucket_tris, x_lo, x_hi, y_lo, y_hi, covered, stride })
     }
 
     /// False when no sample of pixel `(row, col)` can hit a triangle (it sees the
@@ -175,7 +252,7 @@ impl PrimaryRaster {
         hits: &mut Vec<Option<Hit>>,
     ) {
         let n = rays.len();
-        let RasterScratch { cell_start, cell_samples, best_t, best_k, rays: test_rays, coords } = scratch;
+        let RasterScratch { cell_start, cell_samples, best_t, best_k, rays: test_rays, coords, cell_xy } = scratch;
         hits.clear();
         hits.resize(n, None);
         test_rays.clear();
@@ -228,6 +305,12 @@ impl PrimaryRaster {
             cell_start[c] = cell_start[c - 1];
         }
         cell_start[0] = 0;
+        let (x_lo, y_lo) = (f64::from(self.x_lo), f64::from(self.y_lo));
+        cell_xy.clear();
+        cell_xy.extend(cell_samples.iter().map(|&i| {
+            let [x, y] = ideal[i as usize];
+            [(x - x_lo) as f32, (y - y_lo) as f32]
+        }));
         // Every triangle whose box meets the cells, once: in the first bucket of the cells'
         // rows that it overlaps.
         let b0 = ((cy0 - self.y_lo) / BUCKET_ROWS) as usize;
@@ -244,10 +327,14 @@ impl PrimaryRaster {
                 if x0 > x1 || y0 > y1 {
                     continue;
                 }
+                let edges = &self.edges[k as usize];
                 for cy in y0..=y1 {
                     let s0 = cell_start[cell((x0, cy))] as usize;
                     let s1 = cell_start[cell((x1, cy)) + 1] as usize;
-                    for &i in &cell_samples[s0..s1] {
+                    for (&i, &xy) in cell_samples[s0..s1].iter().zip(&cell_xy[s0..s1]) {
+                        if !edges.may_contain(xy) {
+                            continue;
+                        }
                         let i = i as usize;
                         let t = accel.primitive_t(k, &test_rays[i]);
                         // Exact ties (coplanar overlapping triangles) go to the lowest
@@ -274,6 +361,28 @@ impl PrimaryRaster {
 fn floor_i32(v: f64) -> i32 {
     let t = v as i32;
     if f64::from(t) > v { t - 1 } else { t }
+}
+
+/// The x-extent of the part of triangle `p` with `slab.0 ≤ y ≤ slab.1`, if any: over
+/// its vertices inside the slab and its edges' crossings of the slab's two lines.
+fn slab_x_extent(p: [(f64, f64); 3], slab: (f64, f64)) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut take = |x: f64| {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    };
+    for i in 0..3 {
+        let (a, b) = (p[i], p[(i + 1) % 3]);
+        if a.1 >= slab.0 && a.1 <= slab.1 {
+            take(a.0);
+        }
+        for line in [slab.0, slab.1] {
+            if (a.1 - line) * (b.1 - line) < 0.0 {
+                take(a.0 + (line - a.1) / (b.1 - a.1) * (b.0 - a.0));
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// Set bits `a..=b` of a bit row.
@@ -334,6 +443,20 @@ mod tests {
         for v in [-3.5, -3.0, -0.5, -1e-12, 0.0, 1e-12, 0.5, 2.0, 2.999_999, 1e6 + 0.25, -1e6 - 0.25] {
             assert_eq!(floor_i32(v), v.floor() as i32, "{v}");
         }
+    }
+
+    #[test]
+    fn slab_x_extent_of_a_triangle() {
+        let t = [(0.0, 0.0), (10.0, 0.0), (0.0, 10.0)];
+        // Row band 4..5: the triangle spans x from 0 to 10 − 4 = 6 there.
+        assert_eq!(slab_x_extent(t, (4.0, 5.0)), Some((0.0, 6.0)));
+        // A band the triangle crosses entirely: its full width at the lower line.
+        assert_eq!(slab_x_extent(t, (-1.0, 11.0)), Some((0.0, 10.0)));
+        assert_eq!(slab_x_extent(t, (10.5, 12.0)), None);
+        // A thin sliver from (0, 0) to (100, 1): in band 0.4..0.6 only x 40..60.
+        let sliver = [(0.0, 0.0), (100.0, 1.0), (100.0, 1.0 + 1e-9)];
+        let (a, b) = slab_x_extent(sliver, (0.4, 0.6)).unwrap();
+        assert!((a - 40.0).abs() < 1e-6 && (b - 60.0).abs() < 1e-3, "{a} {b}");
     }
 
     #[test]
