@@ -90,6 +90,9 @@ pub struct SettingsFields {
     pub sampler: SamplerKind,
     pub sequence: Sequence,
     pub roulette: bool,
+    /// Absent in sessions written before adaptive sampling existed: those were uniform.
+    #[serde(default)]
+    pub adaptive: bool,
     pub seed: u64,
 }
 
@@ -101,6 +104,7 @@ impl From<&RenderSettings> for SettingsFields {
             sampler: s.sampler,
             sequence: s.sequence,
             roulette: s.roulette,
+            adaptive: s.adaptive,
             seed: s.seed,
         }
     }
@@ -114,6 +118,7 @@ impl SettingsFields {
             sampler: self.sampler,
             sequence: self.sequence,
             roulette: self.roulette,
+            adaptive: self.adaptive,
             seed: self.seed,
         }
     }

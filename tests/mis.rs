@@ -66,7 +66,15 @@ fn check_unbiased(bsdf: Bsdf, spp: u32) {
     let want = albedo_by_quadrature(&bsdf);
     let case = sky_case(bsdf);
     for sampler in [SamplerKind::Uniform, SamplerKind::Cosine, SamplerKind::Brdf] {
-        let s = RenderSettings { spp, depth: 2, sampler, sequence: Sequence::Independent, roulette: false, seed: 7 };
+        let s = RenderSettings {
+            spp,
+            depth: 2,
+            sampler,
+            sequence: Sequence::Independent,
+            roulette: false,
+            adaptive: false,
+            seed: 7,
+        };
         let (img, _) = case.render(&s);
         let v = interior(&case, &img);
         assert!(v.len() > 250, "{}", v.len());
@@ -91,7 +99,15 @@ fn cosine_is_exact_for_lambert_under_uniform_sky() {
     // f cosθ / pdf = ρ for every cosine sample: zero variance, where uniform has some.
     let case = sky_case(Bsdf::Lambert(Lambert::new(0.3717).unwrap()));
     let render = |sampler| {
-        let s = RenderSettings { spp: 8, depth: 2, sampler, sequence: Sequence::Independent, roulette: false, seed: 3 };
+        let s = RenderSettings {
+            spp: 8,
+            depth: 2,
+            sampler,
+            sequence: Sequence::Independent,
+            roulette: false,
+            adaptive: false,
+            seed: 3,
+        };
         mean_se(&interior(&case, &case.render(&s).0))
     };
     let (mc, sec) = render(SamplerKind::Cosine);

@@ -285,8 +285,15 @@ fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster(
     let cam = camera(64, 64, 20.0, 40.0);
     let rho = 0.6f32;
     let run = |sequence, spp| {
-        let settings =
-            RenderSettings { spp, depth: 2, sampler: SamplerKind::Uniform, sequence, roulette: true, seed: 21 };
+        let settings = RenderSettings {
+            spp,
+            depth: 2,
+            sampler: SamplerKind::Uniform,
+            sequence,
+            roulette: true,
+            adaptive: false,
+            seed: 21,
+        };
         let mut s =
             scene(square(0.0, 0.0, 0.0, 2.0, 0), vec![lambert("paint", rho)], cam.clone(), Pose::ahead(5.0), settings);
         s.sun_irradiance = 0.0;

@@ -25,6 +25,7 @@ const SETTINGS: RenderSettings = RenderSettings {
     sampler: hilcam::integrator::SamplerKind::Cosine,
     sequence: hilcam::sampling::Sequence::Sobol,
     roulette: true,
+    adaptive: true,
     seed: 7,
 };
 

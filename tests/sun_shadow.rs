@@ -219,8 +219,15 @@ fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
     for (pose, sequence) in
         [(scene.pose, Sequence::Sobol), (turned, Sequence::Independent), (scene.pose, Sequence::Sobol)]
     {
-        let settings =
-            RenderSettings { spp: 3, depth: 4, sampler: SamplerKind::Brdf, sequence, roulette: true, seed: 11 };
+        let settings = RenderSettings {
+            spp: 3,
+            depth: 4,
+            sampler: SamplerKind::Brdf,
+            sequence,
+            roulette: true,
+            adaptive: true,
+            seed: 11,
+        };
         let sun = hilcam::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds).sun;
         scene.sun_shadow.set_enabled(false);
         let (bvh, s0) = render(&scene, &cam, &pose, &settings, 5);

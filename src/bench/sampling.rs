@@ -149,7 +149,15 @@ pub struct Reference {
 
 /// Render the reference with `sampler` and the Sobol sequence, `2 × half_spp` samples.
 pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u32) -> Reference {
-    let s = |seed| RenderSettings { spp: half_spp, depth, sampler, sequence: Sequence::Sobol, roulette: false, seed };
+    let s = |seed| RenderSettings {
+        spp: half_spp,
+        depth,
+        sampler,
+        sequence: Sequence::Sobol,
+        roulette: false,
+        adaptive: false,
+        seed,
+    };
     let (a, ta) = case.render(&s(1_000_001));
     let (b, tb) = case.render(&s(2_000_003));
     let noise = rmse(&a, &b, &case.mask) / 2.0;
@@ -214,6 +222,7 @@ pub fn sweep(
                 sampler: SamplerKind::Cosine,
                 sequence,
                 roulette: false,
+                adaptive: false,
                 seed,
             })
             .0
@@ -221,7 +230,7 @@ pub fn sweep(
         .collect();
     for &sampler in samplers {
         for (k, &spp) in spps.iter().enumerate() {
-            let settings = RenderSettings { spp, depth, sampler, sequence, roulette: false, seed };
+            let settings = RenderSettings { spp, depth, sampler, sequence, roulette: false, adaptive: false, seed };
             let (img, time_s) = case.render(&settings);
             let e = rmse(&img, &reference.image, &case.mask);
             let ei = rmse(&minus(&img, &direct[k]), &ref_indirect, &case.mask);
@@ -380,6 +389,7 @@ mod tests {
             sampler: SamplerKind::Cosine,
             sequence: Sequence::Independent,
             roulette: false,
+            adaptive: false,
             seed: 5,
         };
         let (img, _) = case.render(&s);

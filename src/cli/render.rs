@@ -31,6 +31,14 @@ pub struct RenderArgs {
     /// Disable Russian roulette (every path runs to full depth).
     #[arg(long)]
     pub no_roulette: bool,
+    /// Give every pixel exactly `--spp` samples instead of sharing them out by the
+    /// variance a pilot pass sees around each pixel (`spp` is then the average).
+    #[arg(long)]
+    pub no_adaptive: bool,
+    /// Also write a PNG heat map of the camera samples each pixel got (black: none; the
+    /// brightest: the most), to see where adaptive sampling spent the budget.
+    #[arg(long, conflicts_with = "sensor")]
+    pub samples_map: Option<std::path::PathBuf>,
     /// Frame index (part of every random number's key).
     #[arg(long, default_value_t = 0)]
     pub frame: u64,
@@ -73,6 +81,9 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if a.no_roulette {
         settings.roulette = false;
     }
+    if a.no_adaptive {
+        settings.adaptive = false;
+    }
     let camera = scaled_camera(&scene.camera, a.width, a.height);
     let pose = match &a.pose {
         Some(s) => parse_pose(s, &scene.pose).context("--pose")?,
@@ -90,17 +101,25 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
             f.integration_s.map(|t| format!(", integration {:.3} ms", t * 1e3)).unwrap_or_default()
         );
         (crate::film::WriteInfo { preview_scale: None }, f.render)
+    } else if let Some(map) = &a.samples_map {
+        let view = crate::camera::View::new(&camera, &pose, scene.frame_origin_body, scene.bounds)
+            .with_distortion(scene.sensor.optics.distortion);
+        let (img, stats, counts) = crate::render::render_view_counted(&scene, &camera, &view, &settings, a.frame);
+        let most = write_samples_map(map, camera.width, camera.height, &counts)?;
+        println!("{}: samples per pixel, {most} at the brightest", map.display());
+        (write_radiance(&a.out, &img, None, a.png16)?, stats)
     } else {
         let (img, stats) = pipeline.radiance(&pose, &settings, a.frame);
         (write_radiance(&a.out, &img, None, a.png16)?, stats)
     };
     let covered = stats.traced_pixels as f64 / (f64::from(camera.width) * f64::from(camera.height)) * 100.0;
     print!(
-        "{}: {}x{} spp {} depth {} {:?}: {:.3} s, {} rays ({:.2} Mrays/s), traced {:.1} % of pixels, BVH {} triangles built in {:.0} ms",
+        "{}: {}x{} spp {}{} depth {} {:?}: {:.3} s, {} rays ({:.2} Mrays/s), traced {:.1} % of pixels, BVH {} triangles built in {:.0} ms",
         a.out.display(),
         camera.width,
         camera.height,
         settings.spp,
+        if settings.adaptive && settings.spp > 1 { " (adaptive, average)" } else { "" },
         settings.depth,
         settings.sampler,
         stats.time.as_secs_f64(),
@@ -118,6 +137,20 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         println!("warning: {} non-finite samples dropped", stats.rays.nonfinite);
     }
     Ok(())
+}
+
+/// Write per-pixel sample counts as an 8-bit heat map (black → red → yellow → white,
+/// linear up to the largest count); returns that count.
+fn write_samples_map(path: &std::path::Path, width: u32, height: u32, counts: &[u32]) -> anyhow::Result<u32> {
+    let most = counts.iter().copied().max().unwrap_or(0).max(1);
+    let mut img = image::RgbImage::new(width, height);
+    for (px, &n) in img.pixels_mut().zip(counts) {
+        let t = n as f32 / most as f32 * 3.0;
+        let ramp = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+        *px = image::Rgb([ramp(t), ramp(t - 1.0), ramp(t - 2.0)]);
+    }
+    img.save(path).with_context(|| format!("writing {}", path.display()))?;
+    Ok(most)
 }
 
 /// The same camera at another resolution, with the same field of view.

@@ -39,6 +39,9 @@ pub struct RenderSettings {
     pub sequence: Sequence,
     /// Russian roulette on low-throughput paths (from the second indirect bounce on).
     pub roulette: bool,
+    /// Share the samples out by each pixel's estimated variance (`spp` is then the
+    /// average; `render::adaptive`), instead of `spp` in every pixel.
+    pub adaptive: bool,
     pub seed: u64,
 }
 
@@ -50,6 +53,7 @@ impl Default for RenderSettings {
             sampler: SamplerKind::Cosine,
             sequence: Sequence::Sobol,
             roulette: true,
+            adaptive: true,
             seed: 0,
         }
     }

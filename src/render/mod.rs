@@ -14,9 +14,11 @@ use crate::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::pose::Pose;
 use crate::sampling::{PerSample, Rng, Sequence, SobolStream};
 use crate::scene::Scene;
-use tile::{Scratch, TILE_PATHS, TileJob};
+use adaptive::Adaptive;
+use tile::{CameraSample, Scratch, TILE_PATHS, TileJob};
 use visibility::PrimaryRaster;
 
+pub mod adaptive;
 mod tile;
 pub mod visibility;
 use rayon::prelude::*;
@@ -33,6 +35,9 @@ pub struct RenderStats {
     pub rect: Option<PixelRect>,
     /// True when the primary hits were rasterised (`visibility`), false when traced.
     pub primary_rasterised: bool,
+    /// Camera samples traced (`spp` × traced pixels on average; per pixel it varies
+    /// when sampling is adaptive).
+    pub samples: u64,
 }
 
 /// How primary hits are found. Both give the same hits (see `visibility`); tracing is
@@ -80,7 +85,7 @@ pub fn render(
 }
 
 /// Render one frame and hand every traced ray to a per-row `L` (benchmarks).
-pub fn render_logged<L: RayLog + Default + Send>(
+pub fn render_logged<L: RayLog + Default + Send + Sync>(
     scene: &Scene,
     camera: &CameraModel,
     pose: &Pose,
@@ -91,7 +96,7 @@ pub fn render_logged<L: RayLog + Default + Send>(
     render_view_logged(scene, camera, &view, settings, frame)
 }
 
-fn render_view_logged<L: RayLog + Default + Send>(
+fn render_view_logged<L: RayLog + Default + Send + Sync>(
     scene: &Scene,
     camera: &CameraModel,
     view: &View,
@@ -103,7 +108,7 @@ fn render_view_logged<L: RayLog + Default + Send>(
 
 /// Render one frame through `view`, choosing how primary hits are found, and hand every
 /// traced ray to a per-band `L` (benchmarks and tests).
-pub fn render_view_with<L: RayLog + Default + Send>(
+pub fn render_view_with<L: RayLog + Default + Send + Sync>(
     scene: &Scene,
     camera: &CameraModel,
     view: &View,
@@ -111,12 +116,40 @@ pub fn render_view_with<L: RayLog + Default + Send>(
     frame: u64,
     primary: PrimaryVisibility,
 ) -> (RadianceImage, RenderStats, Vec<L>) {
+    render_view_impl(scene, camera, view, settings, frame, primary, None)
+}
+
+/// Render one frame through `view` and say how many camera samples each pixel got
+/// (row-major, 0 where none was needed): with adaptive sampling, where the budget went.
+pub fn render_view_counted(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats, Vec<u32>) {
+    let mut counts = vec![0; camera.width as usize * camera.height as usize];
+    let (img, stats, _) =
+        render_view_impl::<()>(scene, camera, view, settings, frame, PrimaryVisibility::default(), Some(&mut counts));
+    (img, stats, counts)
+}
+
+fn render_view_impl<L: RayLog + Default + Send + Sync>(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+    primary: PrimaryVisibility,
+    mut counts: Option<&mut Vec<u32>>,
+) -> (RadianceImage, RenderStats, Vec<L>) {
     let t0 = Instant::now();
     let mut img = RadianceImage::new(camera.width, camera.height, scene.background);
     let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
     let mut logs = Vec::new();
     let mut traced = 0u64;
+    let mut samples = 0u64;
     let mut primary_rasterised = false;
     if let Some(rect) = rect {
         let ctx = PathContext::new(scene, view.sun, settings);
@@ -133,14 +166,14 @@ pub fn render_view_with<L: RayLog + Default + Send>(
         // saves part of each camera sample's traversal; measured on the shipped satellite
         // (`hilcam bench render`, "primary hits") it pays from about two samples per
         // triangle on (30 % of the frame: 1.15× faster; 1 %: 0.5×, i.e. slower).
-        let samples: u64 = (rect.row0..rect.row1)
+        let planned: u64 = (rect.row0..rect.row1)
             .map(|r| {
                 let (a, b) = span(r);
                 u64::from(b.saturating_sub(a))
             })
             .sum::<u64>()
             * u64::from(settings.spp.max(1));
-        let pays = samples >= RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64;
+        let pays = planned >= RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64;
         let raster = match primary {
             PrimaryVisibility::Auto if pays => PrimaryRaster::new(scene, view, rect),
             PrimaryVisibility::Raster => PrimaryRaster::new(scene, view, rect),
@@ -153,23 +186,30 @@ pub fn render_view_with<L: RayLog + Default + Send>(
             raster: raster.as_ref(),
             seed: settings.seed,
             frame,
-            spp: settings.spp.max(1),
             width: camera.width as usize,
         };
-        let per_band: Vec<(RayCounts, L, u64)> = match settings.sequence {
-            Sequence::Independent => render_bands::<Rng, L>(&job, &mut img, rect, &span),
-            Sequence::Sobol => render_bands::<SobolStream, L>(&job, &mut img, rect, &span),
+        let spp = settings.spp.max(1);
+        let adaptive = if settings.adaptive { Adaptive::new(spp) } else { None };
+        let bands: Vec<Band<L>> = match settings.sequence {
+            Sequence::Independent => render_bands::<Rng, L>(&job, &mut img, rect, &span, spp, adaptive),
+            Sequence::Sobol => render_bands::<SobolStream, L>(&job, &mut img, rect, &span, spp, adaptive),
         };
-        for (c, l, n) in per_band {
-            rays.add(&c);
-            logs.push(l);
-            traced += n;
+        for band in bands {
+            rays.add(&band.rays);
+            traced += band.pixels.len() as u64;
+            samples += band.counts.iter().map(|&n| u64::from(n)).sum::<u64>();
+            if let Some(counts) = counts.as_deref_mut() {
+                for (&(row, col), &n) in band.pixels.iter().zip(&band.counts) {
+                    counts[row as usize * job.width + col as usize] = n;
+                }
+            }
+            logs.push(band.log);
         }
         if rays.nonfinite > 0 {
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
-    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised };
+    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples };
     (img, stats, logs)
 }
 
@@ -180,60 +220,156 @@ const RASTER_SAMPLES_PER_TRIANGLE: u64 = 2;
 /// columns × all its rows, so a tile is compact on the image.
 const BAND_ROWS: usize = 8;
 
-/// Render the rectangle's rows band by band (rayon over bands), each band pass by pass.
-fn render_bands<S: PerSample + Send, L: RayLog + Default + Send>(
+/// Camera samples traced in one call in the adaptive stage (bounds its buffers).
+const PASS_SAMPLES: usize = 16 * 1024;
+
+/// One band of rows during a frame: its pixels and their running sums.
+struct Band<L> {
+    first_row: usize,
+    /// Pixels in tile order: blocks of `tile_cols` columns × all rows.
+    pixels: Vec<(u32, u32)>,
+    sums: Vec<f32>,
+    /// Pilot sums of squares (adaptive frames only).
+    sum_sq: Vec<f32>,
+    /// Samples per pixel.
+    counts: Vec<u32>,
+    rays: RayCounts,
+    log: L,
+}
+
+/// Render the rectangle's rows band by band (rayon over bands), each band pass by pass:
+/// `spp` samples in every pixel, or (`adaptive`) a pilot in every pixel and the rest of
+/// the budget where the pilot saw variance.
+fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     job: &TileJob,
     img: &mut RadianceImage,
     rect: PixelRect,
     span: &(dyn Fn(u32) -> (u32, u32) + Sync),
-) -> Vec<(RayCounts, L, u64)> {
+    spp: u32,
+    adaptive: Option<Adaptive>,
+) -> Vec<Band<L>> {
     let w = job.width;
-    let inv_spp = 1.0 / job.spp as f32;
-    // Tile width in columns: about TILE_PATHS pixels per tile.
-    let tile_cols = (TILE_PATHS / BAND_ROWS).max(1) as u32;
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
-    img.data[row0 * w..row1 * w]
-        .par_chunks_mut(w * BAND_ROWS)
-        .enumerate()
-        .map_init(
-            || (Scratch::<S>::default(), Vec::new(), Vec::new()),
-            |(scratch, pixels, sums), (band, out)| {
-                let first_row = row0 + band * BAND_ROWS;
-                let rows = (first_row..first_row + out.len() / w).map(|r| r as u32);
-                let spans: Vec<(u32, u32)> = rows.clone().map(span).collect();
-                let mut counts = RayCounts::default();
-                let mut log = L::default();
-                // The band's pixels in tile order: blocks of `tile_cols` columns × all rows.
-                pixels.clear();
-                let c_min = spans.iter().filter(|s| s.0 < s.1).map(|s| s.0).min().unwrap_or(0);
-                let c_max = spans.iter().filter(|s| s.0 < s.1).map(|s| s.1).max().unwrap_or(0);
-                for c0 in (c_min..c_max).step_by(tile_cols as usize) {
-                    let c1 = (c0 + tile_cols).min(c_max);
-                    for (row, &(a, b)) in rows.clone().zip(&spans) {
-                        let cols = a.max(c0)..b.min(c1);
-                        match job.raster {
-                            Some(r) => pixels.extend(cols.filter(|&col| r.may_hit(row, col)).map(|col| (row, col))),
-                            None => pixels.extend(cols.map(|col| (row, col))),
+    let first_stage = adaptive.map_or(spp, |a| a.pilot);
+    let new_scratch = || (Scratch::<S>::default(), Vec::new(), Vec::new());
+    let mut bands: Vec<Band<L>> = (row0..row1)
+        .step_by(BAND_ROWS)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map_init(new_scratch, |(scratch, pass, values), first_row| {
+            let rows = first_row as u32..(first_row + BAND_ROWS).min(row1) as u32;
+            let pixels = band_pixels(job, rows, span);
+            let mut band = Band {
+                first_row,
+                sums: vec![0.0; pixels.len()],
+                sum_sq: if adaptive.is_some() { vec![0.0; pixels.len()] } else { Vec::new() },
+                counts: vec![first_stage; pixels.len()],
+                pixels,
+                rays: RayCounts::default(),
+                log: L::default(),
+            };
+            for s in 0..first_stage {
+                pass.clear();
+                pass.extend(band.pixels.iter().map(|&(row, col)| CameraSample { row, col, index: s }));
+                values.clear();
+                values.extend_from_slice(job.trace_pass(pass, scratch, &mut band.rays, &mut band.log));
+                for (i, &v) in values.iter().enumerate() {
+                    if v.is_finite() {
+                        band.sums[i] += v;
+                        if adaptive.is_some() {
+                            band.sum_sq[i] += v * v;
                         }
+                    } else {
+                        band.rays.nonfinite += 1;
                     }
                 }
-                sums.clear();
-                sums.resize(pixels.len(), 0.0f32);
-                for s in 0..job.spp {
-                    let samples = job.trace_pass(pixels, s, scratch, &mut counts, &mut log);
-                    for (sum, &v) in sums.iter_mut().zip(samples) {
-                        if v.is_finite() {
-                            *sum += v;
-                        } else {
-                            counts.nonfinite += 1;
-                        }
+            }
+            band
+        })
+        .collect();
+    if let Some(plan) = adaptive {
+        add_adaptive_samples::<S, L>(job, &mut bands, plan, img.height as usize);
+    }
+    img.data[row0 * w..row1 * w].par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
+        for ((&(row, col), &sum), &n) in band.pixels.iter().zip(&band.sums).zip(&band.counts) {
+            out[(row as usize - band.first_row) * w + col as usize] = sum * (1.0 / n as f32);
+        }
+    });
+    bands
+}
+
+/// The second stage of an adaptive frame: share out the rest of the budget by what the
+/// pilot saw around each pixel (`adaptive`) and trace those samples.
+fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
+    job: &TileJob,
+    bands: &mut [Band<L>],
+    plan: Adaptive,
+    height: usize,
+) {
+    let w = job.width;
+    let mut stat = vec![plan.background_statistic(job.ctx.scene.background); w * height];
+    for band in bands.iter() {
+        for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
+            stat[row as usize * w + col as usize] = plan.statistic(sum, sq);
+        }
+    }
+    let weights: Vec<Vec<f32>> = bands
+        .par_iter()
+        .map(|b| b.pixels.iter().map(|&(r, c)| plan.weight(&stat, w, height, r as usize, c as usize)).collect())
+        .collect();
+    let shares = plan.shares(weights.iter().map(|b| &b[..]));
+    bands.par_iter_mut().zip(weights).for_each_init(
+        || (Scratch::<S>::default(), Vec::new(), Vec::new()),
+        |(scratch, pass, owner), (band, weight)| {
+            let index: Vec<u64> = band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)).collect();
+            band.counts = plan.counts(&shares, &weight, &index, job.seed, job.frame);
+            let most = band.counts.iter().copied().max().unwrap_or(0);
+            // Sample-major, so each pixel's samples are summed in index order.
+            pass.clear();
+            owner.clear();
+            for s in plan.pilot..most {
+                for (i, (&(row, col), &n)) in band.pixels.iter().zip(&band.counts).enumerate() {
+                    if n > s {
+                        pass.push(CameraSample { row, col, index: s });
+                        owner.push(i as u32);
                     }
                 }
-                for (&(row, col), &sum) in pixels.iter().zip(sums.iter()) {
-                    out[(row as usize - first_row) * w + col as usize] = sum * inv_spp;
+            }
+            for (chunk, owners) in pass.chunks(PASS_SAMPLES).zip(owner.chunks(PASS_SAMPLES)) {
+                let values = job.trace_pass(chunk, scratch, &mut band.rays, &mut band.log);
+                for (&i, &v) in owners.iter().zip(values) {
+                    if v.is_finite() {
+                        band.sums[i as usize] += v;
+                    } else {
+                        band.rays.nonfinite += 1;
+                    }
                 }
-                (counts, log, pixels.len() as u64)
-            },
-        )
-        .collect()
+            }
+        },
+    );
+}
+
+/// A band's pixels that may see the target, in tile order: blocks of about
+/// `TILE_PATHS / BAND_ROWS` columns × all the band's rows, so a tile is compact.
+fn band_pixels(
+    job: &TileJob,
+    rows: std::ops::Range<u32>,
+    span: &(dyn Fn(u32) -> (u32, u32) + Sync),
+) -> Vec<(u32, u32)> {
+    let tile_cols = (TILE_PATHS / BAND_ROWS).max(1) as u32;
+    let spans: Vec<(u32, u32)> = rows.clone().map(span).collect();
+    let mut pixels = Vec::new();
+    let c_min = spans.iter().filter(|s| s.0 < s.1).map(|s| s.0).min().unwrap_or(0);
+    let c_max = spans.iter().filter(|s| s.0 < s.1).map(|s| s.1).max().unwrap_or(0);
+    for c0 in (c_min..c_max).step_by(tile_cols as usize) {
+        let c1 = (c0 + tile_cols).min(c_max);
+        for (row, &(a, b)) in rows.clone().zip(&spans) {
+            let cols = a.max(c0)..b.min(c1);
+            match job.raster {
+                Some(r) => pixels.extend(cols.filter(|&col| r.may_hit(row, col)).map(|col| (row, col))),
+                None => pixels.extend(cols.map(|col| (row, col))),
+            }
+        }
+    }
+    pixels
 }

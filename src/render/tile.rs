@@ -23,13 +23,21 @@ use crate::sampling::PerSample;
 /// Paths per tile: enough for coherent waves, few enough to stay in the L1/L2 caches.
 pub const TILE_PATHS: usize = 256;
 
+/// One camera sample: sample `index` of pixel (`row`, `col`), image coordinates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CameraSample {
+    pub row: u32,
+    pub col: u32,
+    pub index: u32,
+}
+
 /// One path in flight.
 struct Path<S> {
     rng: S,
     ray: Ray,
     beta: f32,
     l: f32,
-    /// Index of this sample's pixel in the pass's pixel list.
+    /// Index of this camera sample in the pass's list.
     slot: u32,
     alive: bool,
 }
@@ -47,7 +55,7 @@ pub struct Scratch<S> {
     active: Vec<u32>,
     hits: Vec<Option<Hit>>,
     shadows: Vec<(u32, Ray, f32)>,
-    /// Radiance of the pass's sample in each pixel.
+    /// Radiance of each camera sample of the pass.
     samples: Vec<f32>,
 }
 
@@ -75,17 +83,15 @@ pub struct TileJob<'a> {
     pub raster: Option<&'a PrimaryRaster>,
     pub seed: u64,
     pub frame: u64,
-    pub spp: u32,
     pub width: usize,
 }
 
 impl TileJob<'_> {
-    /// Trace camera sample `s` of every pixel in `pixels` (`(row, col)`, image
-    /// coordinates, in tile order) and return its radiance per pixel.
+    /// Trace the camera samples `pass` (neighbours next to each other: tiles are cut from
+    /// it in order) and return the radiance of each.
     pub fn trace_pass<'s, S: PerSample, L: RayLog>(
         &self,
-        pixels: &[(u32, u32)],
-        s: u32,
+        pass: &[CameraSample],
         scratch: &'s mut Scratch<S>,
         counts: &mut RayCounts,
         log: &mut L,
@@ -94,13 +100,13 @@ impl TileJob<'_> {
         let scene = ctx.scene;
         let Scratch { paths, rays, ideal, primary, raster, active, hits, shadows, samples } = scratch;
         samples.clear();
-        samples.resize(pixels.len(), scene.background);
+        samples.resize(pass.len(), scene.background);
         paths.clear();
         rays.clear();
         ideal.clear();
-        for (i, &(row, col)) in pixels.iter().enumerate() {
+        for (i, &CameraSample { row, col, index }) in pass.iter().enumerate() {
             let pixel = row as u64 * self.width as u64 + u64::from(col);
-            let mut rng = S::for_sample(self.seed, self.frame, pixel, s);
+            let mut rng = S::for_sample(self.seed, self.frame, pixel, index);
             let j = rng.next_2d();
             let (x, y) = (f64::from(col) + f64::from(j.x), f64::from(row) + f64::from(j.y));
             // A ray that misses the bounding sphere sees the background (already set).

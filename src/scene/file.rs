@@ -186,6 +186,8 @@ struct RenderSection {
     sequence: Sequence,
     #[serde(default = "yes")]
     roulette: bool,
+    #[serde(default = "yes")]
+    adaptive: bool,
     #[serde(default)]
     seed: u64,
     #[serde(default)]
@@ -211,6 +213,7 @@ impl Default for RenderSection {
             sampler: SamplerKind::default(),
             sequence: Sequence::default(),
             roulette: true,
+            adaptive: true,
             seed: 0,
             bvh: BvhLayout::default(),
         }
@@ -378,6 +381,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         sampler: r.sampler,
         sequence: r.sequence,
         roulette: r.roulette,
+        adaptive: r.adaptive,
         seed: r.seed,
     };
     if render.spp == 0 {

@@ -1,0 +1,270 @@
+//! Adaptive sample counts per pixel, chosen so that every pixel's estimate stays unbiased.
+//!
+//! A frame's error is not spread evenly: on the shipped satellite at 4 spp, 1 % of the
+//! target's pixels (MLI folds, silhouette and shadow edges, the inside of the white
+//! antenna dish where light bounces) hold 80 % of the squared error. Spending the samples
+//! where the variance is minimises Σ σ²ₚ / Nₚ for a fixed Σ Nₚ at Nₚ ∝ σₚ.
+//!
+//! So a frame is rendered in two stages: a pilot of `pilot` = ⌊spp/2⌋ samples in every
+//! pixel, then the rest of the budget (`spp` per pixel on average) shared out by a weight
+//! that grows with each pixel's estimated standard deviation σ̂: with two or more pilot
+//! samples, the mean of its neighbours' pilot variances; with one, the spread of its
+//! neighbours' pilot values (edges and noise both show there). The weight is √σ̂, not σ̂:
+//! the noisy pixels (folds, the dish) are also the expensive ones — their paths bounce
+//! and their rays start among small triangles, ~2.4× the cost of an average sample — and
+//! the optimum for per-sample cost cₚ is Nₚ ∝ σₚ/√cₚ; √σ̂ measured best on the shipped
+//! satellite (docs/performance.md, session 4).
+//!
+//! The estimate for pixel p is taken from the pilot samples of its eight *neighbours
+//! only*, never its own: the number of samples p gets is
+//! then independent of p's own random numbers, so the mean of its first Nₚ samples is an
+//! unbiased estimate whatever Nₚ is (each sample of p's sequence is, on its own, an
+//! unbiased sample of the pixel). Using p's own pilot values would bias it (a pixel whose
+//! pilot came out high would be sampled differently from one whose pilot came out low).
+//! The fractional part of each share is dithered by a hash of (seed, frame, pixel), also
+//! independent of p's samples, so the expected total is the budget.
+
+use crate::sampling::mix64;
+
+/// Share of the mean weight added to every pixel's: a pixel whose neighbours all looked
+/// flat still gets some of the budget (a defensive mixture with uniform sampling).
+const FLOOR: f64 = 0.05;
+/// No pixel gets more than this many times the average extra samples.
+const CAP: u32 = 16;
+
+/// The two-stage plan of a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Adaptive {
+    /// Samples every pixel gets in the pilot stage.
+    pub pilot: u32,
+    /// Average samples per sampled pixel over the whole frame.
+    pub spp: u32,
+}
+
+impl Adaptive {
+    /// The plan for `spp` samples per pixel on average; `None` for 1 (nothing to move).
+    pub fn new(spp: u32) -> Option<Adaptive> {
+        (spp >= 2).then_some(Adaptive { pilot: spp / 2, spp })
+    }
+
+    /// Largest sample count a pixel can get.
+    pub fn max_samples(&self) -> u32 {
+        self.pilot + CAP * (self.spp - self.pilot)
+    }
+
+    /// What the pilot of one pixel tells its neighbours, from the sum and sum of squares
+    /// of its pilot samples: their variance, or with one sample its value.
+    pub fn statistic(&self, sum: f32, sum_sq: f32) -> f32 {
+        if self.pilot == 1 { sum } else { sample_variance(sum, sum_sq, self.pilot) }
+    }
+
+    /// The statistic of a pixel that was not sampled (it sees the background exactly).
+    pub fn background_statistic(&self, background: f32) -> f32 {
+        if self.pilot == 1 { background } else { 0.0 }
+    }
+
+    /// Weight of pixel (`row`, `col`) from the pilot statistics `stat` (`width` ×
+    /// `height`, row-major) of its neighbours.
+    pub fn weight(&self, stat: &[f32], width: usize, height: usize, row: usize, col: usize) -> f32 {
+        let sigma = if self.pilot == 1 {
+            neighbour_spread(stat, width, height, row, col)
+        } else {
+            neighbour_sigma(stat, width, height, row, col)
+        };
+        sigma.sqrt()
+    }
+
+    /// How the extra budget is shared, from the weights of every sampled pixel of the
+    /// frame (`bands`, summed in the order given, so the answer is the same for any thread
+    /// count): in proportion to `weight + FLOOR·mean`, at most `CAP` times the average
+    /// extra per pixel, and what the capped pixels cannot take goes to the others.
+    pub fn shares<'a>(&self, bands: impl Iterator<Item = &'a [f32]> + Clone) -> Shares {
+        let extra = f64::from(self.spp - self.pilot);
+        let cap = f64::from(CAP) * extra;
+        let (mut total, mut pixels) = (0.0f64, 0u64);
+        for b in bands.clone() {
+            total += b.iter().map(|&w| f64::from(w)).sum::<f64>();
+            pixels += b.len() as u64;
+        }
+        if total <= 0.0 || !total.is_finite() {
+            // Nothing varies anywhere: the uniform plan.
+            return Shares { floor: 1.0, scale: extra, cap };
+        }
+        let floor = FLOOR * total / pixels as f64;
+        let budget = extra * pixels as f64;
+        let scale = budget / (total + floor * pixels as f64);
+        // One redistribution step: the capped pixels keep `cap`, the rest share the rest.
+        let (mut capped_weight, mut capped) = (0.0f64, 0u64);
+        for b in bands {
+            for &w in b {
+                let w = f64::from(w) + floor;
+                if w * scale > cap {
+                    capped_weight += w;
+                    capped += 1;
+                }
+            }
+        }
+        let rest = total + floor * pixels as f64 - capped_weight;
+        let scale = if capped > 0 && rest > 0.0 { (budget - capped as f64 * cap).max(0.0) / rest } else { scale };
+        Shares { floor, scale, cap }
+    }
+
+    /// Sample counts of pixels with weights `weight` (frame pixel indices `index`):
+    /// `pilot` plus their share, its fraction dithered by `(seed, frame, pixel index)`.
+    pub fn counts(&self, shares: &Shares, weight: &[f32], index: &[u64], seed: u64, frame: u64) -> Vec<u32> {
+        weight
+            .iter()
+            .zip(index)
+            .map(|(&w, &i)| {
+                let share = ((f64::from(w) + shares.floor) * shares.scale).min(shares.cap);
+                let u =
+                    (mix64(seed ^ mix64(frame ^ mix64(i ^ 0x6164_6170_7469_7665))) >> 11) as f64 / (1u64 << 53) as f64;
+                self.pilot + (share + u).floor() as u32
+            })
+            .collect()
+    }
+}
+
+/// Extra samples of a pixel of weight w: `min(cap, (w + floor) · scale)` (see
+/// [`Adaptive::shares`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shares {
+    floor: f64,
+    scale: f64,
+    cap: f64,
+}
+
+/// Standard deviation estimate of pixel (`row`, `col`) from the pilot variances `var`
+/// (`width` × `height`, row-major; 0 where nothing was sampled) of its neighbours in the
+/// image, the pixel itself excluded: √(mean of their variances).
+pub fn neighbour_sigma(var: &[f32], width: usize, height: usize, row: usize, col: usize) -> f32 {
+    let (mut sum, mut n) = (0.0f32, 0u32);
+    for r in row.saturating_sub(1)..(row + 2).min(height) {
+        for c in col.saturating_sub(1)..(col + 2).min(width) {
+            if (r, c) != (row, col) {
+                sum += var[r * width + c];
+                n += 1;
+            }
+        }
+    }
+    if n == 0 { 0.0 } else { (sum / n as f32).sqrt() }
+}
+
+/// Spread of the pilot values (one sample each) of the neighbours of (`row`, `col`), the
+/// pixel itself excluded: their sample standard deviation.
+pub fn neighbour_spread(value: &[f32], width: usize, height: usize, row: usize, col: usize) -> f32 {
+    let (mut sum, mut sum_sq, mut n) = (0.0f32, 0.0f32, 0u32);
+    for r in row.saturating_sub(1)..(row + 2).min(height) {
+        for c in col.saturating_sub(1)..(col + 2).min(width) {
+            if (r, c) != (row, col) {
+                let v = value[r * width + c];
+                sum += v;
+                sum_sq += v * v;
+                n += 1;
+            }
+        }
+    }
+    sample_variance(sum, sum_sq, n).sqrt()
+}
+
+/// Unbiased sample variance of `n` values from their sum and sum of squares (≥ 0).
+pub fn sample_variance(sum: f32, sum_sq: f32, n: u32) -> f32 {
+    if n < 2 {
+        return 0.0;
+    }
+    let n = n as f32;
+    ((sum_sq - sum * sum / n) / (n - 1.0)).max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pilot_is_half_the_budget() {
+        assert_eq!(Adaptive::new(1), None);
+        assert_eq!(Adaptive::new(2), Some(Adaptive { pilot: 1, spp: 2 }));
+        assert_eq!(Adaptive::new(3).unwrap().pilot, 1);
+        assert_eq!(Adaptive::new(4).unwrap().pilot, 2);
+        assert_eq!(Adaptive::new(64).unwrap().pilot, 32);
+    }
+
+    #[test]
+    fn neighbour_spread_ignores_the_pixel_itself() {
+        // Neighbours all 3: no spread, whatever the centre holds.
+        let mut v = vec![3.0f32; 9];
+        v[4] = 100.0;
+        assert_eq!(neighbour_spread(&v, 3, 3, 1, 1), 0.0);
+        // One neighbour differs: the sample standard deviation of the eight.
+        v[0] = 11.0;
+        let vals = [11.0f32, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0];
+        let mean = vals.iter().sum::<f32>() / 8.0;
+        let sd = (vals.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / 7.0).sqrt();
+        assert!((neighbour_spread(&v, 3, 3, 1, 1) - sd).abs() < 1e-5);
+    }
+
+    #[test]
+    fn neighbour_sigma_ignores_the_pixel_itself() {
+        // 3×3 image: the centre's own variance must not count.
+        let mut var = vec![4.0f32; 9];
+        var[4] = 1e6;
+        assert_eq!(neighbour_sigma(&var, 3, 3, 1, 1), 2.0);
+        // Corner: three neighbours, one of them the huge centre.
+        assert!((neighbour_sigma(&var, 3, 3, 0, 0) - ((1e6 + 8.0) / 3.0f32).sqrt()).abs() < 1e-3);
+    }
+
+    #[test]
+    fn counts_share_the_budget_in_proportion_and_keep_its_total() {
+        let plan = Adaptive { pilot: 2, spp: 8 }; // 6 extra per pixel on average
+        let n = 20_000usize;
+        // Half the pixels flat, half with σ = 1: the noisy half gets ~41× the extra samples
+        // of the flat half ((1 + f)/f with f = FLOOR · mean σ = 0.025).
+        let sigma: Vec<f32> = (0..n).map(|i| if i % 2 == 0 { 0.0 } else { 1.0 }).collect();
+        let index: Vec<u64> = (0..n as u64).collect();
+        let shares = plan.shares(std::iter::once(&sigma[..]));
+        let counts = plan.counts(&shares, &sigma, &index, 1, 2);
+        let sum: u64 = counts.iter().map(|&c| u64::from(c)).sum();
+        let budget = 8.0 * n as f64;
+        assert!((sum as f64 - budget).abs() < 0.01 * budget, "{sum} vs {budget}");
+        let mean = |odd: usize| {
+            let v: Vec<f64> = counts.iter().skip(odd).step_by(2).map(|&c| f64::from(c - plan.pilot)).collect();
+            v.iter().sum::<f64>() / v.len() as f64
+        };
+        let ratio = mean(1) / mean(0);
+        assert!((ratio / (1.025 / 0.025) - 1.0).abs() < 0.05, "ratio {ratio}");
+        assert!(counts.iter().all(|&c| c >= plan.pilot && c <= plan.max_samples()));
+    }
+
+    #[test]
+    fn flat_frames_are_sampled_uniformly() {
+        let plan = Adaptive::new(4).unwrap();
+        let flat = [0.0; 5];
+        let shares = plan.shares(std::iter::once(&flat[..]));
+        assert_eq!(plan.counts(&shares, &flat, &[0, 1, 2, 3, 4], 0, 0), vec![4; 5]);
+    }
+
+    #[test]
+    fn what_capped_pixels_cannot_take_goes_to_the_others() {
+        // One pixel with a huge weight among 999 equal ones: it is capped at 16× the
+        // average extra, and the budget is still spent.
+        let plan = Adaptive { pilot: 1, spp: 2 };
+        let mut w = vec![1.0f32; 1000];
+        w[0] = 1e6;
+        let index: Vec<u64> = (0..1000).collect();
+        let shares = plan.shares(std::iter::once(&w[..]));
+        let counts = plan.counts(&shares, &w, &index, 0, 0);
+        assert_eq!(counts[0], 1 + 16);
+        let sum: u32 = counts.iter().sum();
+        assert!((f64::from(sum) / 2000.0 - 1.0).abs() < 0.01, "{sum} samples for 2000");
+    }
+
+    #[test]
+    fn sample_variance_matches_the_definition() {
+        let v = [1.0f32, 2.0, 4.0];
+        let (s, q) = (v.iter().sum::<f32>(), v.iter().map(|x| x * x).sum::<f32>());
+        let mean = s / 3.0;
+        let direct = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / 2.0;
+        assert!((sample_variance(s, q, 3) - direct).abs() < 1e-6);
+        assert_eq!(sample_variance(5.0, 25.0, 1), 0.0);
+    }
+}
