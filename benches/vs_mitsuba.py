@@ -517,10 +517,19 @@ SUMMARY = re.compile(r": ([0-9.]+) s, (\d+) rays \(([0-9.]+) Mrays/s\)")
 
 class Hilcam:
     def __init__(
-        self, exe: Path, scene_file: Path, cam: Camera, depth: int, sampler: str, sequence: str, tmp: Path, roulette=False
+        self,
+        exe: Path,
+        scene_file: Path,
+        cam: Camera,
+        depth: int,
+        sampler: str,
+        sequence: str,
+        tmp: Path,
+        roulette=False,
+        adaptive=True,
     ):
         self.exe, self.scene_file, self.cam, self.depth, self.tmp = exe, scene_file, cam, depth, tmp
-        self.sampler, self.sequence, self.roulette = sampler, sequence, roulette
+        self.sampler, self.sequence, self.roulette, self.adaptive = sampler, sequence, roulette, adaptive
 
     def render(self, spp: int, seed: int, scene_file: Path | None = None):
         out = self.tmp / "hilcam.pfm"
@@ -528,7 +537,7 @@ class Hilcam:
             str(self.exe), "render", str(scene_file or self.scene_file), "--out", str(out),
             "--spp", str(spp), "--depth", str(self.depth), "--sampler", self.sampler, "--sequence", self.sequence, "--seed", str(seed),
             "--width", str(self.cam.width), "--height", str(self.cam.height),
-        ] + ([] if self.roulette else ["--no-roulette"])  # fmt: skip
+        ] + ([] if self.roulette else ["--no-roulette"]) + ([] if self.adaptive else ["--no-adaptive"])  # fmt: skip
         r = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if r.returncode != 0:
             raise RuntimeError(f"hilcam failed: {' '.join(cmd)}\n{r.stderr}")
@@ -669,7 +678,7 @@ def verify(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Pat
     """Both renderers at high spp on a small image: image and mean radiance must agree."""
     cam = sc.camera.scaled(args.verify_width, None)
     checks = []
-    h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette)
+    h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette, adaptive=False)
     m = Mitsuba(
         mi, np, mitsuba_scene(mi, sc, cam, depth, args.sampler[0], args.verify_spp, tmp / "meshes", args.roulette)
     )
@@ -756,6 +765,12 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
     rr = "_rr" if args.roulette else ""
     tag = f"{scene_path.stem}_{cam.width}x{cam.height}_d{depth}{rr}_{'+'.join(args.sampler)}"
     h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette)
+    # The reference's hilcam half samples every pixel alike (--no-adaptive): it must not
+    # depend on the sampling under test (adaptive sampling is unbiased, but the reference
+    # should not have to rely on that).
+    h_uniform = Hilcam(
+        exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette, adaptive=False
+    )
     ms = {
         smp: Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, smp, 1, tmp / "meshes", args.roulette))
         for smp in args.sampler
@@ -767,7 +782,7 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         f"Russian roulette {'on in both' if args.roulette else 'off in both'}"
     )
     t0 = time.perf_counter()
-    ref_h, th = h.render(args.ref_spp, seed=1_000_003)
+    ref_h, th = h_uniform.render(args.ref_spp, seed=1_000_003)
     ref_m, tm = ms[args.sampler[0]].render_passes(args.ref_spp, 1_000_003, args.ref_pass_spp)
     ref = 0.5 * (ref_h + ref_m)
     # The reference's own noise adds to every measured error: E|img − ref|² = err² + var(ref).
@@ -781,7 +796,10 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         f"{time.perf_counter() - t0:.0f} s); reference noise {ref_noise * 100:.3f} % (subtracted in quadrature)"
     )
 
-    renderers = [("hilcam", args.hilcam_sequence, h)] + [("mitsuba", smp, m) for smp, m in ms.items()]
+    renderers = [("hilcam", args.hilcam_sequence, h)]
+    if args.hilcam_uniform_too:
+        renderers.append(("hilcam-uniform", args.hilcam_sequence, h_uniform))
+    renderers += [("mitsuba", smp, m) for smp, m in ms.items()]
     rows = []
     for spp in args.spp:
         for rep in range(args.reps):
@@ -827,11 +845,11 @@ def mitsuba_spp(sampler: str, spp: int) -> int:
 
 
 def timed(renderer: str, sampler: str, spp: int) -> bool:
-    return renderer == "hilcam" or mitsuba_spp(sampler, spp) == spp
+    return renderer.startswith("hilcam") or mitsuba_spp(sampler, spp) == spp
 
 
 def label(renderer: str, sampler: str) -> str:
-    return "hilcam" if renderer == "hilcam" else f"Mitsuba[{sampler}]"
+    return renderer if renderer.startswith("hilcam") else f"Mitsuba[{sampler}]"
 
 
 def mitsuba_samplers(rows) -> list[str]:
@@ -884,6 +902,18 @@ def report(rows, tag):
             else:
                 missing = " and ".join(n for n, v in (("hilcam", th), ("Mitsuba", tm)) if not v)
                 log(f"  at {err * 100:4.0f} % error: outside the measured range of {missing}")
+    uc = curve(rows, "hilcam-uniform")
+    if uc:
+        up = [(t, e) for _, t, e in uc]
+        log("hilcam --no-adaptive (same alternation): " + ", ".join(f"{spp} spp {t * 1e3:.1f} ms {e * 100:.2f} %" for spp, t, e in uc))
+        for err in EQUAL_ERRORS:
+            tu, ta = interp_time(up, err), interp_time(hp, err)
+            if tu and ta:
+                log(f"  at {err * 100:4.0f} % error: adaptive {ta * 1e3:9.2f} ms, uniform {tu * 1e3:9.2f} ms, gain {tu / ta:.2f}")
+            for smp in smps:
+                tm = interp_time([(t, e) for _, t, e in mcs[smp]], err)
+                if tu and tm:
+                    log(f"      uniform vs Mitsuba[{smp}]: ratio {tm / tu:.2f}")
     for who, pts in [("hilcam", hp)] + [(f"Mitsuba[{smp}]", [(t, e) for _, t, e in mcs[smp]]) for smp in smps]:
         c = curve(rows, "hilcam") if who == "hilcam" else mcs[who[8:-1]]
         t10, s10 = interp_time(pts, 0.10), interp_time([(spp, e) for spp, _, e in c], 0.10)
@@ -898,7 +928,10 @@ def plot(rows, summary, tag):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    lines = [("hilcam", None, "hilcam", "o-")] + [
+    lines = [("hilcam", None, "hilcam", "o-")]
+    if curve(rows, "hilcam-uniform"):
+        lines.append(("hilcam-uniform", None, "hilcam --no-adaptive", "o--"))
+    lines += [
         ("mitsuba", smp, f"Mitsuba 3 (llvm_ad_mono, {smp})", st)
         for smp, st in zip(mitsuba_samplers(rows), ("s-", "^-", "v-"))
     ]
@@ -963,6 +996,11 @@ def main() -> int:
         choices=["cosine", "uniform", "brdf"],
         default="cosine",
         help="hilcam's bounce sampler (cosine = Mitsuba's diffuse BSDF sampling)",
+    )
+    ap.add_argument(
+        "--hilcam-uniform-too",
+        action="store_true",
+        help="also time hilcam with --no-adaptive (every pixel the same spp) in the same alternation",
     )
     ap.add_argument(
         "--roulette",
