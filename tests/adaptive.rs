@@ -23,14 +23,7 @@ fn satellite() -> Scene {
 
 /// The navigation camera scaled to `width` × `height` (same field of view).
 fn small_nav(scene: &Scene, width: u32, height: u32) -> CameraModel {
-    let nav = &scene.camera;
-    CameraModel {
-        width,
-        height,
-        pitch_um: nav.pitch_um * f64::from(nav.width) / f64::from(width),
-        focal_mm: nav.focal_mm,
-        principal_point_px: [0.0, 0.0],
-    }
+    scaled_camera(scene, width, height, [0.0, 0.0])
 }
 
 /// Pixel by pixel, the mean of the first `counts[p]` samples of `PathContext::radiance`.

@@ -3,6 +3,7 @@
 //! near and far, rotated, with and without the navigation camera's lens distortion; and
 //! the fall-back to tracing when the camera is among the triangles.
 
+mod common;
 use glam::{DQuat, DVec3};
 use hilcam::camera::{CameraModel, View};
 use hilcam::geometry::bvh::brute_force;
@@ -14,14 +15,7 @@ use hilcam::sampling::{PerSample, Sequence, SobolStream};
 use hilcam::scene::Scene;
 
 fn small_nav(scene: &Scene, width: u32, height: u32) -> CameraModel {
-    let nav = &scene.camera;
-    CameraModel {
-        width,
-        height,
-        pitch_um: nav.pitch_um * f64::from(nav.width) / f64::from(width),
-        focal_mm: nav.focal_mm,
-        principal_point_px: [1.5, -2.25],
-    }
+    common::scenes::scaled_camera(scene, width, height, [1.5, -2.25])
 }
 
 const FRAME: u64 = 3;

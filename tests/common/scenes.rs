@@ -8,6 +8,19 @@ use hilcam::integrator::RenderSettings;
 use hilcam::pose::Pose;
 use hilcam::scene::{Material, Scene, SceneParts};
 
+/// The scene's camera at `width` × `height` pixels with the same field of view, principal
+/// point offset `pp` (pixels).
+pub fn scaled_camera(scene: &Scene, width: u32, height: u32, pp: [f64; 2]) -> CameraModel {
+    let nav = &scene.camera;
+    CameraModel {
+        width,
+        height,
+        pitch_um: nav.pitch_um * f64::from(nav.width) / f64::from(width),
+        focal_mm: nav.focal_mm,
+        principal_point_px: pp,
+    }
+}
+
 /// An axis-aligned square in the plane z = `z` (body frame), side `s`, centred at (cx, cy).
 pub fn square(cx: f32, cy: f32, z: f32, s: f32, material: u32) -> TriMesh {
     let h = s * 0.5;
