@@ -114,6 +114,8 @@ pub fn measure(
         spp: grid.reference_spp,
         depth: grid.reference_depth,
         sampler: SamplerKind::Brdf,
+        // Every pixel alike: the reference must not depend on the sampling under test.
+        adaptive: false,
         seed: grid.base.seed.wrapping_add(1),
         ..grid.base
     };
