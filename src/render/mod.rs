@@ -237,6 +237,21 @@ struct Band<L> {
     log: L,
 }
 
+impl<L> Band<L> {
+    /// Add sample value `v` to pixel `i` (and its square, in the pilot of an adaptive
+    /// frame); a non-finite value is dropped and counted.
+    fn add_sample(&mut self, i: usize, v: f32, square: bool) {
+        if !v.is_finite() {
+            self.rays.nonfinite += 1;
+            return;
+        }
+        self.sums[i] += v;
+        if square {
+            self.sum_sq[i] += v * v;
+        }
+    }
+}
+
 /// Render the rectangle's rows band by band (rayon over bands), each band pass by pass:
 /// `spp` samples in every pixel, or (`adaptive`) a pilot in every pixel and the rest of
 /// the budget where the pilot saw variance.
@@ -251,12 +266,12 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     let w = job.width;
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
     let first_stage = adaptive.map_or(spp, |a| a.pilot);
-    let new_scratch = || (Scratch::<S>::default(), Vec::new(), Vec::new());
+    let new_scratch = || (Scratch::<S>::default(), Vec::new());
     let mut bands: Vec<Band<L>> = (row0..row1)
         .step_by(BAND_ROWS)
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map_init(new_scratch, |(scratch, pass, values), first_row| {
+        .map_init(new_scratch, |(scratch, pass), first_row| {
             let rows = first_row as u32..(first_row + BAND_ROWS).min(row1) as u32;
             let pixels = band_pixels(job, rows, span);
             let mut band = Band {
@@ -271,17 +286,9 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
             for s in 0..first_stage {
                 pass.clear();
                 pass.extend(band.pixels.iter().map(|&(row, col)| CameraSample { row, col, index: s }));
-                values.clear();
-                values.extend_from_slice(job.trace_pass(pass, scratch, &mut band.rays, &mut band.log));
+                let values = job.trace_pass(pass, scratch, &mut band.rays, &mut band.log);
                 for (i, &v) in values.iter().enumerate() {
-                    if v.is_finite() {
-                        band.sums[i] += v;
-                        if adaptive.is_some() {
-                            band.sum_sq[i] += v * v;
-                        }
-                    } else {
-                        band.rays.nonfinite += 1;
-                    }
+                    band.add_sample(i, v, adaptive.is_some());
                 }
             }
             band
@@ -338,11 +345,7 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
             for (chunk, owners) in pass.chunks(PASS_SAMPLES).zip(owner.chunks(PASS_SAMPLES)) {
                 let values = job.trace_pass(chunk, scratch, &mut band.rays, &mut band.log);
                 for (&i, &v) in owners.iter().zip(values) {
-                    if v.is_finite() {
-                        band.sums[i as usize] += v;
-                    } else {
-                        band.rays.nonfinite += 1;
-                    }
+                    band.add_sample(i as usize, v, false);
                 }
             }
         },
