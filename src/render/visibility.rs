@@ -200,6 +200,8 @@ impl PrimaryRaster {
         let stride = ((x_hi - x_lo + 1) as usize).div_ceil(64);
         let covered = (!view.has_distortion()).then(|| {
             let mut bits = vec![0u64; stride * (y_hi - y_lo + 1) as usize];
+            // The box margin, plus the f64 rounding of the clipping below.
+            let m = margin + 1e-6;
             bits.par_chunks_mut(stride * BUCKET_ROWS as usize).enumerate().for_each(|(bucket, rows)| {
                 let first_row = y_lo + bucket as i32 * BUCKET_ROWS;
                 let tris = &bucket_tris[bucket_start[bucket] as usize..bucket_start[bucket + 1] as usize];
@@ -211,7 +213,6 @@ impl PrimaryRaster {
                     for y in y0..=y1 {
                         // Pixels of row y whose square, grown by the margin, meets the
                         // triangle: its x-extent within the row's grown slab.
-                        let m = margin + 1e-6;
                         let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
                         let Some((xa, xb)) = slab_x_extent(tri, slab) else { continue };
                         let (c0, c1) =
