@@ -71,6 +71,15 @@ pub struct RasterScratch {
 #[derive(Clone, Copy, Default)]
 struct Edges([[f32; 3]; 3]);
 
+/// `√(x² + y²)` without `hypot`'s care for overflow, which costs ~20 ns a call in glibc
+/// (6 calls per triangle per frame: 2.5 % of a 1-spp goal frame). Image-plane coordinates
+/// stay far from f64's overflow, and the edges only pre-filter (with a margin) what the
+/// exact ray test decides.
+#[inline]
+fn length(x: f64, y: f64) -> f64 {
+    (x * x + y * y).sqrt()
+}
+
 impl Edges {
     const PASS: [f32; 3] = [0.0, 0.0, f32::INFINITY];
 
@@ -81,7 +90,7 @@ impl Edges {
             |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
         let area2 = cross(p[0], p[1], p[2]);
         let longest =
-            (0..3).map(|i| (p[(i + 1) % 3][0] - p[i][0]).hypot(p[(i + 1) % 3][1] - p[i][1])).fold(0.0, f64::max);
+            (0..3).map(|i| length(p[(i + 1) % 3][0] - p[i][0], p[(i + 1) % 3][1] - p[i][1])).fold(0.0, f64::max);
         // Orientation is only trusted when the triangle is clearly wider than the f64
         // rounding of its vertices; a sliver seen edge-on keeps its box only.
         if area2.is_nan() || area2.abs() <= 1e-9 * longest * longest.max(1.0) {
@@ -91,7 +100,7 @@ impl Edges {
         Edges(std::array::from_fn(|i| {
             let (o, e) = (p[i], p[(i + 1) % 3]);
             let (dx, dy) = (e[0] - o[0], e[1] - o[1]);
-            let len = dx.hypot(dy);
+            let len = length(dx, dy);
             if len.is_nan() || len <= 0.0 {
                 return Self::PASS;
             }
