@@ -8,7 +8,7 @@ use crate::camera::{CameraModel, View};
 use crate::film::{Pixels, RadianceImage};
 use crate::integrator::RenderSettings;
 use crate::pose::Pose;
-use crate::render::{PrimaryVisibility, RenderStats, render_view_with};
+use crate::render::{FrameBuffers, PrimaryVisibility, RenderStats, render_view_into, render_view_with};
 use crate::sampling::mix64;
 use crate::scene::Scene;
 use crate::sensor::{AutoExposure, Sensor, SensorError};
@@ -36,6 +36,8 @@ pub struct FramePipeline {
     sensor: Sensor,
     auto_exposure: Option<AutoExposure>,
     primary: PrimaryVisibility,
+    /// Kept from frame to frame: [`FramePipeline::frame`] renders without allocating.
+    buffers: FrameBuffers,
 }
 
 impl FramePipeline {
@@ -43,7 +45,14 @@ impl FramePipeline {
     pub fn new(scene: Arc<Scene>, camera: CameraModel) -> Result<Self, SensorError> {
         let sensor = Sensor::new(&camera, &scene.sensor)?;
         let auto_exposure = sensor.auto_exposure();
-        Ok(FramePipeline { scene, camera, sensor, auto_exposure, primary: PrimaryVisibility::default() })
+        Ok(FramePipeline {
+            scene,
+            camera,
+            sensor,
+            auto_exposure,
+            primary: PrimaryVisibility::default(),
+            buffers: FrameBuffers::default(),
+        })
     }
 
     /// Find primary hits this way (default: rasterised where exact; tracing is for
@@ -71,22 +80,43 @@ impl FramePipeline {
         mix64(settings.seed ^ mix64(index ^ 0x5e45_0e0a_11ce_0001))
     }
 
-    /// Render the radiance only (no sensor).
+    fn view(&self, pose: &Pose) -> View {
+        View::new(&self.camera, pose, self.scene.frame_origin_body, self.scene.bounds)
+            .with_distortion(self.scene.sensor.optics.distortion)
+    }
+
+    /// Render the radiance only (no sensor), into a new image.
     pub fn radiance(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> (RadianceImage, RenderStats) {
-        let view = View::new(&self.camera, pose, self.scene.frame_origin_body, self.scene.bounds)
-            .with_distortion(self.scene.sensor.optics.distortion);
-        let (img, stats, _) = render_view_with::<()>(&self.scene, &self.camera, &view, settings, index, self.primary);
+        let (img, stats, _) =
+            render_view_with::<()>(&self.scene, &self.camera, &self.view(pose), settings, index, self.primary);
         (img, stats)
+    }
+
+    /// [`FramePipeline::radiance`] into the pipeline's own buffers, reused from frame to
+    /// frame (no allocation once warmed up); the image lives until the next call.
+    pub fn radiance_reused(
+        &mut self,
+        pose: &Pose,
+        settings: &RenderSettings,
+        index: u64,
+    ) -> (&RadianceImage, RenderStats) {
+        let view = self.view(pose);
+        let (stats, _) =
+            render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
+        (self.buffers.image(), stats)
     }
 
     /// Render and convert frame `index` at `pose`.
     pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
-        let (radiance, render) = self.radiance(pose, settings, index);
+        let view = self.view(pose);
+        let (render, _) =
+            render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
+        let radiance = self.buffers.image();
         let t0 = Instant::now();
         let seed = Self::sensor_seed(settings, index);
         let out = match &mut self.auto_exposure {
-            Some(ae) => self.sensor.apply_auto(&radiance, seed, ae)?.0,
-            None => self.sensor.apply(&radiance, seed)?,
+            Some(ae) => self.sensor.apply_auto(radiance, seed, ae)?.0,
+            None => self.sensor.apply(radiance, seed)?,
         };
         Ok(RenderedFrame {
             pixels: out.pixels,

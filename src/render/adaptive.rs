@@ -129,16 +129,27 @@ impl Adaptive {
     /// Sample counts of pixels with weights `weight` (frame pixel indices `index`):
     /// `pilot` plus their share, its fraction dithered by `(seed, frame, pixel index)`.
     pub fn counts(&self, shares: &Shares, weight: &[f32], index: &[u64], seed: u64, frame: u64) -> Vec<u32> {
-        weight
-            .iter()
-            .zip(index)
-            .map(|(&w, &i)| {
-                let share = ((f64::from(w) + shares.floor) * shares.scale).min(shares.cap);
-                let u =
-                    (mix64(seed ^ mix64(frame ^ mix64(i ^ 0x6164_6170_7469_7665))) >> 11) as f64 / (1u64 << 53) as f64;
-                self.pilot + (share + u).floor() as u32
-            })
-            .collect()
+        let mut out = Vec::new();
+        self.counts_into(shares, weight, index, seed, frame, &mut out);
+        out
+    }
+
+    /// [`Adaptive::counts`] into `out` (replacing its contents, keeping its buffer).
+    pub fn counts_into(
+        &self,
+        shares: &Shares,
+        weight: &[f32],
+        index: &[u64],
+        seed: u64,
+        frame: u64,
+        out: &mut Vec<u32>,
+    ) {
+        out.clear();
+        out.extend(weight.iter().zip(index).map(|(&w, &i)| {
+            let share = ((f64::from(w) + shares.floor) * shares.scale).min(shares.cap);
+            let u = (mix64(seed ^ mix64(frame ^ mix64(i ^ 0x6164_6170_7469_7665))) >> 11) as f64 / (1u64 << 53) as f64;
+            self.pilot + (share + u).floor() as u32
+        }));
     }
 }
 

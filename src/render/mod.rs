@@ -12,13 +12,15 @@ use crate::camera::{CameraModel, PixelRect, Silhouette, View};
 use crate::film::RadianceImage;
 use crate::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::pose::Pose;
-use crate::sampling::{PerSample, Rng, Sequence, SobolStream};
+use crate::sampling::{PerSample, Sequence};
 use crate::scene::Scene;
 use adaptive::Adaptive;
-use tile::{CameraSample, Scratch, TILE_PATHS, TileJob};
-use visibility::PrimaryRaster;
+pub use buffers::FrameBuffers;
+use buffers::{WorkerScratch, Workers};
+use tile::{CameraSample, TILE_PATHS, TileJob};
 
 pub mod adaptive;
+mod buffers;
 mod tile;
 pub mod visibility;
 use rayon::prelude::*;
@@ -116,7 +118,24 @@ pub fn render_view_with<L: RayLog + Default + Send + Sync>(
     frame: u64,
     primary: PrimaryVisibility,
 ) -> (RadianceImage, RenderStats, Vec<L>) {
-    render_view_impl(scene, camera, view, settings, frame, primary, None)
+    let mut buffers = FrameBuffers::default();
+    let (stats, logs) = render_view_impl(&mut buffers, scene, camera, view, settings, frame, primary, None);
+    (buffers.take_image(), stats, logs)
+}
+
+/// [`render_view_with`] into reused buffers: the image is `buffers.image()`. Once the
+/// buffers have grown to the frame's size this allocates nothing (the loop of `hilcam
+/// serve` and replay, through `FramePipeline`).
+pub fn render_view_into<L: RayLog + Default + Send + Sync>(
+    buffers: &mut FrameBuffers<L>,
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+    primary: PrimaryVisibility,
+) -> (RenderStats, Vec<L>) {
+    render_view_impl(buffers, scene, camera, view, settings, frame, primary, None)
 }
 
 /// Render one frame through `view` and say how many camera samples each pixel got
@@ -129,12 +148,23 @@ pub fn render_view_counted(
     frame: u64,
 ) -> (RadianceImage, RenderStats, Vec<u32>) {
     let mut counts = vec![0; camera.width as usize * camera.height as usize];
-    let (img, stats, _) =
-        render_view_impl::<()>(scene, camera, view, settings, frame, PrimaryVisibility::default(), Some(&mut counts));
-    (img, stats, counts)
+    let mut buffers = FrameBuffers::<()>::default();
+    let (stats, _) = render_view_impl(
+        &mut buffers,
+        scene,
+        camera,
+        view,
+        settings,
+        frame,
+        PrimaryVisibility::default(),
+        Some(&mut counts),
+    );
+    (buffers.take_image(), stats, counts)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn render_view_impl<L: RayLog + Default + Send + Sync>(
+    buffers: &mut FrameBuffers<L>,
     scene: &Scene,
     camera: &CameraModel,
     view: &View,
@@ -142,9 +172,10 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
     frame: u64,
     primary: PrimaryVisibility,
     mut counts: Option<&mut Vec<u32>>,
-) -> (RadianceImage, RenderStats, Vec<L>) {
+) -> (RenderStats, Vec<L>) {
     let t0 = Instant::now();
-    let mut img = RadianceImage::new(camera.width, camera.height, scene.background);
+    buffers.reset_image(camera.width, camera.height, scene.background);
+    let FrameBuffers { image: img, raster: raster_buffers, bands: band_buffers, stat, sobol, independent } = buffers;
     let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
     let mut logs = Vec::new();
@@ -174,27 +205,33 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             .sum::<u64>()
             * u64::from(settings.spp.max(1));
         let pays = planned >= RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64;
-        let raster = match primary {
-            PrimaryVisibility::Auto if pays => PrimaryRaster::new(scene, view, rect),
-            PrimaryVisibility::Raster => PrimaryRaster::new(scene, view, rect),
-            PrimaryVisibility::Auto | PrimaryVisibility::Trace => None,
+        let rasterise = match primary {
+            PrimaryVisibility::Auto => pays,
+            PrimaryVisibility::Raster => true,
+            PrimaryVisibility::Trace => false,
         };
-        primary_rasterised = raster.is_some();
+        primary_rasterised = rasterise && raster_buffers.rebuild(scene, view, rect);
         let job = TileJob {
             view,
             ctx: &ctx,
-            raster: raster.as_ref(),
+            raster: primary_rasterised.then_some(&*raster_buffers),
             seed: settings.seed,
             frame,
             width: camera.width as usize,
         };
         let spp = settings.spp.max(1);
         let adaptive = if settings.adaptive { Adaptive::new(spp) } else { None };
-        let bands: Vec<Band<L>> = match settings.sequence {
-            Sequence::Independent => render_bands::<Rng, L>(&job, &mut img, rect, &span, spp, adaptive),
-            Sequence::Sobol => render_bands::<SobolStream, L>(&job, &mut img, rect, &span, spp, adaptive),
-        };
-        for band in bands {
+        let n_bands = (rect.row1 as usize).saturating_sub(rect.row0 as usize).div_ceil(BAND_ROWS);
+        if band_buffers.len() < n_bands {
+            band_buffers.resize_with(n_bands, Band::default);
+        }
+        let bands = &mut band_buffers[..n_bands];
+        let frame_buffers = FrameParts { img, bands, stat };
+        match settings.sequence {
+            Sequence::Independent => render_bands(&job, frame_buffers, independent, rect, &span, spp, adaptive),
+            Sequence::Sobol => render_bands(&job, frame_buffers, sobol, rect, &span, spp, adaptive),
+        }
+        for band in band_buffers[..n_bands].iter_mut() {
             rays.add(&band.rays);
             traced += band.pixels.len() as u64;
             samples += band.counts.iter().map(|&n| u64::from(n)).sum::<u64>();
@@ -203,14 +240,14 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
                     counts[row as usize * job.width + col as usize] = n;
                 }
             }
-            logs.push(band.log);
+            logs.push(std::mem::take(&mut band.log));
         }
         if rays.nonfinite > 0 {
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
     let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples };
-    (img, stats, logs)
+    (stats, logs)
 }
 
 /// Camera samples per triangle from which primary hits are rasterised rather than traced.
@@ -223,8 +260,9 @@ const BAND_ROWS: usize = 8;
 /// Camera samples traced in one call in the adaptive stage (bounds its buffers).
 const PASS_SAMPLES: usize = 16 * 1024;
 
-/// One band of rows during a frame: its pixels and their running sums.
-struct Band<L> {
+/// One band of rows during a frame: its pixels and their running sums. Its buffers are
+/// kept from frame to frame ([`FrameBuffers`]).
+pub(crate) struct Band<L> {
     first_row: usize,
     /// Pixels in tile order: blocks of `tile_cols` columns × all rows.
     pixels: Vec<(u32, u32)>,
@@ -233,8 +271,34 @@ struct Band<L> {
     sum_sq: Vec<f32>,
     /// Samples per pixel.
     counts: Vec<u32>,
+    /// Adaptive stage: each pixel's weight and frame pixel index.
+    weight: Vec<f32>,
+    index: Vec<u64>,
     rays: RayCounts,
     log: L,
+}
+
+impl<L: Default> Default for Band<L> {
+    fn default() -> Self {
+        Band {
+            first_row: 0,
+            pixels: Vec::new(),
+            sums: Vec::new(),
+            sum_sq: Vec::new(),
+            counts: Vec::new(),
+            weight: Vec::new(),
+            index: Vec::new(),
+            rays: RayCounts::default(),
+            log: L::default(),
+        }
+    }
+}
+
+/// The parts of [`FrameBuffers`] the bands write.
+struct FrameParts<'a, L> {
+    img: &'a mut RadianceImage,
+    bands: &'a mut [Band<L>],
+    stat: &'a mut Vec<[f32; 2]>,
 }
 
 impl<L> Band<L> {
@@ -257,52 +321,54 @@ impl<L> Band<L> {
 /// the budget where the pilot saw variance.
 fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     job: &TileJob,
-    img: &mut RadianceImage,
+    parts: FrameParts<L>,
+    workers: &mut Workers<S>,
     rect: PixelRect,
     span: &(dyn Fn(u32) -> (u32, u32) + Sync),
     spp: u32,
     adaptive: Option<Adaptive>,
-) -> Vec<Band<L>> {
+) {
+    let FrameParts { img, bands, stat } = parts;
     let w = job.width;
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
     let first_stage = adaptive.map_or(spp, |a| a.pilot);
-    let new_scratch = || (Scratch::<S>::default(), Vec::new());
-    let mut bands: Vec<Band<L>> = (row0..row1)
-        .step_by(BAND_ROWS)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map_init(new_scratch, |(scratch, pass), first_row| {
+    workers.ensure();
+    let workers = &*workers;
+    bands.par_iter_mut().enumerate().for_each(|(b, band)| {
+        workers.with(|WorkerScratch { tile, pass, .. }| {
+            let first_row = row0 + b * BAND_ROWS;
             let rows = first_row as u32..(first_row + BAND_ROWS).min(row1) as u32;
-            let pixels = band_pixels(job, rows, span);
-            let mut band = Band {
-                first_row,
-                sums: vec![0.0; pixels.len()],
-                sum_sq: if adaptive.is_some() { vec![0.0; pixels.len()] } else { Vec::new() },
-                counts: vec![first_stage; pixels.len()],
-                pixels,
-                rays: RayCounts::default(),
-                log: L::default(),
-            };
+            band.first_row = first_row;
+            band_pixels(job, rows, span, &mut band.pixels);
+            let n = band.pixels.len();
+            band.sums.clear();
+            band.sums.resize(n, 0.0);
+            band.sum_sq.clear();
+            if adaptive.is_some() {
+                band.sum_sq.resize(n, 0.0);
+            }
+            band.counts.clear();
+            band.counts.resize(n, first_stage);
+            band.rays = RayCounts::default();
+            band.log = L::default();
             for s in 0..first_stage {
                 pass.clear();
                 pass.extend(band.pixels.iter().map(|&(row, col)| CameraSample { row, col, index: s }));
-                let values = job.trace_pass(pass, scratch, &mut band.rays, &mut band.log);
+                let values = job.trace_pass(pass, tile, &mut band.rays, &mut band.log);
                 for (i, &v) in values.iter().enumerate() {
                     band.add_sample(i, v, adaptive.is_some());
                 }
             }
-            band
         })
-        .collect();
+    });
     if let Some(plan) = adaptive {
-        add_adaptive_samples::<S, L>(job, &mut bands, plan, img.height as usize);
+        add_adaptive_samples::<S, L>(job, bands, workers, stat, plan, img.height as usize);
     }
     img.data[row0 * w..row1 * w].par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
         for ((&(row, col), &sum), &n) in band.pixels.iter().zip(&band.sums).zip(&band.counts) {
             out[(row as usize - band.first_row) * w + col as usize] = sum * (1.0 / n as f32);
         }
     });
-    bands
 }
 
 /// The second stage of an adaptive frame: share out the rest of the budget by what the
@@ -310,26 +376,30 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
 fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
     job: &TileJob,
     bands: &mut [Band<L>],
+    workers: &Workers<S>,
+    stat: &mut Vec<[f32; 2]>,
     plan: Adaptive,
     height: usize,
 ) {
     let w = job.width;
-    let mut stat = vec![plan.background_statistic(job.ctx.scene.background); w * height];
+    stat.clear();
+    stat.resize(w * height, plan.background_statistic(job.ctx.scene.background));
     for band in bands.iter() {
         for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
             stat[row as usize * w + col as usize] = plan.statistic(sum, sq);
         }
     }
-    let weights: Vec<Vec<f32>> = bands
-        .par_iter()
-        .map(|b| b.pixels.iter().map(|&(r, c)| plan.weight(&stat, w, height, r as usize, c as usize)).collect())
-        .collect();
-    let shares = plan.shares(weights.iter().map(|b| &b[..]));
-    bands.par_iter_mut().zip(weights).for_each_init(
-        || (Scratch::<S>::default(), Vec::new(), Vec::new()),
-        |(scratch, pass, owner), (band, weight)| {
-            let index: Vec<u64> = band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)).collect();
-            band.counts = plan.counts(&shares, &weight, &index, job.seed, job.frame);
+    let stat = &*stat;
+    bands.par_iter_mut().for_each(|b| {
+        b.weight.clear();
+        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, height, r as usize, c as usize)));
+    });
+    let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
+    bands.par_iter_mut().for_each(|band| {
+        workers.with(|WorkerScratch { tile, pass, owner }| {
+            band.index.clear();
+            band.index.extend(band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)));
+            plan.counts_into(&shares, &band.weight, &band.index, job.seed, job.frame, &mut band.counts);
             let most = band.counts.iter().copied().max().unwrap_or(0);
             // Sample-major, so each pixel's samples are summed in index order.
             pass.clear();
@@ -343,13 +413,13 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
                 }
             }
             for (chunk, owners) in pass.chunks(PASS_SAMPLES).zip(owner.chunks(PASS_SAMPLES)) {
-                let values = job.trace_pass(chunk, scratch, &mut band.rays, &mut band.log);
+                let values = job.trace_pass(chunk, tile, &mut band.rays, &mut band.log);
                 for (&i, &v) in owners.iter().zip(values) {
                     band.add_sample(i as usize, v, false);
                 }
             }
-        },
-    );
+        })
+    });
 }
 
 /// A band's pixels that may see the target, in tile order: blocks of about
@@ -358,15 +428,20 @@ fn band_pixels(
     job: &TileJob,
     rows: std::ops::Range<u32>,
     span: &(dyn Fn(u32) -> (u32, u32) + Sync),
-) -> Vec<(u32, u32)> {
+    pixels: &mut Vec<(u32, u32)>,
+) {
     let tile_cols = (TILE_PATHS / BAND_ROWS).max(1) as u32;
-    let spans: Vec<(u32, u32)> = rows.clone().map(span).collect();
-    let mut pixels = Vec::new();
+    let mut spans = [(0u32, 0u32); BAND_ROWS];
+    for (s, row) in spans.iter_mut().zip(rows.clone()) {
+        *s = span(row);
+    }
+    let spans = &spans[..rows.len()];
+    pixels.clear();
     let c_min = spans.iter().filter(|s| s.0 < s.1).map(|s| s.0).min().unwrap_or(0);
     let c_max = spans.iter().filter(|s| s.0 < s.1).map(|s| s.1).max().unwrap_or(0);
     for c0 in (c_min..c_max).step_by(tile_cols as usize) {
         let c1 = (c0 + tile_cols).min(c_max);
-        for (row, &(a, b)) in rows.clone().zip(&spans) {
+        for (row, &(a, b)) in rows.clone().zip(spans) {
             let cols = a.max(c0)..b.min(c1);
             match job.raster {
                 Some(r) => pixels.extend(cols.filter(|&col| r.may_hit(row, col)).map(|col| (row, col))),
@@ -374,5 +449,4 @@ fn band_pixels(
             }
         }
     }
-    pixels
 }

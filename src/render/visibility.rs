@@ -25,6 +25,7 @@ use rayon::prelude::*;
 const BUCKET_ROWS: i32 = 8;
 
 /// One frame's triangles binned on the ideal image plane.
+#[derive(Default)]
 pub struct PrimaryRaster {
     /// Inclusive ideal-pixel cell range `[x0, x1, y0, y1]` of primitive `k` (BVH order),
     /// clipped to the binned region; `x0 > x1` when the triangle lies outside it.
@@ -48,6 +49,12 @@ pub struct PrimaryRaster {
     covered: Option<Vec<u64>>,
     /// Words per row of `covered`.
     stride: usize,
+    /// Build-time buffers, kept so that a rebuild for the next frame allocates nothing:
+    /// each vertex on the ideal plane (x, y, depth), and the bucket fill cursors.
+    projected: Vec<(f64, f64, f64)>,
+    fill: Vec<u32>,
+    /// The coverage bits' buffer while `covered` is `None` (through a lens).
+    spare_bits: Vec<u64>,
 }
 
 /// Samples of one pass, binned into ideal-pixel cells (reused from band to band).
@@ -127,16 +134,27 @@ impl PrimaryRaster {
     /// behind the camera plane (camera among the triangles), or a lens whose ideal image
     /// of the rectangle is unbounded.
     pub fn new(scene: &Scene, view: &View, rect: PixelRect) -> Option<PrimaryRaster> {
+        let mut raster = PrimaryRaster::default();
+        raster.rebuild(scene, view, rect).then_some(raster)
+    }
+
+    /// [`PrimaryRaster::new`] into this raster's buffers (no allocation once they have
+    /// grown to the frame's size); false where `new` gives `None`, and the raster must then
+    /// not be used.
+    pub fn rebuild(&mut self, scene: &Scene, view: &View, rect: PixelRect) -> bool {
         let mesh = &scene.mesh;
         let accel = &scene.accel;
         if accel.is_empty() {
-            return None;
+            return false;
         }
         // Region of the ideal image plane the samples can fall in.
-        let (x_lo, x_hi, y_lo, y_hi) = ideal_region(view, rect)?;
+        let Some((x_lo, x_hi, y_lo, y_hi)) = ideal_region(view, rect) else { return false };
+        let PrimaryRaster { boxes, edges, bucket_start, bucket_tris, covered, projected, fill, spare_bits, .. } = self;
+        if let Some(bits) = covered.take() {
+            *spare_bits = bits;
+        }
         // Each vertex on the ideal image plane; the nearest depth bounds the pixel size of
         // the f32 rays' own rounding (see `margin`).
-        let mut projected = Vec::new();
         mesh.positions
             .par_iter()
             .map(|p| {
@@ -144,23 +162,22 @@ impl PrimaryRaster {
                 let [x, y] = view.ideal_px(q);
                 (x, y, q.z)
             })
-            .collect_into_vec(&mut projected);
+            .collect_into_vec(projected);
         let z_min = projected.par_iter().map(|v| v.2).reduce(|| f64::INFINITY, f64::min);
         if z_min.is_nan() || z_min <= 0.0 {
-            return None; // a vertex at or behind the camera plane
+            return false; // a vertex at or behind the camera plane
         }
         // A traced ray deviates from the exact line through its sample by the f32 rounding
         // of its origin and direction: a few 1e-7 of the target's size, at most. Enlarge
         // every box by 40× that, seen from the nearest vertex, plus 1e-3 px.
         let margin = 4e-6 * scene.bounds.radius * view.focal_px() / z_min + 1e-3;
         if !margin.is_finite() || margin > 4.0 {
-            return None; // camera almost touching the target: the boxes would be huge
+            return false; // camera almost touching the target: the boxes would be huge
         }
         // Evaluating an edge in f32 at coordinates up to the region's extent R rounds by a
         // few 1e-7·R (coefficients, sample point, four operations); 4e-6·R covers it.
         let extent = f64::from((x_hi - x_lo).max(y_hi - y_lo) + 1);
         let tol = margin + 1e-3 + 4e-6 * extent;
-        let (mut boxes, mut edges) = (Vec::new(), Vec::new());
         (0..accel.len() as u32)
             .into_par_iter()
             .map(|k| {
@@ -182,10 +199,11 @@ impl PrimaryRaster {
                     Edges::new([rel(pa), rel(pb), rel(pc)], tol),
                 )
             })
-            .unzip_into_vecs(&mut boxes, &mut edges);
+            .unzip_into_vecs(boxes, edges);
         // Bucket the boxes by rows (counting sort, BVH order within a bucket).
         let buckets = ((y_hi - y_lo) / BUCKET_ROWS + 1) as usize;
-        let mut bucket_start = vec![0u32; buckets + 1];
+        bucket_start.clear();
+        bucket_start.resize(buckets + 1, 0);
         let bucket_range =
             |b: &[i32; 4]| ((b[2] - y_lo) / BUCKET_ROWS) as usize..=((b[3] - y_lo) / BUCKET_ROWS) as usize;
         for b in boxes.iter().filter(|b| b[0] <= b[1]) {
@@ -196,8 +214,10 @@ impl PrimaryRaster {
         for i in 0..buckets {
             bucket_start[i + 1] += bucket_start[i];
         }
-        let mut fill = bucket_start.clone();
-        let mut bucket_tris = vec![0u32; bucket_start[buckets] as usize];
+        fill.clear();
+        fill.extend_from_slice(bucket_start);
+        bucket_tris.clear();
+        bucket_tris.resize(bucket_start[buckets] as usize, 0);
         for (k, b) in boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[1]) {
             for i in bucket_range(b) {
                 bucket_tris[fill[i] as usize] = k as u32;
@@ -207,8 +227,11 @@ impl PrimaryRaster {
         // Coverage bits, a row of `stride` words per ideal row; buckets own disjoint rows,
         // so they are filled in parallel.
         let stride = ((x_hi - x_lo + 1) as usize).div_ceil(64);
-        let covered = (!view.has_distortion()).then(|| {
-            let mut bits = vec![0u64; stride * (y_hi - y_lo + 1) as usize];
+        let (bucket_start, bucket_tris, boxes, projected) = (&*bucket_start, &*bucket_tris, &*boxes, &*projected);
+        let bits_of = (!view.has_distortion()).then(|| {
+            let mut bits = std::mem::take(spare_bits);
+            bits.clear();
+            bits.resize(stride * (y_hi - y_lo + 1) as usize, 0);
             // The box margin, plus the f64 rounding of the clipping below.
             let m = margin + 1e-6;
             bits.par_chunks_mut(stride * BUCKET_ROWS as usize).enumerate().for_each(|(bucket, rows)| {
@@ -235,7 +258,9 @@ impl PrimaryRaster {
             });
             bits
         });
-        Some(PrimaryRaster { boxes, edges, bucket_start, bucket_tris, x_lo, x_hi, y_lo, y_hi, covered, stride })
+        *covered = bits_of;
+        (self.x_lo, self.x_hi, self.y_lo, self.y_hi, self.stride) = (x_lo, x_hi, y_lo, y_hi, stride);
+        true
     }
 
     /// False when no sample of pixel `(row, col)` can hit a triangle (it sees the

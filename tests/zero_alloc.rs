@@ -1,0 +1,118 @@
+//! Rendering into reused buffers (`render_view_into`, what `FramePipeline::frame` does in
+//! `hilcam serve` and replay) allocates nothing once the buffers have grown to the frame's
+//! size, and reuse never carries anything from one frame into the next.
+//!
+//! A counting global allocator sees every allocation of this test binary, on every thread.
+
+mod common;
+use common::scenes::scaled_camera;
+use glam::{DQuat, DVec3};
+use hilcam::camera::View;
+use hilcam::integrator::RenderSettings;
+use hilcam::pose::Pose;
+use hilcam::render::{FrameBuffers, PrimaryVisibility, render_view_into, render_view_with};
+use hilcam::sampling::Sequence;
+use hilcam::scene::Scene;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+
+struct Counting;
+
+static ARMED: AtomicBool = AtomicBool::new(false);
+static CALLS: AtomicU64 = AtomicU64::new(0);
+static BYTES: AtomicU64 = AtomicU64::new(0);
+
+fn count(size: usize) {
+    if ARMED.load(Relaxed) {
+        CALLS.fetch_add(1, Relaxed);
+        BYTES.fetch_add(size as u64, Relaxed);
+    }
+}
+
+// SAFETY: forwards every call to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count(layout.size());
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count(layout.size());
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count(new_size);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// (allocation calls, bytes) made while `f` runs.
+fn allocations_during<R>(f: impl FnOnce() -> R) -> (R, u64, u64) {
+    let (c0, b0) = (CALLS.load(Relaxed), BYTES.load(Relaxed));
+    ARMED.store(true, Relaxed);
+    let r = f();
+    ARMED.store(false, Relaxed);
+    (r, CALLS.load(Relaxed) - c0, BYTES.load(Relaxed) - b0)
+}
+
+#[test]
+fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
+    let scene: Scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let camera = scaled_camera(&scene, 256, 256, [0.0, 0.0]);
+    // The shipped pose, and one nearer and turned, so the frames cover different rows,
+    // bands and pixels.
+    let near = Pose {
+        position: scene.pose.position * 0.7 + DVec3::new(1.0, -0.5, 0.0),
+        attitude: scene.pose.attitude * DQuat::from_rotation_z(0.6),
+        ..scene.pose
+    };
+    let poses = [scene.pose, near];
+    let base = RenderSettings { spp: 4, depth: 4, roulette: false, ..scene.render };
+    let settings = [
+        RenderSettings { adaptive: true, sequence: Sequence::Sobol, ..base },
+        RenderSettings { adaptive: false, sequence: Sequence::Sobol, ..base },
+        RenderSettings { adaptive: true, sequence: Sequence::Independent, ..base },
+    ];
+    let views: Vec<View> = poses.iter().map(|p| View::new(&camera, p, scene.frame_origin_body, scene.bounds)).collect();
+    let cases: Vec<(usize, usize)> = (0..views.len()).flat_map(|v| (0..settings.len()).map(move |s| (v, s))).collect();
+    let fresh: Vec<Vec<f32>> = cases
+        .iter()
+        .map(|&(v, s)| {
+            render_view_with::<()>(&scene, &camera, &views[v], &settings[s], 3, PrimaryVisibility::Raster).0.data
+        })
+        .collect();
+
+    // Inside one `install` the frames' parallel loops run as jobs of the pool's own
+    // threads. Called from outside a pool, rayon also queues each loop on its global
+    // injector, which allocates one block of slots per 63 loops (its own bookkeeping).
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    pool.install(|| {
+        let mut buffers = FrameBuffers::<()>::default();
+        let frame = |v: usize, s: usize, buffers: &mut FrameBuffers| {
+            render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, PrimaryVisibility::Raster).0
+        };
+        // Warm-up: every case once grows the buffers to the largest frame (and shows
+        // that the counter sees the renderer's allocations).
+        let (_, warm_up_calls, warm_up_bytes) = allocations_during(|| {
+            for &(v, s) in &cases {
+                frame(v, s, &mut buffers);
+            }
+        });
+        assert!(warm_up_calls > 50 && warm_up_bytes > 1 << 20, "{warm_up_calls} calls, {warm_up_bytes} bytes");
+        // Then every case again, interleaved so that each frame follows a different one.
+        for (k, &(v, s)) in cases.iter().enumerate().chain(cases.iter().enumerate().rev()) {
+            let (stats, calls, bytes) = allocations_during(|| frame(v, s, &mut buffers));
+            assert!(stats.primary_rasterised && stats.samples > 10_000, "case {k}: {stats:?}");
+            assert_eq!((calls, bytes), (0, 0), "case {k} (pose {v}, settings {s}): allocations, bytes");
+            assert!(
+                buffers.image().data.iter().zip(&fresh[k]).all(|(a, b)| a.to_bits() == b.to_bits()),
+                "case {k}: reused buffers changed the image"
+            );
+        }
+    });
+}
