@@ -87,9 +87,25 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
         })
         .collect();
 
-    // Inside one `install` the frames' parallel loops run as jobs of the pool's own
-    // threads. Called from outside a pool, rayon also queues each loop on its global
-    // injector, which allocates one block of slots per 63 loops (its own bookkeeping).
+    // Called from outside a pool (as `hilcam serve`'s render thread does), rayon queues
+    // each parallel loop (~8 per frame) on its global injector, which allocates one block
+    // of 63 slots (1520 bytes) when the last one fills: its own bookkeeping, at most one
+    // per six frames here. Anything of ours would be far larger.
+    {
+        let mut buffers = FrameBuffers::<()>::default();
+        let six_frames = |buffers: &mut FrameBuffers| {
+            for &(v, s) in &cases {
+                render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, PrimaryVisibility::Raster);
+            }
+        };
+        six_frames(&mut buffers);
+        six_frames(&mut buffers);
+        for round in 0..3 {
+            let (_, calls, bytes) = allocations_during(|| six_frames(&mut buffers));
+            assert!(calls <= 1 && bytes <= 4096, "outside a pool, round {round}: {calls} allocations, {bytes} bytes");
+        }
+    }
+    // Inside one `install` the loops run as jobs of the pool's own threads: nothing at all.
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     pool.install(|| {
         let mut buffers = FrameBuffers::<()>::default();

@@ -95,6 +95,33 @@ impl<S> Workers<S> {
         }
     }
 
+    /// Grow every worker's buffers to the largest any of them has. Which thread traces
+    /// which band depends on scheduling, so without this a thread could meet a band larger
+    /// than any it had seen frames after the others, and allocate then; with it the
+    /// buffers stop growing once every band has been traced once.
+    pub fn equalise(&mut self) {
+        let caps = |w: &mut Mutex<WorkerScratch<S>>| {
+            let w = w.get_mut().unwrap_or_else(|e| e.into_inner());
+            let tile = w.tile.capacities();
+            let mut c = [0usize; 17];
+            c[..15].copy_from_slice(&tile);
+            (c[15], c[16]) = (w.pass.capacity(), w.owner.capacity());
+            c
+        };
+        let mut most = [0usize; 17];
+        for w in &mut self.0 {
+            for (m, c) in most.iter_mut().zip(caps(w)) {
+                *m = (*m).max(c);
+            }
+        }
+        for w in &mut self.0 {
+            let w = w.get_mut().unwrap_or_else(|e| e.into_inner());
+            w.tile.reserve_to(&std::array::from_fn(|i| most[i]));
+            reserve_to(&mut w.pass, most[15]);
+            reserve_to(&mut w.owner, most[16]);
+        }
+    }
+
     /// Run `f` with the calling worker thread's scratch.
     pub fn with<R>(&self, f: impl FnOnce(&mut WorkerScratch<S>) -> R) -> R {
         let i = rayon::current_thread_index().unwrap_or(0) % self.0.len();
@@ -102,5 +129,12 @@ impl<S> Workers<S> {
         // cleared before use anyway.
         let mut scratch = self.0[i].lock().unwrap_or_else(|e| e.into_inner());
         f(&mut scratch)
+    }
+}
+
+/// Grow `v`'s capacity to at least `cap` (never shrinks).
+pub(super) fn reserve_to<T>(v: &mut Vec<T>, cap: usize) {
+    if v.capacity() < cap {
+        v.reserve_exact(cap - v.len());
     }
 }

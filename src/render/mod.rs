@@ -333,9 +333,9 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
     let first_stage = adaptive.map_or(spp, |a| a.pilot);
     workers.ensure();
-    let workers = &*workers;
+    let shared = &*workers;
     bands.par_iter_mut().enumerate().for_each(|(b, band)| {
-        workers.with(|WorkerScratch { tile, pass, .. }| {
+        shared.with(|WorkerScratch { tile, pass, .. }| {
             let first_row = row0 + b * BAND_ROWS;
             let rows = first_row as u32..(first_row + BAND_ROWS).min(row1) as u32;
             band.first_row = first_row;
@@ -362,8 +362,9 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
         })
     });
     if let Some(plan) = adaptive {
-        add_adaptive_samples::<S, L>(job, bands, workers, stat, plan, img.height as usize);
+        add_adaptive_samples::<S, L>(job, bands, shared, stat, plan, img.height as usize);
     }
+    workers.equalise();
     img.data[row0 * w..row1 * w].par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
         for ((&(row, col), &sum), &n) in band.pixels.iter().zip(&band.sums).zip(&band.counts) {
             out[(row as usize - band.first_row) * w + col as usize] = sum * (1.0 / n as f32);

@@ -75,6 +75,38 @@ impl<S> Default for Scratch<S> {
     }
 }
 
+impl<S> Scratch<S> {
+    /// Capacities of its buffers, the rasteriser's last (see `buffers::Workers::equalise`).
+    pub(super) fn capacities(&self) -> [usize; 15] {
+        let own = [
+            self.paths.capacity(),
+            self.rays.capacity(),
+            self.ideal.capacity(),
+            self.primary.capacity(),
+            self.active.capacity(),
+            self.hits.capacity(),
+            self.shadows.capacity(),
+            self.samples.capacity(),
+        ];
+        let raster = self.raster.capacities();
+        std::array::from_fn(|i| if i < 8 { own[i] } else { raster[i - 8] })
+    }
+
+    /// Grow each buffer to at least the capacity given.
+    pub(super) fn reserve_to(&mut self, c: &[usize; 15]) {
+        use super::buffers::reserve_to;
+        reserve_to(&mut self.paths, c[0]);
+        reserve_to(&mut self.rays, c[1]);
+        reserve_to(&mut self.ideal, c[2]);
+        reserve_to(&mut self.primary, c[3]);
+        reserve_to(&mut self.active, c[4]);
+        reserve_to(&mut self.hits, c[5]);
+        reserve_to(&mut self.shadows, c[6]);
+        reserve_to(&mut self.samples, c[7]);
+        self.raster.reserve_to(&std::array::from_fn(|i| c[8 + i]));
+    }
+}
+
 /// Where a band's pixels are and how they are sampled.
 pub struct TileJob<'a> {
     pub view: &'a View,

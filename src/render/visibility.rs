@@ -70,6 +70,33 @@ pub struct RasterScratch {
     cell_xy: Vec<[f32; 2]>,
 }
 
+impl RasterScratch {
+    /// Capacities of its buffers (see `buffers::Workers::equalise`).
+    pub(super) fn capacities(&self) -> [usize; 7] {
+        [
+            self.cell_start.capacity(),
+            self.cell_samples.capacity(),
+            self.best_t.capacity(),
+            self.best_k.capacity(),
+            self.rays.capacity(),
+            self.coords.capacity(),
+            self.cell_xy.capacity(),
+        ]
+    }
+
+    /// Grow each buffer to at least the capacity given.
+    pub(super) fn reserve_to(&mut self, c: &[usize; 7]) {
+        use super::buffers::reserve_to;
+        reserve_to(&mut self.cell_start, c[0]);
+        reserve_to(&mut self.cell_samples, c[1]);
+        reserve_to(&mut self.best_t, c[2]);
+        reserve_to(&mut self.best_k, c[3]);
+        reserve_to(&mut self.rays, c[4]);
+        reserve_to(&mut self.coords, c[5]);
+        reserve_to(&mut self.cell_xy, c[6]);
+    }
+}
+
 /// Three half-planes `a·x + b·y + c ≥ 0` (ideal pixels relative to the binned region's
 /// corner) whose intersection holds every point the f32 rays of the triangle's samples can
 /// hit it from: its edges at unit normal scale, moved outward by the box margin and the
