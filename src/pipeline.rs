@@ -92,20 +92,6 @@ impl FramePipeline {
         (img, stats)
     }
 
-    /// [`FramePipeline::radiance`] into the pipeline's own buffers, reused from frame to
-    /// frame (no allocation once warmed up); the image lives until the next call.
-    pub fn radiance_reused(
-        &mut self,
-        pose: &Pose,
-        settings: &RenderSettings,
-        index: u64,
-    ) -> (&RadianceImage, RenderStats) {
-        let view = self.view(pose);
-        let (stats, _) =
-            render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
-        (self.buffers.image(), stats)
-    }
-
     /// Render and convert frame `index` at `pose`.
     pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
         let view = self.view(pose);

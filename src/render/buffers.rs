@@ -69,6 +69,15 @@ pub(super) struct WorkerScratch<S> {
     pub owner: Vec<u32>,
 }
 
+impl<S> WorkerScratch<S> {
+    /// Grow each buffer to at least the capacity of `other`'s.
+    fn grow_like(&mut self, other: &Self) {
+        self.tile.grow_like(&other.tile);
+        reserve_to(&mut self.pass, other.pass.capacity());
+        reserve_to(&mut self.owner, other.owner.capacity());
+    }
+}
+
 impl<S> Default for WorkerScratch<S> {
     fn default() -> Self {
         WorkerScratch { tile: Scratch::default(), pass: Vec::new(), owner: Vec::new() }
@@ -100,25 +109,14 @@ impl<S> Workers<S> {
     /// than any it had seen frames after the others, and allocate then; with it the
     /// buffers stop growing once every band has been traced once.
     pub fn equalise(&mut self) {
-        let caps = |w: &mut Mutex<WorkerScratch<S>>| {
-            let w = w.get_mut().unwrap_or_else(|e| e.into_inner());
-            let tile = w.tile.capacities();
-            let mut c = [0usize; 17];
-            c[..15].copy_from_slice(&tile);
-            (c[15], c[16]) = (w.pass.capacity(), w.owner.capacity());
-            c
-        };
-        let mut most = [0usize; 17];
-        for w in &mut self.0 {
-            for (m, c) in most.iter_mut().zip(caps(w)) {
-                *m = (*m).max(c);
-            }
+        let Some((first, rest)) = self.0.split_first_mut() else { return };
+        let first = first.get_mut().unwrap_or_else(|e| e.into_inner());
+        // The first takes the largest of every buffer, then every other takes the first's.
+        for w in rest.iter_mut() {
+            first.grow_like(w.get_mut().unwrap_or_else(|e| e.into_inner()));
         }
-        for w in &mut self.0 {
-            let w = w.get_mut().unwrap_or_else(|e| e.into_inner());
-            w.tile.reserve_to(&std::array::from_fn(|i| most[i]));
-            reserve_to(&mut w.pass, most[15]);
-            reserve_to(&mut w.owner, most[16]);
+        for w in rest.iter_mut() {
+            w.get_mut().unwrap_or_else(|e| e.into_inner()).grow_like(first);
         }
     }
 

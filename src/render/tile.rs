@@ -76,34 +76,19 @@ impl<S> Default for Scratch<S> {
 }
 
 impl<S> Scratch<S> {
-    /// Capacities of its buffers, the rasteriser's last (see `buffers::Workers::equalise`).
-    pub(super) fn capacities(&self) -> [usize; 15] {
-        let own = [
-            self.paths.capacity(),
-            self.rays.capacity(),
-            self.ideal.capacity(),
-            self.primary.capacity(),
-            self.active.capacity(),
-            self.hits.capacity(),
-            self.shadows.capacity(),
-            self.samples.capacity(),
-        ];
-        let raster = self.raster.capacities();
-        std::array::from_fn(|i| if i < 8 { own[i] } else { raster[i - 8] })
-    }
-
-    /// Grow each buffer to at least the capacity given.
-    pub(super) fn reserve_to(&mut self, c: &[usize; 15]) {
+    /// Grow each buffer to at least the capacity of `other`'s (see
+    /// `buffers::Workers::equalise`).
+    pub(super) fn grow_like(&mut self, other: &Self) {
         use super::buffers::reserve_to;
-        reserve_to(&mut self.paths, c[0]);
-        reserve_to(&mut self.rays, c[1]);
-        reserve_to(&mut self.ideal, c[2]);
-        reserve_to(&mut self.primary, c[3]);
-        reserve_to(&mut self.active, c[4]);
-        reserve_to(&mut self.hits, c[5]);
-        reserve_to(&mut self.shadows, c[6]);
-        reserve_to(&mut self.samples, c[7]);
-        self.raster.reserve_to(&std::array::from_fn(|i| c[8 + i]));
+        reserve_to(&mut self.paths, other.paths.capacity());
+        reserve_to(&mut self.rays, other.rays.capacity());
+        reserve_to(&mut self.ideal, other.ideal.capacity());
+        reserve_to(&mut self.primary, other.primary.capacity());
+        reserve_to(&mut self.active, other.active.capacity());
+        reserve_to(&mut self.hits, other.hits.capacity());
+        reserve_to(&mut self.shadows, other.shadows.capacity());
+        reserve_to(&mut self.samples, other.samples.capacity());
+        self.raster.grow_like(&other.raster);
     }
 }
 

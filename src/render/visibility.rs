@@ -71,29 +71,17 @@ pub struct RasterScratch {
 }
 
 impl RasterScratch {
-    /// Capacities of its buffers (see `buffers::Workers::equalise`).
-    pub(super) fn capacities(&self) -> [usize; 7] {
-        [
-            self.cell_start.capacity(),
-            self.cell_samples.capacity(),
-            self.best_t.capacity(),
-            self.best_k.capacity(),
-            self.rays.capacity(),
-            self.coords.capacity(),
-            self.cell_xy.capacity(),
-        ]
-    }
-
-    /// Grow each buffer to at least the capacity given.
-    pub(super) fn reserve_to(&mut self, c: &[usize; 7]) {
+    /// Grow each buffer to at least the capacity of `other`'s (see
+    /// `buffers::Workers::equalise`).
+    pub(super) fn grow_like(&mut self, other: &Self) {
         use super::buffers::reserve_to;
-        reserve_to(&mut self.cell_start, c[0]);
-        reserve_to(&mut self.cell_samples, c[1]);
-        reserve_to(&mut self.best_t, c[2]);
-        reserve_to(&mut self.best_k, c[3]);
-        reserve_to(&mut self.rays, c[4]);
-        reserve_to(&mut self.coords, c[5]);
-        reserve_to(&mut self.cell_xy, c[6]);
+        reserve_to(&mut self.cell_start, other.cell_start.capacity());
+        reserve_to(&mut self.cell_samples, other.cell_samples.capacity());
+        reserve_to(&mut self.best_t, other.best_t.capacity());
+        reserve_to(&mut self.best_k, other.best_k.capacity());
+        reserve_to(&mut self.rays, other.rays.capacity());
+        reserve_to(&mut self.coords, other.coords.capacity());
+        reserve_to(&mut self.cell_xy, other.cell_xy.capacity());
     }
 }
 
