@@ -20,8 +20,9 @@ const ELLIPSE_POINTS: usize = 512;
 const SEGMENT_PIECES: usize = 32;
 
 /// Per-row `(x_lo, x_hi)` pixel ranges (empty when `lo > hi`) of the sphere's image ∩
-/// the box's image through the lens, or `None` when the bounds reach beyond the field
-/// the lens is valid over (then every pixel must be traced).
+/// the box's image through the lens, written into `rows` (`hull` is scratch; both keep
+/// their buffers, so a renderer reusing them allocates nothing); false when the bounds
+/// reach beyond the field the lens is valid over (then every pixel must be traced).
 ///
 /// `c`: sphere centre (camera frame, `c.z > r`); `corners`: the box corners' ideal image
 /// points when all are in front; `pp`: principal point (pixels); `f`: focal length
@@ -36,7 +37,9 @@ pub(super) fn lens_spans(
     f: f64,
     height: u32,
     max_r: f64,
-) -> Option<Vec<(f64, f64)>> {
+    rows: &mut Vec<(f64, f64)>,
+    hull: &mut Vec<(f64, f64)>,
+) -> bool {
     let to_px = |p: DVec2| -> DVec2 {
         let d = lens.distort(p);
         DVec2::new(pp[0] + d.x * f, pp[1] + d.y * f)
@@ -48,39 +51,45 @@ pub(super) fn lens_spans(
     let e2 = axis.cross(e1);
     let sin_t = r / len;
     let cos_t = (1.0 - sin_t * sin_t).sqrt();
-    let ellipse: Vec<DVec2> = (0..ELLIPSE_POINTS)
-        .map(|i| {
-            let phi = i as f64 / ELLIPSE_POINTS as f64 * std::f64::consts::TAU;
-            let d = axis * cos_t + (e1 * phi.cos() + e2 * phi.sin()) * sin_t;
-            DVec2::new(d.x / d.z, d.y / d.z)
-        })
-        .collect();
-    if ellipse.iter().any(|p| p.length().is_nan() || p.length() > max_r) {
-        return None;
+    // On the stack (8 KB): the ellipse, then its image in pixels.
+    let mut ellipse = [DVec2::ZERO; ELLIPSE_POINTS];
+    for (i, p) in ellipse.iter_mut().enumerate() {
+        let phi = i as f64 / ELLIPSE_POINTS as f64 * std::f64::consts::TAU;
+        let d = axis * cos_t + (e1 * phi.cos() + e2 * phi.sin()) * sin_t;
+        *p = DVec2::new(d.x / d.z, d.y / d.z);
     }
-    let mut sphere = vec![(f64::INFINITY, f64::NEG_INFINITY); height as usize];
-    let px: Vec<DVec2> = ellipse.iter().map(|&p| to_px(p)).collect();
+    if ellipse.iter().any(|p| p.length().is_nan() || p.length() > max_r) {
+        return false;
+    }
+    let empty = (f64::INFINITY, f64::NEG_INFINITY);
+    rows.clear();
+    rows.resize(height as usize, empty);
+    let px = ellipse.map(&to_px);
     for i in 0..px.len() {
-        rasterise(&mut sphere, px[i], px[(i + 1) % px.len()]);
+        rasterise(rows, px[i], px[(i + 1) % px.len()]);
     }
     // The box: only when its whole hull lies in the valid field (a disc, so the corners
     // being inside is enough); otherwise the sphere alone bounds the target.
     let Some(corners) = corners.filter(|cs| cs.iter().all(|&(u, v)| DVec2::new(u, v).length() <= max_r)) else {
-        return Some(sphere);
+        return true;
     };
-    let mut hull = vec![(f64::INFINITY, f64::NEG_INFINITY); height as usize];
+    hull.clear();
+    hull.resize(height as usize, empty);
     for (i, &(ua, va)) in corners.iter().enumerate() {
         for &(ub, vb) in &corners[i + 1..] {
             let (a, b) = (DVec2::new(ua, va), DVec2::new(ub, vb));
             let mut prev = to_px(a);
             for k in 1..=SEGMENT_PIECES {
                 let next = to_px(a.lerp(b, k as f64 / SEGMENT_PIECES as f64));
-                rasterise(&mut hull, prev, next);
+                rasterise(hull, prev, next);
                 prev = next;
             }
         }
     }
-    Some(sphere.iter().zip(&hull).map(|(s, h)| (s.0.max(h.0), s.1.min(h.1))).collect())
+    for (s, h) in rows.iter_mut().zip(hull.iter()) {
+        *s = (s.0.max(h.0), s.1.min(h.1));
+    }
+    true
 }
 
 /// Widen each row band `[row, row + 1]` that the segment `a`–`b` crosses to the

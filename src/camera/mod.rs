@@ -11,7 +11,7 @@ pub mod silhouette;
 pub mod view;
 
 use serde::Deserialize;
-pub use silhouette::Silhouette;
+pub use silhouette::{Silhouette, SilhouetteBuffers};
 pub use view::{PixelRect, TargetBounds, View};
 
 /// Intrinsics of a pinhole camera, as read from `[camera]` in a scene or config file.

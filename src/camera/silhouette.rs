@@ -47,11 +47,25 @@ const MARGIN_PX: f64 = 1.0;
 /// tolerance in the renderer's undistortion.
 const LENS_MARGIN_PX: f64 = 2.0;
 
+/// The buffers of a lens silhouette's rows, kept from frame to frame by a renderer that
+/// allocates nothing per frame ([`Silhouette::new_reusing`], [`Silhouette::recycle`]).
+#[derive(Debug, Default)]
+pub struct SilhouetteBuffers {
+    rows: Vec<(f64, f64)>,
+    hull: Vec<(f64, f64)>,
+}
+
 impl Silhouette {
     /// `None` when the span test does not apply: a sphere not wholly in front of the
     /// camera (its image is then not an ellipse), or, through a lens, bounds reaching
     /// beyond the field the lens is valid over; use the rectangle then.
     pub fn new(view: &View) -> Option<Silhouette> {
+        Self::new_reusing(view, &mut SilhouetteBuffers::default())
+    }
+
+    /// [`Silhouette::new`] with its row buffers (through a lens) taken from `spare`; give
+    /// them back with [`Silhouette::recycle`] and the next frame allocates nothing.
+    pub fn new_reusing(view: &View, spare: &mut SilhouetteBuffers) -> Option<Silhouette> {
         let c = view.cam_to_render.transpose() * (view.bounds.centre - view.origin);
         let r = view.bounds.radius;
         if c.z.is_nan() || c.z <= r * 1.000_001 {
@@ -75,7 +89,13 @@ impl Silhouette {
                 let hw = f64::from(view.width) / 2.0 + (view.pp[0] - f64::from(view.width) / 2.0).abs();
                 let hh = f64::from(view.height) / 2.0 + (view.pp[1] - f64::from(view.height) / 2.0).abs();
                 let max_r = 1.05 * (hw * hw + hh * hh).sqrt() / focal_px;
-                Some(lens_spans(d, c, r, corners.as_ref(), view.pp, focal_px, view.height, max_r)?)
+                let mut rows = std::mem::take(&mut spare.rows);
+                let (pp, height, hull) = (view.pp, view.height, &mut spare.hull);
+                if !lens_spans(d, c, r, corners.as_ref(), pp, focal_px, height, max_r, &mut rows, hull) {
+                    spare.rows = rows;
+                    return None;
+                }
+                Some(rows)
             }
         };
         Some(Silhouette {
@@ -89,6 +109,13 @@ impl Silhouette {
             focal_px,
             width: view.width,
         })
+    }
+
+    /// Hand the lens rows' buffer back to `spare` for the next frame.
+    pub fn recycle(self, spare: &mut SilhouetteBuffers) {
+        if let Some(rows) = self.lens {
+            spare.rows = rows;
+        }
     }
 
     /// The ellipse's chord `[u0, u1]` at image height `v`, if the line meets it.

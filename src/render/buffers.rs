@@ -10,6 +10,7 @@
 use super::Band;
 use super::tile::{CameraSample, Scratch};
 use super::visibility::PrimaryRaster;
+use crate::camera::SilhouetteBuffers;
 use crate::film::RadianceImage;
 use crate::sampling::{Rng, SobolStream};
 use std::sync::Mutex;
@@ -23,6 +24,8 @@ pub struct FrameBuffers<L = ()> {
     pub(super) bands: Vec<Band<L>>,
     /// Pilot statistic of every pixel (adaptive frames).
     pub(super) stat: Vec<[f32; 2]>,
+    /// Per-row spans through a distorting lens.
+    pub(super) silhouette: SilhouetteBuffers,
     pub(super) sobol: Workers<SobolStream>,
     pub(super) independent: Workers<Rng>,
 }
@@ -34,6 +37,7 @@ impl<L> Default for FrameBuffers<L> {
             raster: PrimaryRaster::default(),
             bands: Vec::new(),
             stat: Vec::new(),
+            silhouette: SilhouetteBuffers::default(),
             sobol: Workers::default(),
             independent: Workers::default(),
         }

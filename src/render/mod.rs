@@ -175,7 +175,15 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
 ) -> (RenderStats, Vec<L>) {
     let t0 = Instant::now();
     buffers.reset_image(camera.width, camera.height, scene.background);
-    let FrameBuffers { image: img, raster: raster_buffers, bands: band_buffers, stat, sobol, independent } = buffers;
+    let FrameBuffers {
+        image: img,
+        raster: raster_buffers,
+        bands: band_buffers,
+        stat,
+        silhouette: spans,
+        sobol,
+        independent,
+    } = buffers;
     let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
     let mut logs = Vec::new();
@@ -184,7 +192,7 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
     let mut primary_rasterised = false;
     if let Some(rect) = rect {
         let ctx = PathContext::new(scene, view.sun, settings);
-        let silhouette = Silhouette::new(view);
+        let silhouette = Silhouette::new_reusing(view, spans);
         // Columns of a row that can see the target's bounds; the rest keep the background
         // without costing a sample.
         let span = |row: u32| -> (u32, u32) {
@@ -241,6 +249,9 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
                 }
             }
             logs.push(std::mem::take(&mut band.log));
+        }
+        if let Some(s) = silhouette {
+            s.recycle(spans);
         }
         if rays.nonfinite > 0 {
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
