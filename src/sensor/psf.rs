@@ -141,28 +141,51 @@ fn reflect(j: i64, n: usize) -> usize {
 }
 
 /// For each output index o along an axis of length n, the (input index, kernel offset)
-/// pairs whose scatter lands on o. Every (i, m) pair occurs exactly once.
-fn gather_lists(n: usize, r: usize) -> Vec<Vec<(usize, i64)>> {
-    let mut lists = vec![Vec::new(); n];
-    for i in 0..n {
-        for m in -(r as i64)..=r as i64 {
-            lists[reflect(i as i64 + m, n)].push((i, m));
+/// pairs whose scatter lands on o (`of(o)`); every (i, m) pair occurs exactly once. Kept
+/// flat (one list and its offsets) so a frame costs two allocations, not one per row.
+struct Gather {
+    start: Vec<usize>,
+    pairs: Vec<(usize, i64)>,
+}
+
+impl Gather {
+    fn new(n: usize, r: usize) -> Gather {
+        let target = |i: usize, m: i64| reflect(i as i64 + m, n);
+        let offsets = || (0..n).flat_map(|i| (-(r as i64)..=r as i64).map(move |m| (i, m)));
+        // Counting sort by output index, keeping each list in (i, m) order.
+        let mut start = vec![0usize; n + 1];
+        for (i, m) in offsets() {
+            start[target(i, m) + 1] += 1;
         }
+        for o in 0..n {
+            start[o + 1] += start[o];
+        }
+        let mut fill = start.clone();
+        let mut pairs = vec![(0usize, 0i64); start[n]];
+        for (i, m) in offsets() {
+            let o = target(i, m);
+            pairs[fill[o]] = (i, m);
+            fill[o] += 1;
+        }
+        Gather { start, pairs }
     }
-    lists
+
+    fn of(&self, o: usize) -> &[(usize, i64)] {
+        &self.pairs[self.start[o]..self.start[o + 1]]
+    }
 }
 
 /// Convolve a row-major `width × height` image with `k` (energy-preserving, reflecting
 /// borders). Parallel over output rows; the result does not depend on the thread count.
 pub fn convolve(img: &[f32], width: usize, height: usize, k: &Kernel) -> Vec<f32> {
     assert_eq!(img.len(), width * height, "image size");
-    let lx = gather_lists(width, k.rx);
-    let ly = gather_lists(height, k.ry);
+    let lx = Gather::new(width, k.rx);
+    let ly = Gather::new(height, k.ry);
     // Columns where every kernel offset reads a direct (unreflected) input.
     let (lo, hi) = if width > 2 * k.rx { (k.rx, width - k.rx) } else { (0, 0) };
     let mut out = vec![0.0f32; width * height];
     out.par_chunks_mut(width).enumerate().for_each(|(oy, orow)| {
-        for &(iy, my) in &ly[oy] {
+        for &(iy, my) in ly.of(oy) {
             let src = &img[iy * width..(iy + 1) * width];
             for mx in -(k.rx as i64)..=k.rx as i64 {
                 let w = k.at(mx, my);
@@ -174,7 +197,7 @@ pub fn convolve(img: &[f32], width: usize, height: usize, k: &Kernel) -> Vec<f32
             }
             for ox in (0..lo).chain(hi.max(lo)..width) {
                 let mut acc = 0.0f32;
-                for &(ix, mx) in &lx[ox] {
+                for &(ix, mx) in lx.of(ox) {
                     acc += k.at(mx, my) * src[ix];
                 }
                 orow[ox] += acc;
