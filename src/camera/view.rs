@@ -142,6 +142,16 @@ impl View {
         if self.distortion.is_some() { self.ideal_px(dir) } else { [x, y] }
     }
 
+    /// Where the lens images the ideal image point `(x, y)` (pixels): the forward map that
+    /// [`View::ideal_of_pixel`] inverts (`(x, y)` itself for a pinhole).
+    #[inline]
+    pub fn pixel_of_ideal(&self, x: f64, y: f64) -> [f64; 2] {
+        let Some(d) = &self.distortion else { return [x, y] };
+        let f = self.focal_px();
+        let p = d.distort(glam::DVec2::new((x - self.pp[0]) * self.inv_focal_px, (y - self.pp[1]) * self.inv_focal_px));
+        [self.pp[0] + p.x * f, self.pp[1] + p.y * f]
+    }
+
     /// True when a lens model bends the rays.
     pub fn has_distortion(&self) -> bool {
         self.distortion.is_some()

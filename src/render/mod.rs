@@ -21,6 +21,7 @@ use tile::{CameraSample, TILE_PATHS, TileJob};
 
 pub mod adaptive;
 mod buffers;
+mod lens_coverage;
 mod tile;
 pub mod visibility;
 use rayon::prelude::*;

@@ -15,6 +15,7 @@
 //! sends them, so the same binning holds; samples whose ideal point falls outside the
 //! region binned at frame start are traced through the BVH instead.
 
+use super::lens_coverage::{self, IdealCells};
 use crate::camera::{PixelRect, View};
 use crate::geometry::{Accel, Hit, Ray, TestRay};
 use crate::scene::Scene;
@@ -43,18 +44,23 @@ pub struct PrimaryRaster {
     x_hi: i32,
     y_lo: i32,
     y_hi: i32,
-    /// Pinhole only (ideal cells are pixels): bit per pixel of the region, set where some
-    /// triangle's box covers it. A pixel with no bit set cannot see any triangle, so its
-    /// samples are not even generated.
-    covered: Option<Vec<u64>>,
+    /// Bit per pixel of `cover` (`cover_stride` words per row), set where a sample may hit a
+    /// triangle: for a pinhole the ideal cells themselves (a cell whose square, grown by
+    /// the margin, meets a triangle), through a lens the pixels the lens images such
+    /// cells onto (`lens_coverage`). A pixel with no bit set cannot see any triangle, so
+    /// its samples are not even generated.
+    covered: Vec<u64>,
+    /// Inclusive pixel range `[x0, x1, y0, y1]` of `covered`.
+    cover: [i32; 4],
     /// Words per row of `covered`.
-    stride: usize,
+    cover_stride: usize,
     /// Build-time buffers, kept so that a rebuild for the next frame allocates nothing:
     /// each vertex on the ideal plane (x, y, depth), and the bucket fill cursors.
     projected: Vec<(f64, f64, f64)>,
     fill: Vec<u32>,
-    /// The coverage bits' buffer while `covered` is `None` (through a lens).
-    spare_bits: Vec<u64>,
+    /// Through a lens: the ideal cells' bits, and the atomic words pixels are marked in.
+    ideal_bits: Vec<u64>,
+    lens_marks: Vec<std::sync::atomic::AtomicU64>,
 }
 
 /// Samples of one pass, binned into ideal-pixel cells (reused from band to band).
@@ -165,10 +171,18 @@ impl PrimaryRaster {
         }
         // Region of the ideal image plane the samples can fall in.
         let Some((x_lo, x_hi, y_lo, y_hi)) = ideal_region(view, rect) else { return false };
-        let PrimaryRaster { boxes, edges, bucket_start, bucket_tris, covered, projected, fill, spare_bits, .. } = self;
-        if let Some(bits) = covered.take() {
-            *spare_bits = bits;
-        }
+        let PrimaryRaster {
+            boxes,
+            edges,
+            bucket_start,
+            bucket_tris,
+            covered,
+            projected,
+            fill,
+            ideal_bits,
+            lens_marks,
+            ..
+        } = self;
         // Each vertex on the ideal image plane; the nearest depth bounds the pixel size of
         // the f32 rays' own rounding (see `margin`).
         mesh.positions
@@ -244,52 +258,56 @@ impl PrimaryRaster {
         // so they are filled in parallel.
         let stride = ((x_hi - x_lo + 1) as usize).div_ceil(64);
         let (bucket_start, bucket_tris, boxes, projected) = (&*bucket_start, &*bucket_tris, &*boxes, &*projected);
-        let bits_of = (!view.has_distortion()).then(|| {
-            let mut bits = std::mem::take(spare_bits);
-            bits.clear();
-            bits.resize(stride * (y_hi - y_lo + 1) as usize, 0);
-            // The box margin, plus the f64 rounding of the clipping below.
-            let m = margin + 1e-6;
-            bits.par_chunks_mut(stride * BUCKET_ROWS as usize).enumerate().for_each(|(bucket, rows)| {
-                let first_row = y_lo + bucket as i32 * BUCKET_ROWS;
-                let tris = &bucket_tris[bucket_start[bucket] as usize..bucket_start[bucket + 1] as usize];
-                for &k in tris {
-                    let b = boxes[k as usize];
-                    let [ia, ib, ic] = accel.vertex_indices(k);
-                    let tri = [ia, ib, ic].map(|i| (projected[i as usize].0, projected[i as usize].1));
-                    let (y0, y1) = (b[2].max(first_row), b[3].min(first_row + BUCKET_ROWS - 1));
-                    for y in y0..=y1 {
-                        // Pixels of row y whose square, grown by the margin, meets the
-                        // triangle: its x-extent within the row's grown slab.
-                        let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
-                        let Some((xa, xb)) = slab_x_extent(tri, slab) else { continue };
-                        let (c0, c1) =
-                            (floor_i32((xa - 1.0 - m).max(-1e9)).max(b[0]), floor_i32((xb + m).min(1e9)).min(b[1]));
-                        if c0 <= c1 {
-                            let row = &mut rows[(y - first_row) as usize * stride..][..stride];
-                            set_bits(row, (c0 - x_lo) as usize, (c1 - x_lo) as usize);
-                        }
+        let bits = if view.has_distortion() { &mut *ideal_bits } else { &mut *covered };
+        bits.clear();
+        bits.resize(stride * (y_hi - y_lo + 1) as usize, 0);
+        // The box margin, plus the f64 rounding of the clipping below.
+        let m = margin + 1e-6;
+        bits.par_chunks_mut(stride * BUCKET_ROWS as usize).enumerate().for_each(|(bucket, rows)| {
+            let first_row = y_lo + bucket as i32 * BUCKET_ROWS;
+            let tris = &bucket_tris[bucket_start[bucket] as usize..bucket_start[bucket + 1] as usize];
+            for &k in tris {
+                let b = boxes[k as usize];
+                let [ia, ib, ic] = accel.vertex_indices(k);
+                let tri = [ia, ib, ic].map(|i| (projected[i as usize].0, projected[i as usize].1));
+                let (y0, y1) = (b[2].max(first_row), b[3].min(first_row + BUCKET_ROWS - 1));
+                for y in y0..=y1 {
+                    // Cells of row y whose square, grown by the margin, meets the
+                    // triangle: its x-extent within the row's grown slab.
+                    let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
+                    let Some((xa, xb)) = slab_x_extent(tri, slab) else { continue };
+                    let (c0, c1) =
+                        (floor_i32((xa - 1.0 - m).max(-1e9)).max(b[0]), floor_i32((xb + m).min(1e9)).min(b[1]));
+                    if c0 <= c1 {
+                        let row = &mut rows[(y - first_row) as usize * stride..][..stride];
+                        set_bits(row, (c0 - x_lo) as usize, (c1 - x_lo) as usize);
                     }
                 }
-            });
-            bits
+            }
         });
-        *covered = bits_of;
-        (self.x_lo, self.x_hi, self.y_lo, self.y_hi, self.stride) = (x_lo, x_hi, y_lo, y_hi, stride);
+        let (cover, cover_stride) = if view.has_distortion() {
+            let cells = IdealCells { bits: ideal_bits, stride, x_lo, y_lo, x_hi, y_hi };
+            let s = lens_coverage::mark_pixels(view, &cells, rect, lens_marks, covered);
+            ([rect.col0 as i32, rect.col1 as i32 - 1, rect.row0 as i32, rect.row1 as i32 - 1], s)
+        } else {
+            ([x_lo, x_hi, y_lo, y_hi], stride)
+        };
+        (self.cover, self.cover_stride) = (cover, cover_stride);
+        (self.x_lo, self.x_hi, self.y_lo, self.y_hi) = (x_lo, x_hi, y_lo, y_hi);
         true
     }
 
     /// False when no sample of pixel `(row, col)` can hit a triangle (it sees the
-    /// background); true when it may, or when that is not known (through a lens).
+    /// background); true when it may.
     #[inline]
     pub fn may_hit(&self, row: u32, col: u32) -> bool {
-        let Some(bits) = &self.covered else { return true };
         let (x, y) = (col as i32, row as i32);
-        if x < self.x_lo || x > self.x_hi || y < self.y_lo || y > self.y_hi {
+        let [x0, x1, y0, y1] = self.cover;
+        if x < x0 || x > x1 || y < y0 || y > y1 {
             return false;
         }
-        let x = (x - self.x_lo) as usize;
-        bits[(y - self.y_lo) as usize * self.stride + x / 64] & (1 << (x % 64)) != 0
+        let x = (x - x0) as usize;
+        self.covered[(y - y0) as usize * self.cover_stride + x / 64] & (1 << (x % 64)) != 0
     }
 
     /// Closest hit of each ray `rays[i]`, whose sample lies at ideal pixel `ideal[i]`,
