@@ -147,9 +147,7 @@ impl View {
     #[inline]
     pub fn pixel_of_ideal(&self, x: f64, y: f64) -> [f64; 2] {
         let Some(d) = &self.distortion else { return [x, y] };
-        let f = self.focal_px();
-        let p = d.distort(glam::DVec2::new((x - self.pp[0]) * self.inv_focal_px, (y - self.pp[1]) * self.inv_focal_px));
-        [self.pp[0] + p.x * f, self.pp[1] + p.y * f]
+        d.distort_px(glam::DVec2::new(x, y), glam::DVec2::from(self.pp), self.focal_px()).to_array()
     }
 
     /// True when a lens model bends the rays.

@@ -54,7 +54,7 @@ pub(super) fn mark_pixels(
         (xa <= xb && ya <= yb).then_some([xa - c0, xb - c0, ya - r0, yb - r0])
     };
     let marks = &*scratch;
-    let flush = |[xa, xb, ya, yb]: [i64; 4]| {
+    let mark = |[xa, xb, ya, yb]: [i64; 4]| {
         for y in ya..=yb {
             set_bits_atomic(&marks[y as usize * stride_out..][..stride_out], xa as usize, xb as usize);
         }
@@ -69,9 +69,6 @@ pub(super) fn mark_pixels(
         };
         // The right corners of the last marked cell are the next cell's left corners.
         let mut last: Option<(usize, [f64; 2], [f64; 2])> = None;
-        // Consecutive cells imaged onto the same rows are marked as one range (their
-        // ranges overlap by the pad): one atomic OR per row and run, not per cell.
-        let mut pending: Option<[i64; 4]> = None;
         for (w, &word) in row.iter().enumerate() {
             let mut word = word;
             while word != 0 {
@@ -85,25 +82,13 @@ pub(super) fn mark_pixels(
                     _ => corners(cx),
                 };
                 let (tr, br) = corners(cx + 1);
+                last = Some((cx, tr, br));
                 let lo = [tl[0].min(bl[0]).min(tr[0]).min(br[0]), tl[1].min(bl[1]).min(tr[1]).min(br[1])];
                 let hi = [tl[0].max(bl[0]).max(tr[0]).max(br[0]), tl[1].max(bl[1]).max(tr[1]).max(br[1])];
-                let adjacent = matches!(last, Some((prev, ..)) if prev + 1 == cx);
-                last = Some((cx, tr, br));
-                let Some(p) = pixels(lo, hi) else { continue };
-                pending = match pending {
-                    Some(q) if adjacent && q[2..] == p[2..] && p[0] <= q[1] + 1 => {
-                        Some([q[0].min(p[0]), q[1].max(p[1]), p[2], p[3]])
-                    }
-                    Some(q) => {
-                        flush(q);
-                        Some(p)
-                    }
-                    None => Some(p),
-                };
+                if let Some(p) = pixels(lo, hi) {
+                    mark(p);
+                }
             }
-        }
-        if let Some(q) = pending {
-            flush(q);
         }
     });
     out.clear();

@@ -142,7 +142,7 @@ fn reflect(j: i64, n: usize) -> usize {
 
 /// For each output index o along an axis of length n, the (input index, kernel offset)
 /// pairs whose scatter lands on o (`of(o)`); every (i, m) pair occurs exactly once. Kept
-/// flat (one list and its offsets) so a frame costs two allocations, not one per row.
+/// flat (one list and its offsets) so an axis costs three allocations, not one per index.
 struct Gather {
     start: Vec<usize>,
     pairs: Vec<(usize, i64)>,
