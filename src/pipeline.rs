@@ -92,6 +92,20 @@ impl FramePipeline {
         (img, stats)
     }
 
+    /// [`FramePipeline::radiance`] into the pipeline's own buffers: after the first frame
+    /// it allocates nothing (what `hilcam render --repeat` times). Same bytes.
+    pub fn radiance_warm(
+        &mut self,
+        pose: &Pose,
+        settings: &RenderSettings,
+        index: u64,
+    ) -> (&RadianceImage, RenderStats) {
+        let view = self.view(pose);
+        let (stats, _) =
+            render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
+        (self.buffers.image(), stats)
+    }
+
     /// Render and convert frame `index` at `pose`.
     pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
         let view = self.view(pose);

@@ -67,6 +67,11 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Render the frame this many times through the same warm buffers (as a running server
+    /// does) and report the median time (and the fastest); the image is the last one,
+    /// identical to the others.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeat: u32,
 }
 
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
@@ -109,8 +114,24 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         println!("{}: samples per pixel, {most} at the brightest", map.display());
         (write_radiance(&a.out, &img, None, a.png16)?, stats)
     } else {
-        let (img, stats) = pipeline.radiance(&pose, &settings, a.frame);
-        (write_radiance(&a.out, &img, None, a.png16)?, stats)
+        let mut times = Vec::new();
+        for _ in 1..a.repeat {
+            times.push(pipeline.radiance_warm(&pose, &settings, a.frame).1.time);
+        }
+        let (img, mut stats) = pipeline.radiance_warm(&pose, &settings, a.frame);
+        times.push(stats.time);
+        if a.repeat > 1 {
+            times.sort();
+            stats.time = times[times.len() / 2];
+            println!(
+                "{} renders: median {:.1} ms, fastest {:.1} ms, slowest {:.1} ms",
+                a.repeat,
+                stats.time.as_secs_f64() * 1e3,
+                times[0].as_secs_f64() * 1e3,
+                times[times.len() - 1].as_secs_f64() * 1e3
+            );
+        }
+        (write_radiance(&a.out, img, None, a.png16)?, stats)
     };
     let covered = stats.traced_pixels as f64 / (f64::from(camera.width) * f64::from(camera.height)) * 100.0;
     print!(
