@@ -42,6 +42,22 @@ struct Node4 {
 
 const EMPTY: Node4 = Node4 { bounds: [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3], child: [0; 4], count: [0; 4] };
 
+impl super::shadow_packet::WideNode for Node4 {
+    const WIDTH: usize = 4;
+    #[inline(always)]
+    fn bound(&self, axis: usize, side: usize, slot: usize) -> f32 {
+        self.bounds[axis][side][slot]
+    }
+    #[inline(always)]
+    fn child(&self, slot: usize) -> u32 {
+        self.child[slot]
+    }
+    #[inline(always)]
+    fn count(&self, slot: usize) -> u32 {
+        self.count[slot]
+    }
+}
+
 /// A child: inner node (`count == 0`) or leaf range, and its entry distance.
 #[derive(Clone, Copy, Default)]
 struct Entry {
@@ -163,6 +179,15 @@ impl Bvh4 {
             self.traverse::<true>(ray, tris, &mut vec![MaybeUninit::uninit(); self.stack_need()])
         };
         found.is_some()
+    }
+
+    /// Occlusion of up to eight rays sharing one direction (bit `i`: ray `i` is blocked),
+    /// in one walk (`shadow_packet`); the same answers as [`Bvh4::occluded`] ray by ray.
+    pub fn occluded_packet(&self, rays: &[ObRay], tris: &[RtTriangle]) -> u32 {
+        let need = self.stack_need().max(4 * self.depth + 2);
+        super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, need).unwrap_or_else(|| {
+            rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r, tris)) << i))
+        })
     }
 
     #[inline(always)]

@@ -3,6 +3,7 @@
 pub mod bvh;
 pub mod bvh4;
 pub mod mesh;
+pub mod shadow_packet;
 pub mod sun_shadow;
 
 pub use bvh::{Accel, BvhLayout, Hit, Ray, TestRay};

@@ -175,6 +175,16 @@ impl<'a> PathContext<'a> {
         }
     }
 
+    /// [`PathContext::occluded`] for up to eight shadow rays toward the sun at once (bit
+    /// `i`: ray `i` is blocked); the same answers.
+    #[inline]
+    pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
+        if self.sun_shadow.is_some() {
+            return rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r)) << i));
+        }
+        self.scene.accel.occluded_packet(rays)
+    }
+
     /// Offset that moves a hit point off its surface: scaled to the coordinates' magnitude
     /// (f32 intersection error grows with it) and to the target's size.
     #[inline]

@@ -16,9 +16,11 @@
 
 use super::visibility::{PrimaryRaster, RasterScratch};
 use crate::camera::View;
+use crate::geometry::shadow_packet::PACKET;
 use crate::geometry::{Hit, Ray};
 use crate::integrator::{PathContext, RayCounts, RayLog};
 use crate::sampling::PerSample;
+use glam::Vec3;
 
 /// Paths per tile: enough for coherent waves, few enough to stay in the L1/L2 caches.
 pub const TILE_PATHS: usize = 256;
@@ -186,12 +188,20 @@ impl TileJob<'_> {
                         None => p.alive = false,
                     }
                 }
-                // Wave 3: shadow rays toward the sun.
+                // Wave 3: shadow rays toward the sun, eight at a time (`Accel::occluded_packet`:
+                // they share the sun's direction and start at neighbouring hits).
                 counts.shadow += shadows.len() as u64;
-                for (i, ray, contribution) in shadows.iter() {
-                    log.shadow(ray);
-                    if !ctx.occluded(ray) {
-                        paths[*i as usize].l += contribution;
+                for chunk in shadows.chunks(PACKET) {
+                    let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, tmax: 0.0 }; PACKET];
+                    for ((_, ray, _), r) in chunk.iter().zip(rays.iter_mut()) {
+                        log.shadow(ray);
+                        *r = *ray;
+                    }
+                    let blocked = ctx.occluded_packet(&rays[..chunk.len()]);
+                    for (k, (i, _, contribution)) in chunk.iter().enumerate() {
+                        if blocked & (1 << k) == 0 {
+                            paths[*i as usize].l += contribution;
+                        }
                     }
                 }
                 active.retain(|&i| paths[i as usize].alive);

@@ -1,0 +1,225 @@
+//! Shadow rays toward the sun, eight at a time through one walk of a wide BVH.
+//!
+//! Every shadow ray of a frame runs along the same direction, and a wave's rays start at
+//! the hits of neighbouring pixels, so eight consecutive ones walk nearly the same nodes.
+//! Walked together, a node's boxes are tested against all eight origins at once (AVX2
+//! lanes) and the traversal's branches — the cost of a single-ray walk (docs/performance.md,
+//! session 5) — are taken once per packet instead of once per ray.
+//!
+//! The answers are those of the single-ray walk: the box test is the same conservative slab
+//! test as `bvh4` (same operations in the same order per lane, so it culls no box holding a
+//! triangle the triangle test accepts), and the triangle test is obvhs's
+//! `RtTriangle::intersect`, lane by lane, with glam's operation order (its SSE `cross`
+//! and `dot3`) and the same sign-bit rule, so every (ray, triangle) pair gets the same
+//! yes/no (`tests/shadow_packet.rs` checks bit for bit against the scalar test and the
+//! walk against brute force). The shared direction makes `1 / (n·d)` a scalar per
+//! triangle, computed as the scalar test computes it.
+
+use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
+
+/// Rays per packet.
+pub const PACKET: usize = 8;
+
+/// What a packet walk needs of a wide node: per child slot its box (`bound(axis, 0|1,
+/// slot)` = min|max) and either an inner node (`count == 0`) or a leaf range.
+pub(super) trait WideNode {
+    const WIDTH: usize;
+    fn bound(&self, axis: usize, side: usize, slot: usize) -> f32;
+    fn child(&self, slot: usize) -> u32;
+    fn count(&self, slot: usize) -> u32;
+}
+
+/// Whether this CPU runs the AVX2 walk (checked once).
+pub fn avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Occlusion of up to [`PACKET`] rays that share one direction (bit `i` set: ray `i` hits
+/// a triangle within `[tmin, tmax]`), or `None` when the AVX2 walk does not apply (no
+/// AVX2, directions differ, or a stack of `stack_need` entries would not fit) and the
+/// caller must walk the rays one by one.
+pub(super) fn occluded<N: WideNode>(
+    nodes: &[N],
+    tris: &[RtTriangle],
+    rays: &[ObRay],
+    slack: f32,
+    stack_need: usize,
+) -> Option<u32> {
+    if rays.is_empty() || nodes.is_empty() {
+        return Some(0);
+    }
+    let d = rays[0].direction;
+    let shared = rays.len() <= PACKET && rays.iter().all(|r| r.direction.to_array() == d.to_array());
+    if !shared || stack_need > avx::STACK || !avx2() {
+        return None;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: AVX2 was detected above.
+        Some(unsafe { avx::walk(nodes, tris, rays, slack) })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (tris, slack);
+        None
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::{PACKET, WideNode};
+    use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
+    use std::arch::x86_64::*;
+    use std::mem::MaybeUninit;
+
+    /// Stack entries kept on the machine stack.
+    pub(super) const STACK: usize = 512;
+
+    /// The packet walk. Unsorted, as the single-ray any-hit walk: a yes/no answer does not
+    /// depend on the order. Each stack entry carries the rays that entered that child.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn walk<N: WideNode>(nodes: &[N], tris: &[RtTriangle], rays: &[ObRay], slack: f32) -> u32 {
+        let n = rays.len();
+        let all = (1u32 << n) - 1;
+        // Lanes beyond `n` repeat ray 0 and are masked out.
+        let mut v = [[0.0f32; PACKET]; 5];
+        for i in 0..PACKET {
+            let r = &rays[if i < n { i } else { 0 }];
+            for (k, x) in [r.origin.x, r.origin.y, r.origin.z, r.tmin, r.tmax].into_iter().enumerate() {
+                v[k][i] = x;
+            }
+        }
+        // SAFETY: AVX2 is enabled on this function; the loads read `[f32; 8]` arrays.
+        let [ox, oy, oz, tmin, tmax] = v.map(|a| unsafe { _mm256_loadu_ps(a.as_ptr()) });
+        let org = [ox, oy, oz];
+        let d = rays[0].direction;
+        let dir = d.to_array();
+        // As `bvh4::Prep`: the exact reciprocal, ±inf for a zero component.
+        let inv = dir.map(|x| _mm256_set1_ps(1.0 / x));
+        let near = dir.map(|x| x.is_sign_negative() as usize);
+        let slack = _mm256_set1_ps(slack);
+        let dirv = dir.map(|x| _mm256_set1_ps(x));
+        let lanes = Lanes { org, dir: dirv, tmin, tmax };
+
+        let mut stack = [MaybeUninit::<(u32, u32)>::uninit(); STACK];
+        let mut sp = 0usize;
+        let mut occluded = 0u32;
+        let (mut node, mut mask) = (0u32, all);
+        loop {
+            let live = mask & !occluded;
+            if live != 0 {
+                let nd = &nodes[node as usize];
+                let mut next: Option<(u32, u32)> = None;
+                for slot in 0..N::WIDTH {
+                    let mut tn = tmin;
+                    let mut tf = tmax;
+                    // z, then y, then x: the accumulator is the second operand, so a NaN lane
+                    // of the first is dropped (the same order as `bvh4`'s SSE test).
+                    for axis in [2, 1, 0] {
+                        let b_near = _mm256_set1_ps(nd.bound(axis, near[axis], slot));
+                        let b_far = _mm256_set1_ps(nd.bound(axis, 1 - near[axis], slot));
+                        tn = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(b_near, org[axis]), inv[axis]), tn);
+                        tf = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(b_far, org[axis]), inv[axis]), tf);
+                    }
+                    let tf = _mm256_mul_ps(tf, slack);
+                    let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, tf)) as u32 & live & !occluded;
+                    if hit == 0 {
+                        continue;
+                    }
+                    let count = nd.count(slot);
+                    if count > 0 {
+                        let first = nd.child(slot);
+                        let mut open = hit;
+                        for k in first..first + count {
+                            // SAFETY: AVX2 is enabled here as in `triangle`.
+                            let found = unsafe { triangle(&tris[k as usize], d, &lanes) } & open;
+                            open &= !found;
+                            occluded |= found;
+                            if open == 0 {
+                                break;
+                            }
+                        }
+                        if occluded == all {
+                            return occluded;
+                        }
+                    } else if let Some(e) = next.replace((nd.child(slot), hit)) {
+                        stack[sp] = MaybeUninit::new(e);
+                        sp += 1;
+                    }
+                }
+                if let Some((c, m)) = next {
+                    (node, mask) = (c, m);
+                    continue;
+                }
+            }
+            if sp == 0 {
+                return occluded;
+            }
+            sp -= 1;
+            // SAFETY: entries below `sp` were written (pushed children).
+            (node, mask) = unsafe { stack[sp].assume_init() };
+        }
+    }
+
+    /// The packet's per-lane constants.
+    struct Lanes {
+        org: [__m256; 3],
+        dir: [__m256; 3],
+        tmin: __m256,
+        tmax: __m256,
+    }
+
+    /// obvhs's `RtTriangle::intersect` for eight origins along one direction: bit `i` set
+    /// when lane `i` hits within `[tmin, tmax]`. Same operations in the same order as the
+    /// scalar test through glam's SSE `cross` and `dot3`; `1 / (n·d)` is the scalar test's
+    /// own value (the same for every lane).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn triangle(tri: &RtTriangle, d: glam::Vec3A, l: &Lanes) -> u32 {
+        let inv_det = 1.0 / tri.ng.dot(d);
+        if inv_det == 0.0 {
+            return 0;
+        }
+        let s = |x: f32| _mm256_set1_ps(x);
+        let (v0, e1, e2, ng) = (tri.v0, tri.e1, tri.e2, tri.ng);
+        let [dx, dy, dz] = l.dir;
+        let [ox, oy, oz] = l.org;
+        // c = v0 − origin
+        let (cx, cy, cz) = (_mm256_sub_ps(s(v0.x), ox), _mm256_sub_ps(s(v0.y), oy), _mm256_sub_ps(s(v0.z), oz));
+        // r = d × c, as glam: x = d.y·c.z − c.y·d.z, y = d.z·c.x − c.z·d.x, z = d.x·c.y − c.x·d.y
+        let rx = _mm256_sub_ps(_mm256_mul_ps(dy, cz), _mm256_mul_ps(cy, dz));
+        let ry = _mm256_sub_ps(_mm256_mul_ps(dz, cx), _mm256_mul_ps(cz, dx));
+        let rz = _mm256_sub_ps(_mm256_mul_ps(dx, cy), _mm256_mul_ps(cx, dy));
+        // dot3 as glam: (x·x' + y·y') + z·z'
+        let dot = |ax: __m256, ay: __m256, az: __m256, b: glam::Vec3A| {
+            _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(ax, s(b.x)), _mm256_mul_ps(ay, s(b.y))),
+                _mm256_mul_ps(az, s(b.z)),
+            )
+        };
+        let inv = s(inv_det);
+        let u = _mm256_mul_ps(dot(rx, ry, rz, e2), inv);
+        let v = _mm256_mul_ps(dot(rx, ry, rz, e1), inv);
+        let w = _mm256_sub_ps(_mm256_sub_ps(s(1.0), u), v);
+        // Valid when no sign bit is set among u, v, w (obvhs's rule, NaN included).
+        let signs = _mm256_movemask_ps(_mm256_or_ps(_mm256_or_ps(u, v), w)) as u32;
+        // t = n·c / (n·d), `ng.dot(c)` with `ng` on the left as the scalar test.
+        let t = _mm256_mul_ps(
+            _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(s(ng.x), cx), _mm256_mul_ps(s(ng.y), cy)),
+                _mm256_mul_ps(s(ng.z), cz),
+            ),
+            inv,
+        );
+        let within = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(t, l.tmin), _mm256_cmp_ps::<_CMP_LE_OQ>(t, l.tmax));
+        _mm256_movemask_ps(within) as u32 & !signs & 0xff
+    }
+}
