@@ -124,7 +124,7 @@ pub struct RenderBenchArgs {
     #[arg(long, value_delimiter = ',', default_values_t = [0.30, 0.01])]
     pub coverage: Vec<f64>,
     /// BVH layouts to measure.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BvhLayout::Bvh2, BvhLayout::Cwbvh, BvhLayout::Bvh4])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BvhLayout::Bvh2, BvhLayout::Cwbvh, BvhLayout::Bvh4, BvhLayout::Bvh8])]
     pub bvh: Vec<BvhLayout>,
 }
 

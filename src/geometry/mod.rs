@@ -2,6 +2,7 @@
 
 pub mod bvh;
 pub mod bvh4;
+pub mod bvh8;
 pub mod mesh;
 pub mod shadow_packet;
 pub mod sun_shadow;

@@ -33,7 +33,7 @@
 //! depth = 2
 //! sampler = "cosine"
 //! seed = 0
-//! bvh = "bvh4"
+//! bvh = "bvh8"                 # the default; or "bvh4", "bvh2", "cwbvh"
 //! ```
 
 use super::obj::load_obj;
