@@ -217,18 +217,23 @@ impl Accel {
 impl Accel {
     /// Occlusion of up to [`shadow_packet::PACKET`](super::shadow_packet::PACKET) rays that
     /// share one direction (the shadow rays toward the sun): bit `i` set when ray `i` is
-    /// blocked, the same answers as [`Accel::occluded`] ray by ray. On the 4-wide tree with
-    /// AVX2 the rays walk it together (`shadow_packet`); otherwise one by one.
+    /// blocked, the same answers as [`Accel::occluded`] ray by ray. On the 4- and 8-wide
+    /// trees with AVX2 the rays walk it together (`shadow_packet`); otherwise one by one.
     pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
+        use super::shadow_packet::PACKET;
+        let one_by_one = || rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r)) << i));
+        if self.tris.is_empty() || rays.len() > PACKET {
+            return one_by_one();
+        }
+        let mut ob = [ObRay::new_inf(Vec3A::ZERO, Vec3A::X); PACKET];
+        for (o, r) in ob.iter_mut().zip(rays) {
+            *o = Self::ob_ray(r);
+        }
+        let ob = &ob[..rays.len()];
         match &self.tree {
-            Tree::Bvh4(b) if !self.tris.is_empty() => {
-                let mut ob = [ObRay::new_inf(Vec3A::ZERO, Vec3A::X); super::shadow_packet::PACKET];
-                for (o, r) in ob.iter_mut().zip(rays) {
-                    *o = Self::ob_ray(r);
-                }
-                b.occluded_packet(&ob[..rays.len()], &self.tris)
-            }
-            _ => rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r)) << i)),
+            Tree::Bvh4(b) => b.occluded_packet(ob, &self.tris),
+            Tree::Bvh8(b) => b.occluded_packet(ob, &self.tris),
+            _ => one_by_one(),
         }
     }
 }

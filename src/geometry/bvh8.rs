@@ -49,6 +49,22 @@ struct Node8 {
 
 const EMPTY: Node8 = Node8 { bounds: [[[f32::INFINITY; W], [f32::NEG_INFINITY; W]]; 3], child: [0; W], count: [0; W] };
 
+impl super::shadow_packet::WideNode for Node8 {
+    const WIDTH: usize = W;
+    #[inline(always)]
+    fn bound(&self, axis: usize, side: usize, slot: usize) -> f32 {
+        self.bounds[axis][side][slot]
+    }
+    #[inline(always)]
+    fn child(&self, slot: usize) -> u32 {
+        self.child[slot]
+    }
+    #[inline(always)]
+    fn count(&self, slot: usize) -> u32 {
+        self.count[slot]
+    }
+}
+
 /// A child: inner node (`count == 0`) or leaf range, and its entry distance.
 #[derive(Clone, Copy, Default)]
 struct Entry {
@@ -238,6 +254,19 @@ impl Bvh8 {
             self.dispatch::<true>(ray, tris, &mut vec![MaybeUninit::uninit(); self.stack_need()])
         };
         found.is_some()
+    }
+
+    /// Occlusion of up to eight rays sharing one direction (bit `i`: ray `i` is blocked),
+    /// in one walk (`shadow_packet`); the same answers as [`Bvh8::occluded`] ray by ray.
+    pub fn occluded_packet(&self, rays: &[ObRay], tris: &[RtTriangle]) -> u32 {
+        let walked = if self.avx2 {
+            super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, self.stack_need())
+        } else {
+            None
+        };
+        walked.unwrap_or_else(|| {
+            rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r, tris)) << i))
+        })
     }
 
     #[inline(always)]
