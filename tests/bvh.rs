@@ -32,7 +32,7 @@ fn soup(n: usize, seed: u64) -> TriMesh {
 fn closest_hit_and_occlusion_match_brute_force() {
     let mesh = soup(3000, 1);
     let mut r = Rng::from_state(2);
-    for layout in [BvhLayout::Bvh2, BvhLayout::Cwbvh, BvhLayout::Bvh4] {
+    for layout in [BvhLayout::Bvh2, BvhLayout::Cwbvh, BvhLayout::Bvh4, BvhLayout::Bvh8] {
         let accel = Accel::build(&mesh, layout);
         let (mut hits, mut occl) = (0, 0);
         for i in 0..4000 {
