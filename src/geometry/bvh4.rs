@@ -16,10 +16,11 @@
 //! min/max order (`_mm_max_ps(x, acc)` returns `acc` when `x` is NaN, as `f32::max`
 //! ignores NaN). Clamping the direction (Embree's `rcp_safe`, obvhs's `safe_inverse`)
 //! would instead make the face plane an exit at `t = 0` for one sign of zero and cull
-//! the box (obvhs's `Bvh2` misses such a hit; see `tests/bvh4.rs`'s axis rays). Not
+//! the box (obvhs's `Bvh2` misses such a hit; see `tests/bvh_wide.rs`'s axis rays). Not
 //! covered: a tiny non-zero component with the origin exactly on a face, where the
 //! triangle test's rounding could accept a point just outside the box.
 
+use super::wide::{Entry, Node, collapse};
 use obvhs::{bvh2::Bvh2, ray::Ray as ObRay, rt_triangle::RtTriangle};
 use std::mem::MaybeUninit;
 
@@ -29,42 +30,10 @@ const SLACK: f32 = 1.0 + 1.0 / (1u32 << 20) as f32;
 /// Traversal stack entries kept on the machine stack; deeper trees use a heap stack.
 const STACK: usize = 256;
 
-/// Four children: boxes in SoA form (`bounds[axis][0]` = min, `[1]` = max, one lane per
-/// child) and per child either an inner node index (`count == 0`) or a leaf's primitive
-/// range `first..first + count`. Unused slots have an inverted (empty) box.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-struct Node4 {
-    bounds: [[[f32; 4]; 2]; 3],
-    child: [u32; 4],
-    count: [u32; 4],
-}
-
-const EMPTY: Node4 = Node4 { bounds: [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3], child: [0; 4], count: [0; 4] };
-
-impl super::shadow_packet::WideNode for Node4 {
-    const WIDTH: usize = 4;
-    #[inline(always)]
-    fn bound(&self, axis: usize, side: usize, slot: usize) -> f32 {
-        self.bounds[axis][side][slot]
-    }
-    #[inline(always)]
-    fn child(&self, slot: usize) -> u32 {
-        self.child[slot]
-    }
-    #[inline(always)]
-    fn count(&self, slot: usize) -> u32 {
-        self.count[slot]
-    }
-}
-
-/// A child: inner node (`count == 0`) or leaf range, and its entry distance.
-#[derive(Clone, Copy, Default)]
-struct Entry {
-    index: u32,
-    count: u32,
-    t: f32,
-}
+/// A node of four children (`wide::Node`).
+type Node4 = Node<4>;
+#[cfg(test)]
+const EMPTY: Node4 = Node4::EMPTY;
 
 /// The 4-wide tree. Leaf ranges index the primitive order of the `Bvh2` it was made from.
 #[derive(Clone, Debug, Default)]
@@ -94,54 +63,8 @@ impl Bvh4 {
     /// Collapse a `Bvh2`: each 4-wide node takes a binary node's two children and keeps
     /// opening its largest-area inner child until it has four.
     pub fn from_bvh2(b: &Bvh2) -> Self {
-        let mut out = Bvh4::default();
-        if b.nodes.is_empty() {
-            return out;
-        }
-        let root = if b.nodes[0].is_leaf() {
-            vec![0]
-        } else {
-            vec![b.nodes[0].first_index as usize, b.nodes[0].first_index as usize + 1]
-        };
-        out.depth = out.add(b, root, 1);
-        out
-    }
-
-    /// Appends the node holding the binary subtrees `kids`; returns the subtree depth.
-    fn add(&mut self, b: &Bvh2, mut kids: Vec<usize>, level: usize) -> usize {
-        while kids.len() < 4 {
-            let area = |k: usize| b.nodes[k].aabb().half_area();
-            let open = kids
-                .iter()
-                .enumerate()
-                .filter(|(_, k)| !b.nodes[**k].is_leaf())
-                .max_by(|x, y| area(*x.1).total_cmp(&area(*y.1)));
-            let Some((i, &k)) = open else { break };
-            let first = b.nodes[k].first_index as usize;
-            kids[i] = first;
-            kids.insert(i + 1, first + 1);
-        }
-        let me = self.nodes.len();
-        self.nodes.push(EMPTY);
-        let mut depth = level;
-        for (slot, &k) in kids.iter().enumerate() {
-            let n = &b.nodes[k];
-            let (lo, hi) = (n.aabb().min.to_array(), n.aabb().max.to_array());
-            for axis in 0..3 {
-                self.nodes[me].bounds[axis][0][slot] = lo[axis];
-                self.nodes[me].bounds[axis][1][slot] = hi[axis];
-            }
-            let (child, count) = if n.is_leaf() {
-                (n.first_index, n.prim_count)
-            } else {
-                let idx = self.nodes.len() as u32;
-                depth = depth.max(self.add(b, vec![n.first_index as usize, n.first_index as usize + 1], level + 1));
-                (idx, 0)
-            };
-            self.nodes[me].child[slot] = child;
-            self.nodes[me].count[slot] = count;
-        }
-        depth
+        let (nodes, depth) = collapse::<4>(b);
+        Bvh4 { nodes, depth }
     }
 
     /// Number of 4-wide nodes.

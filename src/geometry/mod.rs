@@ -6,6 +6,7 @@ pub mod bvh8;
 pub mod mesh;
 pub mod shadow_packet;
 pub mod sun_shadow;
+mod wide;
 
 pub use bvh::{Accel, BvhLayout, Hit, Ray, TestRay};
 pub use mesh::TriMesh;

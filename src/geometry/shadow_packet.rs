@@ -15,19 +15,11 @@
 //! walk against brute force). The shared direction makes `1 / (n·d)` a scalar per
 //! triangle, computed as the scalar test computes it.
 
+use super::wide::Node;
 use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
-
-/// What a packet walk needs of a wide node: per child slot its box (`bound(axis, 0|1,
-/// slot)` = min|max) and either an inner node (`count == 0`) or a leaf range.
-pub(super) trait WideNode {
-    const WIDTH: usize;
-    fn bound(&self, axis: usize, side: usize, slot: usize) -> f32;
-    fn child(&self, slot: usize) -> u32;
-    fn count(&self, slot: usize) -> u32;
-}
 
 /// Whether this CPU runs the AVX2 walk (checked once).
 pub fn avx2() -> bool {
@@ -46,8 +38,8 @@ pub fn avx2() -> bool {
 /// a triangle within `[tmin, tmax]`), or `None` when the AVX2 walk does not apply (no
 /// AVX2, directions differ, or a stack of `stack_need` entries would not fit) and the
 /// caller must walk the rays one by one.
-pub(super) fn occluded<N: WideNode>(
-    nodes: &[N],
+pub(super) fn occluded<const W: usize>(
+    nodes: &[Node<W>],
     tris: &[RtTriangle],
     rays: &[ObRay],
     slack: f32,
@@ -75,7 +67,7 @@ pub(super) fn occluded<N: WideNode>(
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
-    use super::{PACKET, WideNode};
+    use super::{Node, PACKET};
     use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
     use std::arch::x86_64::*;
     use std::mem::MaybeUninit;
@@ -86,7 +78,12 @@ mod avx {
     /// The packet walk. Unsorted, as the single-ray any-hit walk: a yes/no answer does not
     /// depend on the order. Each stack entry carries the rays that entered that child.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn walk<N: WideNode>(nodes: &[N], tris: &[RtTriangle], rays: &[ObRay], slack: f32) -> u32 {
+    pub(super) unsafe fn walk<const W: usize>(
+        nodes: &[Node<W>],
+        tris: &[RtTriangle],
+        rays: &[ObRay],
+        slack: f32,
+    ) -> u32 {
         let n = rays.len();
         let all = (1u32 << n) - 1;
         // Lanes beyond `n` repeat ray 0 and are masked out.
@@ -118,14 +115,14 @@ mod avx {
             if live != 0 {
                 let nd = &nodes[node as usize];
                 let mut next: Option<(u32, u32)> = None;
-                for slot in 0..N::WIDTH {
+                for slot in 0..W {
                     let mut tn = tmin;
                     let mut tf = tmax;
                     // z, then y, then x: the accumulator is the second operand, so a NaN lane
                     // of the first is dropped (the same order as `bvh4`'s SSE test).
                     for axis in [2, 1, 0] {
-                        let b_near = _mm256_set1_ps(nd.bound(axis, near[axis], slot));
-                        let b_far = _mm256_set1_ps(nd.bound(axis, 1 - near[axis], slot));
+                        let b_near = _mm256_set1_ps(nd.bounds[axis][near[axis]][slot]);
+                        let b_far = _mm256_set1_ps(nd.bounds[axis][1 - near[axis]][slot]);
                         tn = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(b_near, org[axis]), inv[axis]), tn);
                         tf = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(b_far, org[axis]), inv[axis]), tf);
                     }
@@ -134,9 +131,9 @@ mod avx {
                     if hit == 0 {
                         continue;
                     }
-                    let count = nd.count(slot);
+                    let count = nd.count[slot];
                     if count > 0 {
-                        let first = nd.child(slot);
+                        let first = nd.child[slot];
                         let mut open = hit;
                         for k in first..first + count {
                             // SAFETY: AVX2 is enabled here as in `triangle`.
@@ -150,7 +147,7 @@ mod avx {
                         if occluded == all {
                             return occluded;
                         }
-                    } else if let Some(e) = next.replace((nd.child(slot), hit)) {
+                    } else if let Some(e) = next.replace((nd.child[slot], hit)) {
                         stack[sp] = MaybeUninit::new(e);
                         sp += 1;
                     }

@@ -1,7 +1,9 @@
-//! The 8-wide BVH (`BvhLayout::Bvh8`) against brute force on random triangle soups and
-//! against the 4-wide `Bvh4` on rays recorded from a satellite frame: the closest `t` must
-//! be bit-identical, occlusion answers identical. (`src/geometry/bvh8.rs`'s unit tests
-//! check that its AVX2 and scalar box tests agree bit for bit.)
+//! Our wide BVHs — 4-wide (`BvhLayout::Bvh4`, SSE) and 8-wide (`BvhLayout::Bvh8`, AVX2 with
+//! a scalar fallback) — against brute force on random triangle soups, and against the
+//! next narrower layout (obvhs's `Bvh2`, resp. `Bvh4`) on rays recorded from a satellite
+//! frame: the closest `t` must be bit-identical, occlusion answers identical.
+//! (`src/geometry/bvh8.rs`'s unit tests check that its AVX2 and scalar box tests agree bit
+//! for bit.)
 
 use glam::Vec3;
 use hilcam::geometry::bvh::brute_force;
@@ -52,14 +54,23 @@ fn rays(m: &TriMesh, scale: f32, n: usize, seed: u64) -> Vec<(&'static str, Ray)
         .collect()
 }
 
+/// The wide layouts under test, each with the layout it is compared with on a real mesh.
+const WIDE: [(BvhLayout, BvhLayout); 2] = [(BvhLayout::Bvh4, BvhLayout::Bvh2), (BvhLayout::Bvh8, BvhLayout::Bvh4)];
+
 #[test]
-fn bvh8_matches_brute_force_bit_for_bit_on_soups() {
+fn wide_layouts_match_brute_force_bit_for_bit_on_soups() {
+    for (layout, _) in WIDE {
+        matches_brute_force_on_soups(layout);
+    }
+}
+
+fn matches_brute_force_on_soups(layout: BvhLayout) {
     for (n, scale, seed) in [(40, 1.0, 1), (700, 1e-3, 2), (3000, 1.0, 3), (3000, 1e3, 4), (20_000, 50.0, 5)] {
         let mesh = soup(n, scale, seed);
-        let accel = Accel::build(&mesh, BvhLayout::Bvh8);
+        let accel = Accel::build(&mesh, layout);
         let mut hits = std::collections::BTreeMap::<&str, (u32, u32, u32)>::new();
         for (i, (kind, ray)) in rays(&mesh, scale, 5000, seed + 100).into_iter().enumerate() {
-            let label = format!("soup n {n} scale {scale} ray {i} ({kind}) {ray:?}");
+            let label = format!("{layout:?}: soup n {n} scale {scale} ray {i} ({kind}) {ray:?}");
             let got = accel.intersect(&ray);
             let want = brute_force::intersect(&mesh, &ray);
             let counts = hits.entry(kind).or_default();
@@ -70,7 +81,7 @@ fn bvh8_matches_brute_force_bit_for_bit_on_soups() {
                     assert_tie_or_same(&mesh, &ray, g, w, &label);
                 }
                 (None, None) => {}
-                (g, w) => panic!("{label}: bvh8 {g:?}, brute force {w:?}"),
+                (g, w) => panic!("{label}: tree {g:?}, brute force {w:?}"),
             }
             let o = accel.occluded(&ray);
             counts.2 += o as u32;
@@ -109,13 +120,19 @@ fn tri_t(mesh: &TriMesh, tri: u32, ray: &Ray) -> f32 {
 
 #[test]
 fn empty_and_single_leaf_meshes() {
+    for (layout, _) in WIDE {
+        empty_and_single_leaf(layout);
+    }
+}
+
+fn empty_and_single_leaf(layout: BvhLayout) {
     let empty = TriMesh::default();
-    let accel = Accel::build(&empty, BvhLayout::Bvh8);
+    let accel = Accel::build(&empty, layout);
     let ray = Ray { origin: Vec3::ZERO, dir: Vec3::X, tmax: f32::INFINITY };
     assert!(accel.intersect(&ray).is_none() && !accel.occluded(&ray));
     // Few triangles: the Bvh2 root is a leaf.
     let mesh = soup(3, 1.0, 9);
-    let accel = Accel::build(&mesh, BvhLayout::Bvh8);
+    let accel = Accel::build(&mesh, layout);
     let mut n = 0;
     for (_, ray) in rays(&mesh, 1.0, 2000, 10) {
         let want = brute_force::intersect(&mesh, &ray);
@@ -127,10 +144,15 @@ fn empty_and_single_leaf_meshes() {
 }
 
 #[test]
-fn bvh8_matches_bvh4_on_satellite_rays() {
+fn wide_layouts_match_the_narrower_on_satellite_rays() {
+    for (layout, reference) in WIDE {
+        matches_on_satellite_rays(layout, reference);
+    }
+}
+
+fn matches_on_satellite_rays(layout: BvhLayout, reference: BvhLayout) {
     let scene =
-        hilcam::scene::file::load_with_layout(std::path::Path::new("scenes/satellite.toml"), Some(BvhLayout::Bvh4))
-            .unwrap();
+        hilcam::scene::file::load_with_layout(std::path::Path::new("scenes/satellite.toml"), Some(reference)).unwrap();
     // The navigation camera scaled to 96×96 px (same field of view).
     let nav = &scene.camera;
     let cam = hilcam::camera::CameraModel {
@@ -146,10 +168,10 @@ fn bvh8_matches_bvh4_on_satellite_rays() {
     let closest: Vec<Ray> = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
     assert!(closest.len() > 2000 && shadow.len() > 1000, "{} closest, {} shadow rays", closest.len(), shadow.len());
-    let bvh8 = Accel::build(&scene.mesh, BvhLayout::Bvh8);
+    let wide = Accel::build(&scene.mesh, layout);
     let (mut hits, mut ties) = (0, 0);
     for (i, ray) in closest.iter().enumerate() {
-        let (a, b): (Option<Hit>, Option<Hit>) = (bvh8.intersect(ray), scene.accel.intersect(ray));
+        let (a, b): (Option<Hit>, Option<Hit>) = (wide.intersect(ray), scene.accel.intersect(ray));
         assert_eq!(a.is_some(), b.is_some(), "closest ray {i} {ray:?}: {a:?} vs {b:?}");
         if let (Some(a), Some(b)) = (a, b) {
             hits += 1;
@@ -158,24 +180,24 @@ fn bvh8_matches_bvh4_on_satellite_rays() {
     }
     let mut occluded = 0;
     for (i, ray) in shadow.iter().enumerate() {
-        let o = bvh8.occluded(ray);
+        let o = wide.occluded(ray);
         occluded += o as u32;
         assert_eq!(o, scene.accel.occluded(ray), "shadow ray {i} {ray:?}");
     }
     assert!(hits > 1000 && occluded > 0, "{hits} hits, {occluded} occluded");
     eprintln!(
-        "satellite: {} closest rays, {hits} hits, {ties} exact ties; {} shadow rays, {occluded} occluded",
+        "{layout:?} vs {reference:?} on the satellite: {} closest rays, {hits} hits, {ties} exact ties; {} shadow rays, {occluded} occluded",
         closest.len(),
         shadow.len()
     );
     // Exact ties (a ray through a shared edge or vertex) are rare on a real mesh.
     assert!(ties * 200 <= hits, "{ties} ties of {hits} hits");
-    // A sample against brute force too (the Bvh4 answer is not ground truth by itself).
+    // A sample against brute force too (the reference's answer is not ground truth by itself).
     for ray in closest.iter().step_by(closest.len() / 300) {
-        match (bvh8.intersect(ray), brute_force::intersect(&scene.mesh, ray)) {
+        match (wide.intersect(ray), brute_force::intersect(&scene.mesh, ray)) {
             (Some(g), Some(w)) => _ = assert_tie_or_same(&scene.mesh, ray, g, w, &format!("{ray:?}")),
             (None, None) => {}
-            (g, w) => panic!("{ray:?}: bvh8 {g:?}, brute force {w:?}"),
+            (g, w) => panic!("{layout:?} {ray:?}: tree {g:?}, brute force {w:?}"),
         }
     }
 }
