@@ -8,7 +8,6 @@
 use glam::Vec3;
 use hilcam::geometry::bvh::brute_force;
 use hilcam::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
-use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
 use hilcam::sampling::Rng;
 
 mod common;
@@ -154,19 +153,7 @@ fn matches_on_satellite_rays(layout: BvhLayout, reference: BvhLayout) {
     let scene =
         hilcam::scene::file::load_with_layout(std::path::Path::new("scenes/satellite.toml"), Some(reference)).unwrap();
     // The navigation camera scaled to 96×96 px (same field of view).
-    let nav = &scene.camera;
-    let cam = hilcam::camera::CameraModel {
-        width: 96,
-        height: 96,
-        pitch_um: nav.pitch_um * f64::from(nav.width) / 96.0,
-        focal_mm: nav.focal_mm,
-        principal_point_px: [0.0, 0.0],
-    };
-    let settings =
-        RenderSettings { spp: 1, depth: 4, sampler: SamplerKind::Cosine, roulette: false, ..Default::default() };
-    let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(&scene, &cam, &scene.pose, &settings, 0);
-    let closest: Vec<Ray> = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
-    let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
+    let (closest, shadow) = common::scenes::recorded_rays(&scene, 96, 1);
     assert!(closest.len() > 2000 && shadow.len() > 1000, "{} closest, {} shadow rays", closest.len(), shadow.len());
     let wide = Accel::build(&scene.mesh, layout);
     let (mut hits, mut ties) = (0, 0);

@@ -7,7 +7,6 @@ use glam::Vec3;
 use hilcam::geometry::bvh::brute_force;
 use hilcam::geometry::shadow_packet::{PACKET, avx2};
 use hilcam::geometry::{Accel, BvhLayout, Ray, TriMesh};
-use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
 use hilcam::sampling::Rng;
 
 mod common;
@@ -111,18 +110,7 @@ fn mixed_directions_fall_back_to_single_rays() {
 #[test]
 fn packets_answer_as_single_rays_on_satellite_shadow_rays() {
     let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
-    let nav = &scene.camera;
-    let cam = hilcam::camera::CameraModel {
-        width: 128,
-        height: 128,
-        pitch_um: nav.pitch_um * f64::from(nav.width) / 128.0,
-        focal_mm: nav.focal_mm,
-        principal_point_px: [0.0, 0.0],
-    };
-    let settings =
-        RenderSettings { spp: 2, depth: 4, sampler: SamplerKind::Cosine, roulette: false, ..Default::default() };
-    let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(&scene, &cam, &scene.pose, &settings, 0);
-    let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
+    let (_, shadow) = common::scenes::recorded_rays(&scene, 128, 2);
     assert!(shadow.len() > 5000, "{} shadow rays", shadow.len());
     let mut blocked = 0;
     for chunk in shadow.chunks(PACKET) {

@@ -21,6 +21,19 @@ pub fn scaled_camera(scene: &Scene, width: u32, height: u32, pp: [f64; 2]) -> Ca
     }
 }
 
+/// Every ray a `width`² frame of `scene` at `spp`, depth 4, cosine bounces, no roulette
+/// traces: (closest-hit rays, shadow rays), for re-tracing them through another walk.
+pub fn recorded_rays(scene: &Scene, width: u32, spp: u32) -> (Vec<hilcam::geometry::Ray>, Vec<hilcam::geometry::Ray>) {
+    use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
+    let cam = scaled_camera(scene, width, width, [0.0, 0.0]);
+    let settings =
+        RenderSettings { spp, depth: 4, sampler: SamplerKind::Cosine, roulette: false, ..Default::default() };
+    let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(scene, &cam, &scene.pose, &settings, 0);
+    let closest = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
+    let shadow = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
+    (closest, shadow)
+}
+
 /// An axis-aligned square in the plane z = `z` (body frame), side `s`, centred at (cx, cy).
 pub fn square(cx: f32, cy: f32, z: f32, s: f32, material: u32) -> TriMesh {
     let h = s * 0.5;
