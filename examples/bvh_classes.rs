@@ -5,7 +5,7 @@
 //!
 //!     cargo run --release --example bvh_classes -- [scene] [spp] [depth] [rounds] [layouts]
 //!
-//! e.g. `... -- /tmp/goal/satellite.toml 4 4 7 bvh4,bvh8`.
+//! e.g. `... -- scenes/satellite_lambert.toml 4 4 7 bvh4,bvh8`.
 
 use clap::ValueEnum;
 use hilcam::geometry::{Accel, BvhLayout, Ray};

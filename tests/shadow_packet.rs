@@ -102,6 +102,21 @@ fn mixed_directions_fall_back_to_single_rays() {
             assert_eq!(got >> i & 1 == 1, brute_force::occluded(&mesh, ray), "{ray:?}");
         }
     }
+    // Directions equal as numbers but not as bits (`0.0` vs `-0.0`): their reciprocals
+    // differ in sign, so they must not share one walk.
+    for _ in 0..200 {
+        let rays: Vec<Ray> = (0..PACKET)
+            .map(|i| Ray {
+                origin: random_vec(&mut r, 1.5),
+                dir: Vec3::new(if i % 2 == 0 { 0.0 } else { -0.0 }, 1.0, 0.0),
+                tmax: f32::INFINITY,
+            })
+            .collect();
+        let got = accel.occluded_packet(&rays);
+        for (i, ray) in rays.iter().enumerate() {
+            assert_eq!(got >> i & 1 == 1, brute_force::occluded(&mesh, ray), "{ray:?}");
+        }
+    }
     assert_eq!(accel.occluded_packet(&[]), 0);
     let empty = Accel::build(&TriMesh::default(), BvhLayout::Bvh4);
     assert_eq!(empty.occluded_packet(&[Ray { origin: Vec3::ZERO, dir: Vec3::X, tmax: f32::INFINITY }]), 0);

@@ -220,8 +220,8 @@ impl Accel {
     /// blocked, the same answers as [`Accel::occluded`] ray by ray. On the 4- and 8-wide
     /// trees with AVX2 the rays walk it together (`shadow_packet`); otherwise one by one.
     pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
-        use super::shadow_packet::PACKET;
-        let one_by_one = || rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r)) << i));
+        use super::shadow_packet::{PACKET, one_by_one};
+        let one_by_one = || one_by_one(rays, |r| self.occluded(r));
         if self.tris.is_empty() || rays.len() > PACKET {
             return one_by_one();
         }
@@ -230,11 +230,12 @@ impl Accel {
             *o = Self::ob_ray(r);
         }
         let ob = &ob[..rays.len()];
-        match &self.tree {
+        let walked = match &self.tree {
             Tree::Bvh4(b) => b.occluded_packet(ob, &self.tris),
             Tree::Bvh8(b) => b.occluded_packet(ob, &self.tris),
-            _ => one_by_one(),
-        }
+            _ => None,
+        };
+        walked.unwrap_or_else(one_by_one)
     }
 }
 

@@ -106,11 +106,9 @@ impl Bvh4 {
 
     /// Occlusion of up to eight rays sharing one direction (bit `i`: ray `i` is blocked),
     /// in one walk (`shadow_packet`); the same answers as [`Bvh4::occluded`] ray by ray.
-    pub fn occluded_packet(&self, rays: &[ObRay], tris: &[RtTriangle]) -> u32 {
-        let need = self.stack_need().max(4 * self.depth + 2);
-        super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, need).unwrap_or_else(|| {
-            rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r, tris)) << i))
-        })
+    /// `None` where the packet walk does not apply (ask the rays one by one).
+    pub fn occluded_packet(&self, rays: &[ObRay], tris: &[RtTriangle]) -> Option<u32> {
+        super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, self.stack_need())
     }
 
     #[inline(always)]

@@ -181,15 +181,13 @@ impl Bvh8 {
 
     /// Occlusion of up to eight rays sharing one direction (bit `i`: ray `i` is blocked),
     /// in one walk (`shadow_packet`); the same answers as [`Bvh8::occluded`] ray by ray.
-    pub fn occluded_packet(&self, rays: &[ObRay], tris: &[RtTriangle]) -> u32 {
-        let walked = if self.avx2 {
-            super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, self.stack_need())
-        } else {
-            None
-        };
-        walked.unwrap_or_else(|| {
-            rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r, tris)) << i))
-        })
+    /// `None` where the packet walk does not apply, or the scalar box test is forced (ask
+    /// the rays one by one).
+    pub fn occluded_packet(&self, rays: &[ObRay], tris: &[RtTriangle]) -> Option<u32> {
+        if !self.avx2 {
+            return None;
+        }
+        super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, self.stack_need())
     }
 
     #[inline(always)]

@@ -21,6 +21,12 @@ use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
 /// Rays per packet.
 pub const PACKET: usize = 8;
 
+/// The packet answer asked ray by ray: bit `i` set when `blocked(rays[i])` (the fallback
+/// wherever the packet walk does not apply).
+pub fn one_by_one<R>(rays: &[R], blocked: impl Fn(&R) -> bool) -> u32 {
+    rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(blocked(r)) << i))
+}
+
 /// Whether this CPU runs the AVX2 walk (checked once).
 pub fn avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -49,7 +55,9 @@ pub(super) fn occluded<const W: usize>(
         return Some(0);
     }
     let d = rays[0].direction;
-    let shared = rays.len() <= PACKET && rays.iter().all(|r| r.direction.to_array() == d.to_array());
+    // Bit for bit: a `0.0` and a `-0.0` component have reciprocals of opposite sign.
+    let bits = |v: glam::Vec3A| v.to_array().map(f32::to_bits);
+    let shared = rays.len() <= PACKET && rays.iter().all(|r| bits(r.direction) == bits(d));
     if !shared || stack_need > avx::STACK || !avx2() {
         return None;
     }

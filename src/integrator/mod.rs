@@ -180,7 +180,7 @@ impl<'a> PathContext<'a> {
     #[inline]
     pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
         if self.sun_shadow.is_some() {
-            return rays.iter().enumerate().fold(0, |m, (i, r)| m | (u32::from(self.occluded(r)) << i));
+            return crate::geometry::shadow_packet::one_by_one(rays, |r| self.occluded(r));
         }
         self.scene.accel.occluded_packet(rays)
     }
