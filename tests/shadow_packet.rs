@@ -125,7 +125,7 @@ fn mixed_directions_fall_back_to_single_rays() {
 #[test]
 fn packets_answer_as_single_rays_on_satellite_shadow_rays() {
     let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
-    let (_, shadow) = common::scenes::recorded_rays(&scene, 128, 2);
+    let (_, shadow) = common::scenes::recorded_rays(&scene, 128, 3);
     assert!(shadow.len() > 5000, "{} shadow rays", shadow.len());
     let mut blocked = 0;
     for chunk in shadow.chunks(PACKET) {

@@ -92,61 +92,67 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
         .map(|(d, p)| View::new(&camera, p, scene.frame_origin_body, scene.bounds).with_distortion(d))
         .collect();
     let cases: Vec<(usize, usize)> = (0..views.len()).flat_map(|v| (0..settings.len()).map(move |s| (v, s))).collect();
-    let fresh: Vec<Vec<f32>> = cases
-        .iter()
-        .map(|&(v, s)| {
-            render_view_with::<()>(&scene, &camera, &views[v], &settings[s], 3, PrimaryVisibility::Raster).0.data
-        })
-        .collect();
+    // Rasterised primary hits, and traced ones (packets, leaf-box coverage).
+    for primary in [PrimaryVisibility::Raster, PrimaryVisibility::Trace] {
+        let fresh: Vec<Vec<f32>> = cases
+            .iter()
+            .map(|&(v, s)| render_view_with::<()>(&scene, &camera, &views[v], &settings[s], 3, primary).0.data)
+            .collect();
 
-    // Called from outside a pool (as `hilcam serve`'s render thread does), rayon queues
-    // each parallel loop (at most 8 per frame) on its global injector, which allocates one
-    // block of 63 slots (1520 bytes) when the last one fills: its own bookkeeping. A round
-    // of twelve frames queues at most 96 loops, so at most two blocks (measured: 1 or 2).
-    // Anything of ours would be far larger.
-    {
-        let mut buffers = FrameBuffers::<()>::default();
-        let all_frames = |buffers: &mut FrameBuffers| {
-            for &(v, s) in &cases {
-                render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, PrimaryVisibility::Raster);
+        // Called from outside a pool (as `hilcam serve`'s render thread does), rayon queues
+        // each parallel loop (at most 8 per frame) on its global injector, which allocates one
+        // block of 63 slots (1520 bytes) when the last one fills: its own bookkeeping. A round
+        // of twelve frames queues at most 96 loops, so at most two blocks (measured: 1 or 2).
+        // Anything of ours would be far larger.
+        {
+            let mut buffers = FrameBuffers::<()>::default();
+            let all_frames = |buffers: &mut FrameBuffers| {
+                for &(v, s) in &cases {
+                    render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, primary);
+                }
+            };
+            all_frames(&mut buffers);
+            all_frames(&mut buffers);
+            for round in 0..3 {
+                let (_, calls, bytes) = allocations_during(|| all_frames(&mut buffers));
+                assert!(
+                    calls <= 2 && bytes <= 2 * 1520,
+                    "{primary:?}, outside a pool, round {round}: {calls} allocations, {bytes} bytes"
+                );
             }
-        };
-        all_frames(&mut buffers);
-        all_frames(&mut buffers);
-        for round in 0..3 {
-            let (_, calls, bytes) = allocations_during(|| all_frames(&mut buffers));
-            assert!(
-                calls <= 2 && bytes <= 2 * 1520,
-                "outside a pool, round {round}: {calls} allocations, {bytes} bytes"
-            );
         }
-    }
-    // Inside one `install` the loops run as jobs of the pool's own threads: nothing at all.
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-    pool.install(|| {
-        let mut buffers = FrameBuffers::<()>::default();
-        let frame = |v: usize, s: usize, buffers: &mut FrameBuffers| {
-            render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, PrimaryVisibility::Raster).0
-        };
-        // Warm-up: every case once grows the buffers to the largest frame (and shows
-        // that the counter sees the renderer's allocations).
-        let (_, warm_up_calls, warm_up_bytes) = allocations_during(|| {
-            for &(v, s) in &cases {
-                frame(v, s, &mut buffers);
+        // Inside one `install` the loops run as jobs of the pool's own threads: nothing at all.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        pool.install(|| {
+            let mut buffers = FrameBuffers::<()>::default();
+            let frame = |v: usize, s: usize, buffers: &mut FrameBuffers| {
+                render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, primary).0
+            };
+            // Warm-up: every case once grows the buffers to the largest frame (and shows
+            // that the counter sees the renderer's allocations).
+            let (_, warm_up_calls, warm_up_bytes) = allocations_during(|| {
+                for &(v, s) in &cases {
+                    frame(v, s, &mut buffers);
+                }
+            });
+            assert!(warm_up_calls > 50 && warm_up_bytes > 1 << 20, "{warm_up_calls} calls, {warm_up_bytes} bytes");
+            // Then every case again, interleaved so that each frame follows a different one.
+            for (k, &(v, s)) in cases.iter().enumerate().chain(cases.iter().enumerate().rev()) {
+                let (stats, calls, bytes) = allocations_during(|| frame(v, s, &mut buffers));
+                assert!(stats.primary_rasterised == (primary == PrimaryVisibility::Raster), "case {k}: {stats:?}");
+                assert!(stats.samples > 10_000, "case {k}: {stats:?}");
+                assert_eq!(
+                    (calls, bytes),
+                    (0, 0),
+                    "{primary:?}, case {k} (view {v}, settings {s}): allocations, bytes"
+                );
+                assert!(
+                    buffers.image().data.iter().zip(&fresh[k]).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "case {k}: reused buffers changed the image"
+                );
             }
         });
-        assert!(warm_up_calls > 50 && warm_up_bytes > 1 << 20, "{warm_up_calls} calls, {warm_up_bytes} bytes");
-        // Then every case again, interleaved so that each frame follows a different one.
-        for (k, &(v, s)) in cases.iter().enumerate().chain(cases.iter().enumerate().rev()) {
-            let (stats, calls, bytes) = allocations_during(|| frame(v, s, &mut buffers));
-            assert!(stats.primary_rasterised && stats.samples > 10_000, "case {k}: {stats:?}");
-            assert_eq!((calls, bytes), (0, 0), "case {k} (view {v}, settings {s}): allocations, bytes");
-            assert!(
-                buffers.image().data.iter().zip(&fresh[k]).all(|(a, b)| a.to_bits() == b.to_bits()),
-                "case {k}: reused buffers changed the image"
-            );
-        }
-    });
+    }
 }
 
 /// The sensor stage after a render (optics, PSF, detector, ADC) allocates its output

@@ -59,9 +59,12 @@ pub struct RenderArgs {
     /// (digital numbers, or radiance after the optics) instead of entrance-pupil radiance.
     #[arg(long)]
     pub sensor: bool,
-    /// How primary hits are found: auto (default: rasterised when that pays, ≥ 2 camera
-    /// samples per triangle), raster (whenever exact), trace (every primary ray through
-    /// the BVH). All give the same image.
+    /// How primary hits are found: auto (default: traced in packets of eight on the 8-wide
+    /// tree with AVX2, else rasterised when that pays, ≥ 2 camera samples per triangle),
+    /// raster (whenever exact), trace (every primary ray through the BVH). The same image
+    /// with uniform sampling; adaptive frames may differ slightly (each way skips the
+    /// pixels that cannot see the target by its own rule, and the budget is spp × sampled
+    /// pixels).
     #[arg(long, value_enum, default_value = "auto")]
     pub primary: crate::render::PrimaryVisibility,
     /// Worker threads (default: all cores).

@@ -61,6 +61,16 @@ pub struct Hit {
     pub material: u32,
 }
 
+/// A leaf of the tree: its bounding box and its primitives `first..first + count` (BVH
+/// order, as [`Accel::vertex_indices`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Leaf {
+    pub min: Vec3,
+    pub max: Vec3,
+    pub first: u32,
+    pub count: u32,
+}
+
 enum Tree {
     Bvh2(Bvh2),
     Cw(CwBvh),
@@ -89,6 +99,10 @@ pub struct Accel {
     material: Vec<u32>,
     /// Vertex indices of each primitive into the mesh's positions, BVH order.
     vertices: Vec<[u32; 3]>,
+    /// Each leaf's box and primitives (for the traced frames' pixel coverage,
+    /// `render::coverage`): the `Bvh2`'s leaves, which the wide trees keep; for the CWBVH
+    /// each triangle.
+    leaves: Vec<Leaf>,
     pub build_time: Duration,
 }
 
@@ -103,12 +117,23 @@ impl Accel {
             .collect();
         let params = BvhBuildParams::medium_build();
         let mut core = Duration::ZERO;
+        let of_bvh2 = |b: &Bvh2| -> Vec<Leaf> {
+            let leaf = |n: &obvhs::bvh2::node::Bvh2Node| Leaf {
+                min: n.aabb().min.into(),
+                max: n.aabb().max.into(),
+                first: n.first_index,
+                count: n.prim_count,
+            };
+            b.nodes.iter().filter(|n| n.is_leaf()).map(leaf).collect()
+        };
+        let mut leaves = Vec::new();
         let (tree, original) = if tris.is_empty() {
             (Tree::Bvh2(Bvh2::default()), Vec::new())
         } else {
             match layout {
                 BvhLayout::Bvh2 => {
                     let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    leaves = of_bvh2(&b);
                     let idx = b.primitive_indices.clone();
                     (Tree::Bvh2(b), idx)
                 }
@@ -119,11 +144,13 @@ impl Accel {
                 }
                 BvhLayout::Bvh4 => {
                     let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    leaves = of_bvh2(&b);
                     let idx = b.primitive_indices.clone();
                     (Tree::Bvh4(Bvh4::from_bvh2(&b)), idx)
                 }
                 BvhLayout::Bvh8 => {
                     let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    leaves = of_bvh2(&b);
                     let idx = b.primitive_indices.clone();
                     (Tree::Bvh8(Bvh8::from_bvh2(&b)), idx)
                 }
@@ -132,7 +159,19 @@ impl Accel {
         let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
         let material = original.iter().map(|&i| mesh.material.get(i as usize).copied().unwrap_or(0)).collect();
         let vertices = original.iter().map(|&i| mesh.indices[i as usize]).collect();
-        Accel { tree, tris: rt, original, material, vertices, build_time: t0.elapsed() }
+        if matches!(tree, Tree::Cw(_)) {
+            let tri = |(k, &i): (usize, &u32)| {
+                let t = &tris[i as usize];
+                Leaf {
+                    min: t.v0.min(t.v1).min(t.v2).into(),
+                    max: t.v0.max(t.v1).max(t.v2).into(),
+                    first: k as u32,
+                    count: 1,
+                }
+            };
+            leaves = original.iter().enumerate().map(tri).collect();
+        }
+        Accel { tree, tris: rt, original, material, vertices, leaves, build_time: t0.elapsed() }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -160,6 +199,11 @@ impl Accel {
             Tree::Bvh8(b) => b.intersect(&ray, tris).map(|(k, t)| (hit.primitive_id, hit.t) = (k, t)).is_some(),
         };
         found.then(|| self.primitive_hit(hit.primitive_id, hit.t))
+    }
+
+    /// The tree's leaves (every primitive lies in exactly one).
+    pub fn leaves(&self) -> &[Leaf] {
+        &self.leaves
     }
 
     /// Number of triangles; primitive `k` (BVH order, `0..len`) is the k-th one laid out.
@@ -236,6 +280,46 @@ impl Accel {
             _ => None,
         };
         walked.unwrap_or_else(one_by_one)
+    }
+}
+
+impl Accel {
+    /// Whether [`Accel::intersect_packet`] walks its rays together (the 8-wide tree with
+    /// AVX2) rather than one by one.
+    pub fn walks_packets(&self) -> bool {
+        matches!(&self.tree, Tree::Bvh8(b) if b.uses_avx2())
+    }
+
+    /// Closest hits of up to [`shadow_packet::PACKET`](super::shadow_packet::PACKET) rays
+    /// (`out[i]` for `rays[i]`): the same hits as [`Accel::intersect`] ray by ray (the same
+    /// `t` bit for bit; of triangles tied at exactly the same `t`, possibly another). On the
+    /// 8-wide tree with AVX2 the rays walk it together (`closest_packet`: neighbouring
+    /// primary rays); otherwise one by one.
+    pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        use super::shadow_packet::PACKET;
+        assert!(out.len() >= rays.len(), "{} rays, room for {} hits", rays.len(), out.len());
+        let walked = match &self.tree {
+            Tree::Bvh8(b) if !self.tris.is_empty() && rays.len() <= PACKET => {
+                let mut ob = [ObRay::new_inf(Vec3A::ZERO, Vec3A::X); PACKET];
+                for (o, r) in ob.iter_mut().zip(rays) {
+                    *o = Self::ob_ray(r);
+                }
+                b.intersect_packet(&ob[..rays.len()], &self.tris)
+            }
+            _ => None,
+        };
+        match walked {
+            Some((prim, t)) => {
+                for (i, o) in out[..rays.len()].iter_mut().enumerate() {
+                    *o = (prim[i] != super::closest_packet::MISS).then(|| self.primitive_hit(prim[i], t[i]));
+                }
+            }
+            None => {
+                for (r, o) in rays.iter().zip(out.iter_mut()) {
+                    *o = self.intersect(r);
+                }
+            }
+        }
     }
 }
 

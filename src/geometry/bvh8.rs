@@ -190,6 +190,21 @@ impl Bvh8 {
         super::shadow_packet::occluded(&self.nodes, tris, rays, SLACK, self.stack_need())
     }
 
+    /// Closest hits of up to eight rays in one walk (`closest_packet`): per lane the
+    /// primitive (`closest_packet::MISS` for none) and `t`, the same `t` as
+    /// [`Bvh8::intersect`] ray by ray. `None` where the packet walk does not apply (trace the
+    /// rays one by one).
+    pub fn intersect_packet(
+        &self,
+        rays: &[ObRay],
+        tris: &[RtTriangle],
+    ) -> Option<([u32; super::shadow_packet::PACKET], [f32; super::shadow_packet::PACKET])> {
+        if !self.avx2 {
+            return None;
+        }
+        super::closest_packet::closest(&self.nodes, tris, rays, SLACK, self.stack_need())
+    }
+
     #[inline(always)]
     fn dispatch<const ANY: bool>(
         &self,

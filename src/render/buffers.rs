@@ -8,6 +8,7 @@
 //! and refilled: rendering allocates nothing (`tests/zero_alloc.rs` counts).
 
 use super::Band;
+use super::coverage::Coverage;
 use super::tile::{CameraSample, Scratch};
 use super::visibility::PrimaryRaster;
 use crate::camera::SilhouetteBuffers;
@@ -19,6 +20,8 @@ use std::sync::Mutex;
 pub struct FrameBuffers<L = ()> {
     pub(super) image: RadianceImage,
     pub(super) raster: PrimaryRaster,
+    /// The pixels a traced frame samples (`coverage::Coverage::from_leaf_boxes`).
+    pub(super) coverage: Coverage,
     /// One per band of rows; a frame uses the first `rows / BAND_ROWS` (the rest keep their
     /// capacity for larger frames).
     pub(super) bands: Vec<Band<L>>,
@@ -35,6 +38,7 @@ impl<L> Default for FrameBuffers<L> {
         FrameBuffers {
             image: RadianceImage { width: 0, height: 0, data: Vec::new() },
             raster: PrimaryRaster::default(),
+            coverage: Coverage::default(),
             bands: Vec::new(),
             stat: Vec::new(),
             silhouette: SilhouetteBuffers::default(),

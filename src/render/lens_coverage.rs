@@ -124,7 +124,7 @@ fn pad(view: &View, cells: &IdealCells) -> f64 {
 }
 
 /// Set bits `a..=b` of a row of atomic words.
-fn set_bits_atomic(row: &[AtomicU64], a: usize, b: usize) {
+pub(super) fn set_bits_atomic(row: &[AtomicU64], a: usize, b: usize) {
     let (wa, wb) = (a / 64, b / 64);
     let lo = !0u64 << (a % 64);
     let hi = !0u64 >> (63 - b % 64);

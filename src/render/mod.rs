@@ -21,6 +21,7 @@ use tile::{CameraSample, TILE_PATHS, TileJob};
 
 pub mod adaptive;
 mod buffers;
+pub mod coverage;
 mod lens_coverage;
 mod tile;
 pub mod visibility;
@@ -43,17 +44,20 @@ pub struct RenderStats {
     pub samples: u64,
 }
 
-/// How primary hits are found. Both give the same hits (see `visibility`); tracing is
-/// kept for comparison and for views the rasteriser declines.
+/// How primary hits are found. Both give the same hits (see `visibility`,
+/// `geometry::closest_packet`); both skip the pixels that cannot see a triangle
+/// (`coverage`), each by its own conservative rule, so a uniform frame has the same bytes
+/// either way, and an adaptive one (whose budget is spp × sampled pixels) nearly so.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum PrimaryVisibility {
-    /// Rasterise when that is exact and pays (enough camera samples per triangle), else
-    /// trace.
+    /// Trace where the tree walks neighbouring primary rays eight at a time (8-wide tree,
+    /// AVX2: faster than rasterising); else rasterise when that is exact and pays (enough
+    /// camera samples per triangle), else trace.
     #[default]
     Auto,
     /// Rasterise whenever that is exact.
     Raster,
-    /// Trace every primary ray through the BVH.
+    /// Trace every primary ray through the BVH (in packets of eight where the tree can).
     Trace,
 }
 
@@ -179,6 +183,7 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
     let FrameBuffers {
         image: img,
         raster: raster_buffers,
+        coverage: box_coverage,
         bands: band_buffers,
         stat,
         silhouette: spans,
@@ -203,9 +208,11 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             }
         };
         // Rasterising costs a pass over every triangle per frame (projection, binning) and
-        // saves part of each camera sample's traversal; measured on the shipped satellite
-        // (`hilcam bench render`, "primary hits") it pays from about two samples per
-        // triangle on (30 % of the frame: 1.15× faster; 1 %: 0.5×, i.e. slower).
+        // saves part of each camera sample's traversal: with single-ray walks it paid from
+        // about two samples per triangle on (`hilcam bench render`, "primary hits").
+        // Neighbouring primary rays walked eight at a time (`Accel::intersect_packet`) cost
+        // less than the rasteriser's per-sample work alone, so where the tree walks
+        // packets, primary rays are traced (docs/performance.md, session 8).
         let planned: u64 = (rect.row0..rect.row1)
             .map(|r| {
                 let (a, b) = span(r);
@@ -215,15 +222,22 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             * u64::from(settings.spp.max(1));
         let pays = planned >= RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64;
         let rasterise = match primary {
-            PrimaryVisibility::Auto => pays,
+            PrimaryVisibility::Auto => pays && !scene.accel.walks_packets(),
             PrimaryVisibility::Raster => true,
             PrimaryVisibility::Trace => false,
         };
         primary_rasterised = rasterise && raster_buffers.rebuild(scene, view, rect);
+        // Traced frames skip the pixels no leaf box projects onto.
+        let coverage = if primary_rasterised {
+            Some(&raster_buffers.coverage)
+        } else {
+            box_coverage.from_leaf_boxes(scene, view, rect).then_some(&*box_coverage)
+        };
         let job = TileJob {
             view,
             ctx: &ctx,
             raster: primary_rasterised.then_some(&*raster_buffers),
+            coverage,
             seed: settings.seed,
             frame,
             width: camera.width as usize,
@@ -456,8 +470,8 @@ fn band_pixels(
         let c1 = (c0 + tile_cols).min(c_max);
         for (row, &(a, b)) in rows.clone().zip(spans) {
             let cols = a.max(c0)..b.min(c1);
-            match job.raster {
-                Some(r) => pixels.extend(cols.filter(|&col| r.may_hit(row, col)).map(|col| (row, col))),
+            match job.coverage {
+                Some(c) => pixels.extend(cols.filter(|&col| c.may_hit(row, col)).map(|col| (row, col))),
                 None => pixels.extend(cols.map(|col| (row, col))),
             }
         }

@@ -100,6 +100,8 @@ pub struct TileJob<'a> {
     pub ctx: &'a PathContext<'a>,
     /// Rasterised primary visibility for this frame, when it applies.
     pub raster: Option<&'a PrimaryRaster>,
+    /// The pixels that may see a triangle (the rest are not sampled), when known.
+    pub coverage: Option<&'a super::coverage::Coverage>,
     pub seed: u64,
     pub frame: u64,
     pub width: usize,
@@ -156,14 +158,24 @@ impl TileJob<'_> {
                 }
                 // Wave 1: closest hits (the primary ones rasterised, when they are).
                 hits.clear();
-                for &i in active.iter() {
-                    let p = &paths[i as usize];
-                    log.closest(&p.ray);
-                    hits.push(if bounce == 0 && self.raster.is_some() {
-                        primary[i as usize]
-                    } else {
-                        scene.accel.intersect(&p.ray)
-                    });
+                if bounce == 0 && self.raster.is_none() {
+                    // Neighbouring primary rays eight at a time (`Accel::intersect_packet`).
+                    for chunk in active.chunks(PACKET) {
+                        let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, tmax: 0.0 }; PACKET];
+                        for (&i, r) in chunk.iter().zip(rays.iter_mut()) {
+                            *r = paths[i as usize].ray;
+                            log.closest(r);
+                        }
+                        let mut found = [None; PACKET];
+                        scene.accel.intersect_packet(&rays[..chunk.len()], &mut found);
+                        hits.extend_from_slice(&found[..chunk.len()]);
+                    }
+                } else {
+                    for &i in active.iter() {
+                        let p = &paths[i as usize];
+                        log.closest(&p.ray);
+                        hits.push(if bounce == 0 { primary[i as usize] } else { scene.accel.intersect(&p.ray) });
+                    }
                 }
                 if bounce == 0 {
                     counts.primary += active.len() as u64;

@@ -15,7 +15,7 @@
 //! sends them, so the same binning holds; samples whose ideal point falls outside the
 //! region binned at frame start are traced through the BVH instead.
 
-use super::lens_coverage::{self, IdealCells};
+use super::coverage::{Coverage, set_bits};
 use crate::camera::{PixelRect, View};
 use crate::geometry::{Accel, Hit, Ray, TestRay};
 use crate::scene::Scene;
@@ -44,23 +44,15 @@ pub struct PrimaryRaster {
     x_hi: i32,
     y_lo: i32,
     y_hi: i32,
-    /// Bit per pixel of `cover` (`cover_stride` words per row), set where a sample may hit a
-    /// triangle: for a pinhole the ideal cells themselves (a cell whose square, grown by
-    /// the margin, meets a triangle), through a lens the pixels the lens images such
-    /// cells onto (`lens_coverage`). A pixel with no bit set cannot see any triangle, so
-    /// its samples are not even generated.
-    covered: Vec<u64>,
-    /// Inclusive pixel range `[x0, x1, y0, y1]` of `covered`.
-    cover: [i32; 4],
-    /// Words per row of `covered`.
-    cover_stride: usize,
+    /// The pixels a sample may hit a triangle from (for a pinhole the ideal cells whose
+    /// square, grown by the margin, meets a triangle; through a lens the pixels the lens
+    /// images such cells onto). A pixel outside it cannot see any triangle, so its samples
+    /// are not even generated.
+    pub(super) coverage: Coverage,
     /// Build-time buffers, kept so that a rebuild for the next frame allocates nothing:
     /// each vertex on the ideal plane (x, y, depth), and the bucket fill cursors.
     projected: Vec<(f64, f64, f64)>,
     fill: Vec<u32>,
-    /// Through a lens: the ideal cells' bits, and the atomic words pixels are marked in.
-    ideal_bits: Vec<u64>,
-    lens_marks: Vec<std::sync::atomic::AtomicU64>,
 }
 
 /// Samples of one pass, binned into ideal-pixel cells (reused from band to band).
@@ -171,18 +163,7 @@ impl PrimaryRaster {
         }
         // Region of the ideal image plane the samples can fall in.
         let Some((x_lo, x_hi, y_lo, y_hi)) = ideal_region(view, rect) else { return false };
-        let PrimaryRaster {
-            boxes,
-            edges,
-            bucket_start,
-            bucket_tris,
-            covered,
-            projected,
-            fill,
-            ideal_bits,
-            lens_marks,
-            ..
-        } = self;
+        let PrimaryRaster { boxes, edges, bucket_start, bucket_tris, coverage, projected, fill, .. } = self;
         // Each vertex on the ideal image plane; the nearest depth bounds the pixel size of
         // the f32 rays' own rounding (see `margin`).
         mesh.positions
@@ -258,9 +239,7 @@ impl PrimaryRaster {
         // so they are filled in parallel.
         let stride = ((x_hi - x_lo + 1) as usize).div_ceil(64);
         let (bucket_start, bucket_tris, boxes, projected) = (&*bucket_start, &*bucket_tris, &*boxes, &*projected);
-        let bits = if view.has_distortion() { &mut *ideal_bits } else { &mut *covered };
-        bits.clear();
-        bits.resize(stride * (y_hi - y_lo + 1) as usize, 0);
+        let bits = coverage.cells(view, stride * (y_hi - y_lo + 1) as usize);
         // The box margin, plus the f64 rounding of the clipping below.
         let m = margin + 1e-6;
         bits.par_chunks_mut(stride * BUCKET_ROWS as usize).enumerate().for_each(|(bucket, rows)| {
@@ -285,14 +264,7 @@ impl PrimaryRaster {
                 }
             }
         });
-        let (cover, cover_stride) = if view.has_distortion() {
-            let cells = IdealCells { bits: ideal_bits, stride, x_lo, y_lo, x_hi, y_hi };
-            let s = lens_coverage::mark_pixels(view, &cells, rect, lens_marks, covered);
-            ([rect.col0 as i32, rect.col1 as i32 - 1, rect.row0 as i32, rect.row1 as i32 - 1], s)
-        } else {
-            ([x_lo, x_hi, y_lo, y_hi], stride)
-        };
-        (self.cover, self.cover_stride) = (cover, cover_stride);
+        coverage.finish(view, rect, [x_lo, x_hi, y_lo, y_hi], stride);
         (self.x_lo, self.x_hi, self.y_lo, self.y_hi) = (x_lo, x_hi, y_lo, y_hi);
         true
     }
@@ -301,13 +273,7 @@ impl PrimaryRaster {
     /// background); true when it may.
     #[inline]
     pub fn may_hit(&self, row: u32, col: u32) -> bool {
-        let (x, y) = (col as i32, row as i32);
-        let [x0, x1, y0, y1] = self.cover;
-        if x < x0 || x > x1 || y < y0 || y > y1 {
-            return false;
-        }
-        let x = (x - x0) as usize;
-        self.covered[(y - y0) as usize * self.cover_stride + x / 64] & (1 << (x % 64)) != 0
+        self.coverage.may_hit(row, col)
     }
 
     /// Closest hit of each ray `rays[i]`, whose sample lies at ideal pixel `ideal[i]`,
@@ -427,14 +393,14 @@ impl PrimaryRaster {
 /// `⌊v⌋` for |v| < 2³¹ (a truncating conversion: `f64::floor` is a libm call on the
 /// x86-64 baseline).
 #[inline(always)]
-fn floor_i32(v: f64) -> i32 {
+pub(super) fn floor_i32(v: f64) -> i32 {
     let t = v as i32;
     if f64::from(t) > v { t - 1 } else { t }
 }
 
 /// The x-extent of the part of triangle `p` with `slab.0 ≤ y ≤ slab.1`, if any: over
 /// its vertices inside the slab and its edges' crossings of the slab's two lines.
-fn slab_x_extent(p: [(f64, f64); 3], slab: (f64, f64)) -> Option<(f64, f64)> {
+pub(super) fn slab_x_extent(p: [(f64, f64); 3], slab: (f64, f64)) -> Option<(f64, f64)> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     let mut take = |x: f64| {
         lo = lo.min(x);
@@ -454,27 +420,13 @@ fn slab_x_extent(p: [(f64, f64); 3], slab: (f64, f64)) -> Option<(f64, f64)> {
     (lo <= hi).then_some((lo, hi))
 }
 
-/// Set bits `a..=b` of a bit row.
-fn set_bits(row: &mut [u64], a: usize, b: usize) {
-    let (wa, wb) = (a / 64, b / 64);
-    let lo = !0u64 << (a % 64);
-    let hi = !0u64 >> (63 - b % 64);
-    if wa == wb {
-        row[wa] |= lo & hi;
-    } else {
-        row[wa] |= lo;
-        row[wa + 1..wb].fill(!0);
-        row[wb] |= hi;
-    }
-}
-
 /// Cell of a sample outside the binned region.
 const OUTSIDE: (i32, i32) = (i32::MIN, i32::MIN);
 
 /// The ideal-image cells (inclusive) that samples of pixels in `rect` can fall in: `rect`
 /// itself for a pinhole; through a lens, the bounding box of the rectangle's outline
 /// mapped to the ideal plane, with a margin.
-fn ideal_region(view: &View, rect: PixelRect) -> Option<(i32, i32, i32, i32)> {
+pub(super) fn ideal_region(view: &View, rect: PixelRect) -> Option<(i32, i32, i32, i32)> {
     let (c0, c1, r0, r1) = (f64::from(rect.col0), f64::from(rect.col1), f64::from(rect.row0), f64::from(rect.row1));
     let mut lo = (c0, r0);
     let mut hi = (c1, r1);
