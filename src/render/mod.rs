@@ -427,16 +427,15 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
             band.index.clear();
             band.index.extend(band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)));
             plan.counts_into(&shares, &band.weight, &band.index, job.seed, job.frame, &mut band.counts);
-            let most = band.counts.iter().copied().max().unwrap_or(0);
-            // Sample-major, so each pixel's samples are summed in index order.
+            // Pixel by pixel (in the band's tile order), each pixel's extra samples one after
+            // the other: a packet of neighbouring paths is then mostly one pixel's, whose
+            // rays start together, and each pixel's samples are summed in index order.
             pass.clear();
             owner.clear();
-            for s in plan.pilot..most {
-                for (i, (&(row, col), &n)) in band.pixels.iter().zip(&band.counts).enumerate() {
-                    if n > s {
-                        pass.push(CameraSample { row, col, index: s });
-                        owner.push(i as u32);
-                    }
+            for (i, (&(row, col), &n)) in band.pixels.iter().zip(&band.counts).enumerate() {
+                for s in plan.pilot..n {
+                    pass.push(CameraSample { row, col, index: s });
+                    owner.push(i as u32);
                 }
             }
             for (chunk, owners) in pass.chunks(PASS_SAMPLES).zip(owner.chunks(PASS_SAMPLES)) {
