@@ -41,8 +41,8 @@ pub struct RenderBenchRow {
     /// Frame time with the sun grid on (`frame_s`: the defaults, shadow rays through the
     /// BVH).
     pub frame_grid_s: f64,
-    /// Frame times with every primary ray traced through the BVH, and with all rasterised
-    /// (`frame_s`: the default, which rasterises when it pays).
+    /// Frame times with every primary ray traced through the BVH (in packets where the tree
+    /// walks them), and with all rasterised (`frame_s`: the default, `auto`).
     pub frame_traced_s: f64,
     pub frame_raster_s: f64,
     pub traced_pixels_traced: u64,
@@ -129,7 +129,7 @@ pub fn measure(
     rounds: usize,
     label: &str,
 ) -> RenderBenchRow {
-    // The defaults (sun grid off, primary hits rasterised) with every ray recorded.
+    // The defaults (sun grid off, primary hits as `auto` finds them) with every ray recorded.
     scene.sun_shadow.set_enabled(false);
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
     let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();

