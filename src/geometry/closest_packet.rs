@@ -11,7 +11,7 @@
 //! test per lane (the near plane picked by the direction's sign bit, the same operations in
 //! the same order, the same NaN rule and slack), so it culls no box holding a triangle the
 //! triangle test accepts; the triangle test is obvhs's `RtTriangle::intersect` per lane in
-//! glam's operation order (as `shadow_packet`, with a per-lane `1 / (n·d)`), and a lane's
+//! glam's operation order (`lane_triangle`, shared with `shadow_packet`), and a lane's
 //! hit is replaced only by a strictly smaller `t`, as obvhs's. So each lane's `t` is the
 //! brute-force minimum bit for bit. Only which of several triangles tied at exactly the
 //! same `t` is reported may differ from the single-ray walk (the visit order differs);
@@ -54,6 +54,7 @@ pub(super) fn closest<const W: usize>(
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
+    use super::super::lane_triangle::{Lanes, triangle};
     use super::{MISS, Node, PACKET};
     use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
     use std::arch::x86_64::*;
@@ -70,13 +71,6 @@ mod avx {
         count: u32,
         lanes: u32,
         t: f32,
-    }
-
-    /// The packet's per-lane rays.
-    struct Lanes {
-        org: [__m256; 3],
-        dir: [__m256; 3],
-        tmin: __m256,
     }
 
     /// The walk: children in order of their nearest lane's entry distance, leaves nearer than
@@ -244,44 +238,5 @@ mod avx {
         let b = _mm256_min_ps(a, _mm256_shuffle_ps::<0b01_00_11_10>(a, a));
         let c = _mm256_min_ps(b, _mm256_shuffle_ps::<0b10_11_00_01>(b, b));
         _mm256_cvtss_f32(c)
-    }
-
-    /// obvhs's `RtTriangle::intersect` for eight rays: per lane `t` and all-ones where the
-    /// hit is valid and within `[tmin, ∞)` (the caller compares with each lane's current
-    /// `t`). Same operations in the same order as the scalar test through glam's SSE
-    /// `cross` and `dot3`: `dot3` is `(x·x' + y·y') + z·z'`.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    unsafe fn triangle(tri: &RtTriangle, l: &Lanes) -> (__m256, __m256) {
-        let s = |x: f32| _mm256_set1_ps(x);
-        let (v0, e1, e2, ng) = (tri.v0, tri.e1, tri.e2, tri.ng);
-        let [dx, dy, dz] = l.dir;
-        let [ox, oy, oz] = l.org;
-        let dot = |ax: __m256, ay: __m256, az: __m256, b: glam::Vec3A| {
-            _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(ax, s(b.x)), _mm256_mul_ps(ay, s(b.y))),
-                _mm256_mul_ps(az, s(b.z)),
-            )
-        };
-        // c = v0 − origin
-        let (cx, cy, cz) = (_mm256_sub_ps(s(v0.x), ox), _mm256_sub_ps(s(v0.y), oy), _mm256_sub_ps(s(v0.z), oz));
-        // r = d × c, as glam: x = d.y·c.z − c.y·d.z, y = d.z·c.x − c.z·d.x, z = d.x·c.y − c.x·d.y
-        let rx = _mm256_sub_ps(_mm256_mul_ps(dy, cz), _mm256_mul_ps(cy, dz));
-        let ry = _mm256_sub_ps(_mm256_mul_ps(dz, cx), _mm256_mul_ps(cz, dx));
-        let rz = _mm256_sub_ps(_mm256_mul_ps(dx, cy), _mm256_mul_ps(cx, dy));
-        // 1 / ng·d per lane (`ng.dot(d)`; the products commute bit for bit).
-        let inv = _mm256_div_ps(s(1.0), dot(dx, dy, dz, ng));
-        let u = _mm256_mul_ps(dot(rx, ry, rz, e2), inv);
-        let v = _mm256_mul_ps(dot(rx, ry, rz, e1), inv);
-        let w = _mm256_sub_ps(_mm256_sub_ps(s(1.0), u), v);
-        // Valid when `inv_det != 0` (true for NaN, as in Rust) and no sign bit is set among
-        // u, v, w (obvhs's rule, NaN included).
-        let nonzero = _mm256_cmp_ps::<_CMP_NEQ_UQ>(inv, _mm256_setzero_ps());
-        let signs =
-            _mm256_castsi256_ps(_mm256_srai_epi32::<31>(_mm256_castps_si256(_mm256_or_ps(_mm256_or_ps(u, v), w))));
-        // t = n·c / (n·d), `ng.dot(c)` with `ng` on the left as the scalar test.
-        let t = _mm256_mul_ps(dot(cx, cy, cz, ng), inv);
-        let valid = _mm256_andnot_ps(signs, _mm256_and_ps(nonzero, _mm256_cmp_ps::<_CMP_GE_OQ>(t, l.tmin)));
-        (t, valid)
     }
 }

@@ -4,6 +4,7 @@ pub mod bvh;
 pub mod bvh4;
 pub mod bvh8;
 pub mod closest_packet;
+mod lane_triangle;
 pub mod mesh;
 pub mod shadow_packet;
 pub mod sun_shadow;

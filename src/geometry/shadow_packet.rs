@@ -9,11 +9,9 @@
 //! The answers are those of the single-ray walk: the box test is the same conservative slab
 //! test as `bvh4` (same operations in the same order per lane, so it culls no box holding a
 //! triangle the triangle test accepts), and the triangle test is obvhs's
-//! `RtTriangle::intersect`, lane by lane, with glam's operation order (its SSE `cross`
-//! and `dot3`) and the same sign-bit rule, so every (ray, triangle) pair gets the same
-//! yes/no (`tests/shadow_packet.rs` checks bit for bit against the scalar test and the
-//! walk against brute force). The shared direction makes `1 / (n·d)` a scalar per
-//! triangle, computed as the scalar test computes it.
+//! `RtTriangle::intersect` lane by lane (`lane_triangle`, shared with `closest_packet`),
+//! so every (ray, triangle) pair gets the same yes/no (`tests/shadow_packet.rs` checks the
+//! walk against brute force and against single rays).
 
 use super::wide::Node;
 use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
@@ -75,6 +73,7 @@ pub(super) fn occluded<const W: usize>(
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
+    use super::super::lane_triangle::{Lanes, triangle};
     use super::{Node, PACKET};
     use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
     use std::arch::x86_64::*;
@@ -112,7 +111,7 @@ mod avx {
         let near = dir.map(|x| x.is_sign_negative() as usize);
         let slack = _mm256_set1_ps(slack);
         let dirv = dir.map(|x| _mm256_set1_ps(x));
-        let lanes = Lanes { org, dir: dirv, tmin, tmax };
+        let lanes = Lanes { org, dir: dirv, tmin };
 
         let mut stack = [MaybeUninit::<(u32, u32)>::uninit(); STACK];
         let mut sp = 0usize;
@@ -145,7 +144,9 @@ mod avx {
                         let mut open = hit;
                         for k in first..first + count {
                             // SAFETY: AVX2 is enabled here as in `triangle`.
-                            let found = unsafe { triangle(&tris[k as usize], d, &lanes) } & open;
+                            let (t, valid) = unsafe { triangle(&tris[k as usize], &lanes) };
+                            let within = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_LE_OQ>(t, tmax));
+                            let found = _mm256_movemask_ps(within) as u32 & open;
                             open &= !found;
                             occluded |= found;
                             if open == 0 {
@@ -172,59 +173,5 @@ mod avx {
             // SAFETY: entries below `sp` were written (pushed children).
             (node, mask) = unsafe { stack[sp].assume_init() };
         }
-    }
-
-    /// The packet's per-lane constants.
-    struct Lanes {
-        org: [__m256; 3],
-        dir: [__m256; 3],
-        tmin: __m256,
-        tmax: __m256,
-    }
-
-    /// obvhs's `RtTriangle::intersect` for eight origins along one direction: bit `i` set
-    /// when lane `i` hits within `[tmin, tmax]`. Same operations in the same order as the
-    /// scalar test through glam's SSE `cross` and `dot3`; `1 / (n·d)` is the scalar test's
-    /// own value (the same for every lane).
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    unsafe fn triangle(tri: &RtTriangle, d: glam::Vec3A, l: &Lanes) -> u32 {
-        let inv_det = 1.0 / tri.ng.dot(d);
-        if inv_det == 0.0 {
-            return 0;
-        }
-        let s = |x: f32| _mm256_set1_ps(x);
-        let (v0, e1, e2, ng) = (tri.v0, tri.e1, tri.e2, tri.ng);
-        let [dx, dy, dz] = l.dir;
-        let [ox, oy, oz] = l.org;
-        // c = v0 − origin
-        let (cx, cy, cz) = (_mm256_sub_ps(s(v0.x), ox), _mm256_sub_ps(s(v0.y), oy), _mm256_sub_ps(s(v0.z), oz));
-        // r = d × c, as glam: x = d.y·c.z − c.y·d.z, y = d.z·c.x − c.z·d.x, z = d.x·c.y − c.x·d.y
-        let rx = _mm256_sub_ps(_mm256_mul_ps(dy, cz), _mm256_mul_ps(cy, dz));
-        let ry = _mm256_sub_ps(_mm256_mul_ps(dz, cx), _mm256_mul_ps(cz, dx));
-        let rz = _mm256_sub_ps(_mm256_mul_ps(dx, cy), _mm256_mul_ps(cx, dy));
-        // dot3 as glam: (x·x' + y·y') + z·z'
-        let dot = |ax: __m256, ay: __m256, az: __m256, b: glam::Vec3A| {
-            _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(ax, s(b.x)), _mm256_mul_ps(ay, s(b.y))),
-                _mm256_mul_ps(az, s(b.z)),
-            )
-        };
-        let inv = s(inv_det);
-        let u = _mm256_mul_ps(dot(rx, ry, rz, e2), inv);
-        let v = _mm256_mul_ps(dot(rx, ry, rz, e1), inv);
-        let w = _mm256_sub_ps(_mm256_sub_ps(s(1.0), u), v);
-        // Valid when no sign bit is set among u, v, w (obvhs's rule, NaN included).
-        let signs = _mm256_movemask_ps(_mm256_or_ps(_mm256_or_ps(u, v), w)) as u32;
-        // t = n·c / (n·d), `ng.dot(c)` with `ng` on the left as the scalar test.
-        let t = _mm256_mul_ps(
-            _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(s(ng.x), cx), _mm256_mul_ps(s(ng.y), cy)),
-                _mm256_mul_ps(s(ng.z), cz),
-            ),
-            inv,
-        );
-        let within = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(t, l.tmin), _mm256_cmp_ps::<_CMP_LE_OQ>(t, l.tmax));
-        _mm256_movemask_ps(within) as u32 & !signs & 0xff
     }
 }
