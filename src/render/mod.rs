@@ -409,17 +409,23 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
     height: usize,
 ) {
     let w = job.width;
+    // The statistics of the sampled rows and the row on either side (what the weights
+    // read), not of the whole frame: the rest is background and is never read. Filled in
+    // parallel (a full 1024² frame's took 1.5 ms serially).
+    let first = bands.first().map_or(0, |b| b.first_row);
+    let (base, end) = (first.saturating_sub(1), (first + bands.len() * BAND_ROWS + 1).min(height));
     stat.clear();
-    stat.resize(w * height, plan.background_statistic(job.ctx.scene.background));
-    for band in bands.iter() {
+    stat.par_extend(rayon::iter::repeat_n(plan.background_statistic(job.ctx.scene.background), (end - base) * w));
+    // Bands own disjoint rows: each writes its own.
+    stat[(first - base) * w..].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).for_each(|(mine, band)| {
         for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
-            stat[row as usize * w + col as usize] = plan.statistic(sum, sq);
+            mine[(row as usize - band.first_row) * w + col as usize] = plan.statistic(sum, sq);
         }
-    }
-    let stat = &*stat;
+    });
+    let (stat, rows) = (&*stat, end - base);
     bands.par_iter_mut().for_each(|b| {
         b.weight.clear();
-        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, height, r as usize, c as usize)));
+        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, rows, r as usize - base, c as usize)));
     });
     let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
     bands.par_iter_mut().for_each(|band| {
