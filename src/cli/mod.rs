@@ -61,6 +61,9 @@ pub fn main() -> ExitCode {
         .with_env_filter(tracing_subscriber::EnvFilter::new(&cli.log))
         .with_writer(std::io::stderr)
         .init();
+    if writes_for_a_pipe(&cli.command) {
+        die_quietly_on_closed_pipe();
+    }
     let result: anyhow::Result<()> = match cli.command {
         Command::Render(a) => render::run(a),
         Command::Demo(a) => demo::run_cli(a),
@@ -84,6 +87,33 @@ pub fn main() -> ExitCode {
             eprintln!("error: {}", error_chain(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Subcommands whose output goes to a terminal or a pipe and that hold no socket: they
+/// end quietly when the pipe closes (`hilcam render … | head -1`), as Unix tools do.
+/// `serve`, `send`, `recv`, `replay` and `demo` keep Rust's ignored SIGPIPE, so a closed
+/// connection is an error they count and report, not a kill.
+fn writes_for_a_pipe(c: &Command) -> bool {
+    matches!(
+        c,
+        Command::Render(_)
+            | Command::Bench(_)
+            | Command::Version
+            | Command::Sensor(_)
+            | Command::Brdf(_)
+            | Command::Fold(_)
+            | Command::Model(_)
+    )
+}
+
+/// The default SIGPIPE action (terminate), which Rust's runtime replaces with "ignore":
+/// without it a closed stdout makes `println!` panic ("failed printing to stdout").
+fn die_quietly_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to its default before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 
