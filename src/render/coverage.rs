@@ -152,13 +152,7 @@ impl Coverage {
                 });
                 let ty0 = clip(tri.iter().map(|v| v.1).fold(f64::INFINITY, f64::min) - m, y_lo, y_hi).max(b[2]);
                 let ty1 = clip(tri.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max) + m, y_lo, y_hi).min(b[3]);
-                for y in ty0..=ty1 {
-                    // Cells of row y whose square, grown by the margin, meets the triangle.
-                    let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
-                    if let Some((xa, xb)) = slab_x_extent(tri, slab) {
-                        mark(y, floor_i32((xa - 1.0 - m).max(-1e9)).max(b[0]), floor_i32((xb + m).min(1e9)).min(b[1]));
-                    }
-                }
+                triangle_row_cells(tri, (ty0, ty1), (b[0], b[1]), m, &mark);
             }
             true
         });
@@ -170,6 +164,27 @@ impl Coverage {
         self.marks = marks;
         self.finish(view, rect, [x_lo, x_hi, y_lo, y_hi], stride);
         true
+    }
+}
+
+/// For each row `y` of `rows` (inclusive), the cells (inclusive, within `cols`) whose
+/// square grown by `m` meets triangle `tri` (ideal-plane vertices): its x-extent within
+/// the row's grown slab. `mark(y, c0, c1)` is called for each row that has any. The
+/// rasteriser's rule and the leaf boxes' for large leaves.
+pub(super) fn triangle_row_cells(
+    tri: [(f64, f64); 3],
+    rows: (i32, i32),
+    cols: (i32, i32),
+    m: f64,
+    mut mark: impl FnMut(i32, i32, i32),
+) {
+    for y in rows.0..=rows.1 {
+        let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
+        let Some((xa, xb)) = slab_x_extent(tri, slab) else { continue };
+        let (c0, c1) = (floor_i32((xa - 1.0 - m).max(-1e9)).max(cols.0), floor_i32((xb + m).min(1e9)).min(cols.1));
+        if c0 <= c1 {
+            mark(y, c0, c1);
+        }
     }
 }
 

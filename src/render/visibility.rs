@@ -15,7 +15,7 @@
 //! sends them, so the same binning holds; samples whose ideal point falls outside the
 //! region binned at frame start are traced through the BVH instead.
 
-use super::coverage::{Coverage, set_bits};
+use super::coverage::{Coverage, ray_margin, set_bits, triangle_row_cells};
 use crate::camera::{PixelRect, View};
 use crate::geometry::{Accel, Hit, Ray, TestRay};
 use crate::scene::Scene;
@@ -178,10 +178,8 @@ impl PrimaryRaster {
         if z_min.is_nan() || z_min <= 0.0 {
             return false; // a vertex at or behind the camera plane
         }
-        // A traced ray deviates from the exact line through its sample by the f32 rounding
-        // of its origin and direction: a few 1e-7 of the target's size, at most. Enlarge
-        // every box by 40× that, seen from the nearest vertex, plus 1e-3 px.
-        let margin = 4e-6 * scene.bounds.radius * view.focal_px() / z_min + 1e-3;
+        // Every box grown by how far a traced ray can stray, seen from the nearest vertex.
+        let margin = ray_margin(scene, view, z_min);
         if !margin.is_finite() || margin > 4.0 {
             return false; // camera almost touching the target: the boxes would be huge
         }
@@ -250,18 +248,10 @@ impl PrimaryRaster {
                 let [ia, ib, ic] = accel.vertex_indices(k);
                 let tri = [ia, ib, ic].map(|i| (projected[i as usize].0, projected[i as usize].1));
                 let (y0, y1) = (b[2].max(first_row), b[3].min(first_row + BUCKET_ROWS - 1));
-                for y in y0..=y1 {
-                    // Cells of row y whose square, grown by the margin, meets the
-                    // triangle: its x-extent within the row's grown slab.
-                    let slab = (f64::from(y) - m, f64::from(y) + 1.0 + m);
-                    let Some((xa, xb)) = slab_x_extent(tri, slab) else { continue };
-                    let (c0, c1) =
-                        (floor_i32((xa - 1.0 - m).max(-1e9)).max(b[0]), floor_i32((xb + m).min(1e9)).min(b[1]));
-                    if c0 <= c1 {
-                        let row = &mut rows[(y - first_row) as usize * stride..][..stride];
-                        set_bits(row, (c0 - x_lo) as usize, (c1 - x_lo) as usize);
-                    }
-                }
+                triangle_row_cells(tri, (y0, y1), (b[0], b[1]), m, |y, c0, c1| {
+                    let row = &mut rows[(y - first_row) as usize * stride..][..stride];
+                    set_bits(row, (c0 - x_lo) as usize, (c1 - x_lo) as usize);
+                });
             }
         });
         coverage.finish(view, rect, [x_lo, x_hi, y_lo, y_hi], stride);
