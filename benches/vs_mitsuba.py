@@ -28,10 +28,12 @@ target pixels of ref, where target pixels are those where the reference is > 0 (
 target; background pixels are exactly 0 in both renderers and are excluded so the
 number does not depend on how much empty sky the frame has).
 
-Times are render-only: hilcam's own printed render time (excludes scene load, BVH build
-and file write; taken as rays / (Mrays/s) for sub-millisecond resolution); Mitsuba's
-`mi.render` + the numpy copy that syncs it, after a warm-up render at the same spp so
-the JIT compile (and kernel-cache lookup) is excluded.
+Times are render-only and warm for both: hilcam's own printed render time of a frame
+rendered after an untimed one through the same buffers (`--warm-up 1`, as every frame of
+a running server; excludes scene load, BVH build and file write; taken as rays / (Mrays/s)
+for sub-millisecond resolution); Mitsuba's `mi.render` + the numpy copy that syncs it,
+after a warm-up render at the same spp so the JIT compile (and kernel-cache lookup) is
+excluded.
 """
 
 from __future__ import annotations
@@ -531,13 +533,16 @@ class Hilcam:
         self.exe, self.scene_file, self.cam, self.depth, self.tmp = exe, scene_file, cam, depth, tmp
         self.sampler, self.sequence, self.roulette, self.adaptive = sampler, sequence, roulette, adaptive
 
-    def render(self, spp: int, seed: int, scene_file: Path | None = None):
+    def render(self, spp: int, seed: int, scene_file: Path | None = None, warm: bool = False):
+        """One frame; `warm`: after an untimed one through the same buffers (`--warm-up 1`),
+        as Mitsuba is timed after its warm-up render and as a running server renders."""
         out = self.tmp / "hilcam.pfm"
         cmd = [
             str(self.exe), "render", str(scene_file or self.scene_file), "--out", str(out),
             "--spp", str(spp), "--depth", str(self.depth), "--sampler", self.sampler, "--sequence", self.sequence, "--seed", str(seed),
             "--width", str(self.cam.width), "--height", str(self.cam.height),
         ] + ([] if self.roulette else ["--no-roulette"]) + ([] if self.adaptive else ["--no-adaptive"])  # fmt: skip
+        cmd += ["--warm-up", "1"] if warm else []
         r = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if r.returncode != 0:
             raise RuntimeError(f"hilcam failed: {' '.join(cmd)}\n{r.stderr}")
@@ -809,7 +814,7 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
             for name, smp, r in renderers[k:] + renderers[:k]:
                 if not timed(name, smp, spp):
                     continue
-                img, t = r.render(spp, seed)
+                img, t = r.render(spp, seed, warm=True) if isinstance(r, Hilcam) else r.render(spp, seed)
                 raw = rel_rmse(img, ref)
                 rows.append({"scene": scene_path.stem, "width": cam.width, "height": cam.height, "depth": depth,
                              "sampler": smp, "renderer": name, "spp": spp, "rep": rep, "time_s": t,

@@ -182,3 +182,28 @@ fn sensor_stage_allocates_per_frame_not_per_row() {
     // Measured: 17 calls at either size (with per-row gather lists: 1033 and 4105).
     assert!(small.0 == large.0 && large.0 <= 24, "allocations per frame: {small:?} at 128², {large:?} at 512²");
 }
+
+/// Reused buffers clear only the rows the last frame wrote while the image size and the
+/// background stay; a scene with another background (or a smaller frame) clears it all.
+#[test]
+fn reused_buffers_follow_a_change_of_background() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let path = std::path::Path::new("scenes/satellite.toml");
+    let dark: Scene = hilcam::scene::file::load(path).unwrap();
+    let mut lit: Scene = hilcam::scene::file::load(path).unwrap();
+    lit.background = 0.25;
+    let camera = scaled_camera(&dark, 96, 96, [0.0, 0.0]);
+    let view = View::new(&camera, &dark.pose, dark.frame_origin_body, dark.bounds);
+    let settings = RenderSettings { spp: 1, depth: 2, ..dark.render };
+    let fresh = |s: &Scene| render_view_with::<()>(s, &camera, &view, &settings, 0, PrimaryVisibility::Auto).0.data;
+    let (want_dark, want_lit) = (fresh(&dark), fresh(&lit));
+    assert!(want_lit.iter().filter(|&&v| v == 0.25).count() > 96 * 96 / 2, "most of the frame is sky");
+    let mut buffers = FrameBuffers::<()>::default();
+    for (k, (scene, want)) in
+        [(&dark, &want_dark), (&lit, &want_lit), (&lit, &want_lit), (&dark, &want_dark)].into_iter().enumerate()
+    {
+        render_view_into(&mut buffers, scene, &camera, &view, &settings, 0, PrimaryVisibility::Auto);
+        let got = &buffers.image().data;
+        assert!(got.iter().zip(want).all(|(a, b)| a.to_bits() == b.to_bits()), "frame {k}: the reused image differs");
+    }
+}

@@ -75,6 +75,11 @@ pub struct RenderArgs {
     /// identical to the others.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeat: u32,
+    /// Untimed frames rendered first through the same buffers, so that the timed ones run
+    /// warm, as every frame of a running server or replay does (`bench-vs-mitsuba.sh`
+    /// passes 1: Mitsuba too is timed after a warm-up render). Not with `--samples-map`.
+    #[arg(long, default_value_t = 0)]
+    pub warm_up: u32,
 }
 
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
@@ -100,6 +105,9 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     let scene = std::sync::Arc::new(scene);
     let mut pipeline = FramePipeline::new(scene.clone(), camera.clone())?.with_primary(a.primary);
     let (info, stats) = if a.sensor {
+        for _ in 0..a.warm_up {
+            pipeline.frame(&pose, &settings, a.frame)?;
+        }
         let f = pipeline.frame(&pose, &settings, a.frame)?;
         crate::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;
         println!(
@@ -117,6 +125,9 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         println!("{}: samples per pixel, {most} at the brightest", map.display());
         (write_radiance(&a.out, &img, None, a.png16)?, stats)
     } else {
+        for _ in 0..a.warm_up {
+            pipeline.radiance_warm(&pose, &settings, a.frame);
+        }
         let mut times = Vec::new();
         for _ in 1..a.repeat {
             times.push(pipeline.radiance_warm(&pose, &settings, a.frame).1.time);

@@ -19,6 +19,10 @@ use std::sync::Mutex;
 /// The buffers of one frame at a time; `L` logs rays (`()` logs nothing).
 pub struct FrameBuffers<L = ()> {
     pub(super) image: RadianceImage,
+    /// Rows of `image` the last frame may have written (the others hold `fill`, the last
+    /// frame's background): only they are cleared for the next frame of the same size.
+    pub(super) written_rows: std::ops::Range<usize>,
+    pub(super) fill: f32,
     pub(super) raster: PrimaryRaster,
     /// The pixels a traced frame samples (`coverage::Coverage::from_leaf_boxes`).
     pub(super) coverage: Coverage,
@@ -37,6 +41,8 @@ impl<L> Default for FrameBuffers<L> {
     fn default() -> Self {
         FrameBuffers {
             image: RadianceImage { width: 0, height: 0, data: Vec::new() },
+            written_rows: 0..0,
+            fill: 0.0,
             raster: PrimaryRaster::default(),
             coverage: Coverage::default(),
             bands: Vec::new(),
@@ -60,12 +66,24 @@ impl<L> FrameBuffers<L> {
         std::mem::replace(&mut self.image, RadianceImage { width: 0, height: 0, data: Vec::new() })
     }
 
-    /// Set the image to `width` × `height` pixels of `fill`, reusing its buffer.
+    /// Set the image to `width` × `height` pixels of `fill`, reusing its buffer: the whole
+    /// of it when its size or fill changed, else only the rows the last frame wrote (a
+    /// full 1024² clear is ~0.6 ms, one thread; the target covers ~40 % of the rows).
     pub(super) fn reset_image(&mut self, width: u32, height: u32, fill: f32) {
         let img = &mut self.image;
-        (img.width, img.height) = (width, height);
-        img.data.clear();
-        img.data.resize(width as usize * height as usize, fill);
+        let n = width as usize * height as usize;
+        let same =
+            (img.width, img.height) == (width, height) && img.data.len() == n && self.fill.to_bits() == fill.to_bits();
+        if same {
+            let w = width as usize;
+            img.data[self.written_rows.start * w..self.written_rows.end * w].fill(fill);
+        } else {
+            (img.width, img.height) = (width, height);
+            img.data.clear();
+            img.data.resize(n, fill);
+            self.fill = fill;
+        }
+        self.written_rows = 0..0;
     }
 }
 

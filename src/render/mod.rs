@@ -182,6 +182,8 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
     buffers.reset_image(camera.width, camera.height, scene.background);
     let FrameBuffers {
         image: img,
+        written_rows,
+        fill: _,
         raster: raster_buffers,
         coverage: box_coverage,
         bands: band_buffers,
@@ -249,6 +251,7 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             band_buffers.resize_with(n_bands, Band::default);
         }
         let bands = &mut band_buffers[..n_bands];
+        *written_rows = rect.row0 as usize..rect.row1 as usize;
         let frame_buffers = FrameParts { img, bands, stat };
         match settings.sequence {
             Sequence::Independent => render_bands(&job, frame_buffers, independent, rect, &span, spp, adaptive),

@@ -1,0 +1,27 @@
+//! `hilcam render`'s timing options: `--warm-up` frames and `--repeat` change the time
+//! reported, never the image.
+
+use std::process::Command;
+
+fn render(out: &std::path::Path, extra: &[&str]) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_hilcam"))
+        .args(["render", "scenes/satellite_lambert.toml", "--width", "96", "--spp", "2", "--out"])
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+#[test]
+fn warm_up_and_repeat_keep_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let (cold, warm) = (dir.path().join("cold.pfm"), dir.path().join("warm.pfm"));
+    render(&cold, &[]);
+    let said = render(&warm, &["--warm-up", "2", "--repeat", "3"]);
+    assert!(said.contains("3 renders: median"), "{said}");
+    let (a, b) = (std::fs::read(&cold).unwrap(), std::fs::read(&warm).unwrap());
+    assert!(a.len() > 96 * 96 * 4);
+    assert!(a == b, "the warm frame's image differs from the cold one's");
+}
