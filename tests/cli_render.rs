@@ -25,3 +25,14 @@ fn warm_up_and_repeat_keep_the_image() {
     assert!(a.len() > 96 * 96 * 4);
     assert!(a == b, "the warm frame's image differs from the cold one's");
 }
+
+#[test]
+fn warm_up_keeps_the_sensor_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let (cold, warm) = (dir.path().join("cold.pfm"), dir.path().join("warm.pfm"));
+    render(&cold, &["--sensor"]);
+    render(&warm, &["--sensor", "--warm-up", "2"]);
+    let (a, b) = (std::fs::read(&cold).unwrap(), std::fs::read(&warm).unwrap());
+    assert!(a.len() > 96 * 96 * 4);
+    assert!(a == b, "warm-up frames changed the sensor's output (its auto-exposure must not see them)");
+}

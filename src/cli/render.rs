@@ -104,10 +104,14 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     };
     let scene = std::sync::Arc::new(scene);
     let mut pipeline = FramePipeline::new(scene.clone(), camera.clone())?.with_primary(a.primary);
-    let (info, stats) = if a.sensor {
+    // Warm-up through the renderer's buffers only: a sensor frame would also move the
+    // auto-exposure state, and the samples map renders apart from the pipeline.
+    if a.samples_map.is_none() {
         for _ in 0..a.warm_up {
-            pipeline.frame(&pose, &settings, a.frame)?;
+            pipeline.radiance_warm(&pose, &settings, a.frame);
         }
+    }
+    let (info, stats) = if a.sensor {
         let f = pipeline.frame(&pose, &settings, a.frame)?;
         crate::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;
         println!(
@@ -125,9 +129,6 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         println!("{}: samples per pixel, {most} at the brightest", map.display());
         (write_radiance(&a.out, &img, None, a.png16)?, stats)
     } else {
-        for _ in 0..a.warm_up {
-            pipeline.radiance_warm(&pose, &settings, a.frame);
-        }
         let mut times = Vec::new();
         for _ in 1..a.repeat {
             times.push(pipeline.radiance_warm(&pose, &settings, a.frame).1.time);
