@@ -30,7 +30,13 @@ fn main() -> anyhow::Result<()> {
         .map(|s| BvhLayout::from_str(s, true).map_err(anyhow::Error::msg))
         .collect::<Result<_, _>>()?;
     let scene = hilcam::scene::file::load(std::path::Path::new(scene))?;
-    let settings = RenderSettings { spp, depth, sampler: SamplerKind::Cosine, roulette: false, ..Default::default() };
+    let settings = RenderSettings {
+        spp: hilcam::integrator::Spp::whole(spp),
+        depth,
+        sampler: SamplerKind::Cosine,
+        roulette: false,
+        ..Default::default()
+    };
     let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(&scene, &scene.camera, &scene.pose, &settings, 0);
     let closest: Vec<Ray> = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();

@@ -66,7 +66,7 @@ async fn run(frames: u64, fps: f64, width: u32, stalled: bool) -> Run {
             height: width,
             format: PixelFormat::Mono16,
             bit_depth: 12,
-            spp: 1,
+            spp: hilcam::integrator::Spp::ONE,
             depth: 1,
             integration_s: 0.0,
             flags: FrameFlags::default(),

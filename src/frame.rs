@@ -7,6 +7,7 @@
 //! CRC-32/ISO-HDLC (the "IEEE" CRC of zlib, Ethernet and PNG: `crc::CRC_32_ISO_HDLC`).
 
 use crate::film::Pixels;
+use crate::integrator::Spp;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 /// How the payload's pixels are encoded (little-endian, row-major, no padding).
@@ -96,8 +97,10 @@ pub struct FrameMeta {
     pub format: PixelFormat,
     /// Significant bits per pixel: 1..=8 (Mono8), 1..=16 (Mono16), 32 (Float32).
     pub bit_depth: u8,
-    /// Samples per pixel used for this frame.
-    pub spp: u16,
+    /// Samples per pixel used for this frame (the average, when it has a fraction). The
+    /// header carries the whole part in bytes 58..60 and the thousandths in 62..64, which
+    /// older receivers read as reserved.
+    pub spp: Spp,
     /// Maximum path depth (bounces) used for this frame.
     pub depth: u16,
     /// Sensor integration (exposure) time in seconds; 0 when no sensor model ran.
@@ -253,9 +256,9 @@ pub fn encode_header(meta: &FrameMeta, payload: &[u8]) -> [u8; HEADER_LEN] {
     h[52..56].copy_from_slice(&meta.height.to_le_bytes());
     h[56] = meta.format.code();
     h[57] = meta.bit_depth;
-    h[58..60].copy_from_slice(&meta.spp.to_le_bytes());
+    h[58..60].copy_from_slice(&(meta.spp.floor() as u16).to_le_bytes());
     h[60..62].copy_from_slice(&meta.depth.to_le_bytes());
-    // 62..64 reserved, zero.
+    h[62..64].copy_from_slice(&(meta.spp.fraction_milli() as u16).to_le_bytes());
     h[64..68].copy_from_slice(&meta.integration_s.to_le_bytes());
     h[68..72].copy_from_slice(&CRC32.checksum(payload).to_le_bytes());
     h[72..80].copy_from_slice(&(payload.len() as u64).to_le_bytes());
@@ -318,7 +321,7 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
         height: u32_at(b, 52),
         format,
         bit_depth,
-        spp: u16_at(b, 58),
+        spp: Spp::from_milli(u32::from(u16_at(b, 58)) * 1000 + u32::from(u16_at(b, 62)).min(999)),
         depth: u16_at(b, 60),
         integration_s: f32::from_le_bytes(b[64..68].try_into().expect("4 bytes")),
     };

@@ -445,7 +445,7 @@ fn frame_meta(
         height,
         format: px.format(),
         bit_depth,
-        spp: s.spp.min(u16::MAX as u32) as u16,
+        spp: s.spp,
         depth: s.depth.min(u16::MAX as u32) as u16,
         integration_s: integration_s.unwrap_or(0.0) as f32,
         flags: FrameFlags::default(),

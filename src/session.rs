@@ -85,7 +85,7 @@ impl PoseFields {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SettingsFields {
-    pub spp: u32,
+    pub spp: crate::integrator::Spp,
     pub depth: u32,
     pub sampler: SamplerKind,
     pub sequence: Sequence,

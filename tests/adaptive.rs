@@ -11,6 +11,7 @@ use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam::camera::{CameraModel, View};
 use hilcam::film::RadianceImage;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
 use hilcam::pose::Pose;
 use hilcam::render::{render, render_view_counted};
@@ -67,27 +68,41 @@ fn every_pixel_is_the_mean_of_its_own_first_samples_and_the_budget_is_kept() {
     let scene = satellite();
     let cam = small_nav(&scene, 72, 56);
     let view = View::new(&cam, &scene.pose, scene.frame_origin_body, scene.bounds);
-    for (sequence, sampler, spp, depth) in
-        [(Sequence::Sobol, SamplerKind::Brdf, 4, 3), (Sequence::Independent, SamplerKind::Cosine, 2, 2)]
-    {
-        let settings = RenderSettings { spp, depth, sampler, sequence, roulette: true, adaptive: true, seed: 5 };
+    let cases = [
+        (Sequence::Sobol, SamplerKind::Brdf, "4", 3, true),
+        (Sequence::Independent, SamplerKind::Cosine, "2", 2, true),
+        // A fraction: one pilot sample, a quarter of a sample per pixel shared out.
+        (Sequence::Sobol, SamplerKind::Cosine, "1.25", 3, true),
+        // A fraction without adaptive sampling: 1 or 2 samples, evenly at random.
+        (Sequence::Sobol, SamplerKind::Cosine, "1.5", 2, false),
+    ];
+    for (sequence, sampler, spp, depth, adaptive) in cases {
+        let spp: Spp = spp.parse().unwrap();
+        let settings = RenderSettings { spp, depth, sampler, sequence, roulette: true, adaptive, seed: 5 };
         let (img, stats, counts) = render_view_counted(&scene, &cam, &view, &settings, 0);
-        let label = format!("{sequence:?} spp {spp}");
+        let label = format!("{sequence:?} spp {spp} adaptive {adaptive}");
         let sampled: Vec<u32> = counts.iter().copied().filter(|&n| n > 0).collect();
         assert_eq!(sampled.len() as u64, stats.traced_pixels, "{label}");
         assert_eq!(sampled.iter().map(|&n| u64::from(n)).sum::<u64>(), stats.samples, "{label}");
         // The budget: spp per traced pixel on average (the dither rounds each share).
-        let budget = f64::from(spp) * sampled.len() as f64;
+        let budget = spp.get() * sampled.len() as f64;
         assert!((stats.samples as f64 / budget - 1.0).abs() < 0.03, "{label}: {} samples for {budget}", stats.samples);
-        // The pilot everywhere, and the rest really moved: some pixels got several times
-        // the average, others nothing beyond the pilot.
-        let pilot = spp / 2;
+        let pilot = if adaptive { (spp.floor() / 2).max(1) } else { spp.floor() };
         assert!(sampled.iter().all(|&n| n >= pilot), "{label}");
-        assert!(sampled.iter().any(|&n| n >= 3 * spp), "{label}: max {:?}", sampled.iter().max());
-        // (Only pixels that may see the target are sampled: 17 % of them keep the pilot
-        // alone here, where the empty pixels of the bounds' image used to count too.)
-        let pilot_only = sampled.iter().filter(|&&n| n == pilot).count();
-        assert!(pilot_only > sampled.len() / 10, "{label}: {pilot_only} of {} pixels at the pilot", sampled.len());
+        if adaptive {
+            // The pilot everywhere, and the rest really moved: some pixels got many times
+            // the average extra (2·spp, or 8× a fraction's), others nothing beyond the pilot.
+            let extra = spp.get() - f64::from(pilot);
+            let most = sampled.iter().max().unwrap() - pilot;
+            assert!(f64::from(most) >= (2.0 * spp.get()).min(8.0 * extra), "{label}: max {:?}", sampled.iter().max());
+            // (Only pixels that may see the target are sampled: 17 % of them keep the
+            // pilot alone at 4 spp, where the empty pixels of the bounds' image used to
+            // count too.)
+            let pilot_only = sampled.iter().filter(|&&n| n == pilot).count();
+            assert!(pilot_only > sampled.len() / 10, "{label}: {pilot_only} of {} pixels at the pilot", sampled.len());
+        } else {
+            assert!(sampled.iter().all(|&n| n == pilot || n == pilot + 1), "{label}");
+        }
         let reference = match sequence {
             Sequence::Independent => mean_of_first_samples::<Rng>(&scene, &cam, &settings, &counts),
             Sequence::Sobol => mean_of_first_samples::<SobolStream>(&scene, &cam, &settings, &counts),
@@ -114,7 +129,7 @@ fn a_plate_under_a_uniform_sky_averages_to_rho_times_the_sky() {
     let rho = 0.6f32;
     let (m, se) = mean_over_seeds(12, |seed| {
         let settings = RenderSettings {
-            spp: 4,
+            spp: Spp::whole(4),
             depth: 2,
             sampler: SamplerKind::Uniform,
             sequence: Sequence::Independent,
@@ -153,7 +168,7 @@ fn adaptive_and_uniform_means_agree_with_inter_reflections() {
     };
     let run = |adaptive: bool, seed: u64| {
         let settings = RenderSettings {
-            spp: 4,
+            spp: Spp::whole(4),
             depth: 4,
             sampler: SamplerKind::Cosine,
             sequence: Sequence::Independent,
@@ -176,15 +191,21 @@ fn on_the_satellite_adaptive_sampling_lowers_the_error_at_equal_samples() {
     let scene = satellite();
     let cam = small_nav(&scene, 160, 128);
     let base = RenderSettings {
-        spp: 4,
+        spp: Spp::whole(4),
         depth: 3,
         sampler: SamplerKind::Cosine,
         roulette: false,
         seed: 3,
         ..Default::default()
     };
-    let reference =
-        render(&scene, &cam, &scene.pose, &RenderSettings { spp: 256, adaptive: false, seed: 99, ..base }, 0).0;
+    let reference = render(
+        &scene,
+        &cam,
+        &scene.pose,
+        &RenderSettings { spp: Spp::whole(256), adaptive: false, seed: 99, ..base },
+        0,
+    )
+    .0;
     let rmse = |img: &RadianceImage| {
         let d: Vec<f64> = img
             .data

@@ -5,6 +5,7 @@ mod common;
 use common::scenes::*;
 use glam::{DQuat, DVec3, Vec3};
 use hilcam::geometry::TriMesh;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{RenderSettings, SamplerKind};
 use hilcam::pose::Pose;
 use hilcam::render::render;
@@ -49,7 +50,8 @@ fn ranges_from_half_a_metre_to_a_million_metres_image_the_same() {
     // Fronto-parallel pattern, focal length scaled with range: identical images.
     let mut flat = square(0.0, 0.0, 0.0, 0.2, 0);
     flat.append(&square(0.03, -0.02, 0.0, 0.05, 1));
-    let settings = RenderSettings { spp: 2, depth: 2, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(2), depth: 2, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let base = 0.5;
     let cam0 = camera(64, 64, 20.0, 20.0);
     let s = scene(flat, vec![lambert("a", 0.7), lambert("b", 0.2)], cam0.clone(), Pose::ahead(base), settings);
@@ -72,7 +74,8 @@ fn camera_inside_the_targets_bounding_box() {
     // Inside a closed cube lit from outside: no sunlight reaches the inside faces (they
     // are shadowed by the cube itself), so every pixel is exactly 0 — and finite.
     let cam = camera(64, 64, 20.0, 10.0);
-    let settings = RenderSettings { spp: 2, depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(2), depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let pose = Pose {
         position: DVec3::new(0.1, -0.2, 0.3),
         sun_dir: DVec3::new(0.3, 0.4, -0.866).normalize(),
@@ -98,7 +101,8 @@ fn camera_inside_the_targets_bounding_box() {
 #[test]
 fn target_on_the_image_edge_and_off_it() {
     let cam = camera(100, 80, 20.0, 40.0);
-    let settings = RenderSettings { spp: 4, depth: 1, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(4), depth: 1, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let f = cam.focal_px();
     // Put the plate's centre exactly on the left image edge (x = 0 px) at 10 m.
     let x_edge = (0.0 - 50.0) / f * 10.0;
@@ -130,7 +134,8 @@ fn near_degenerate_triangles_stay_finite() {
     m.indices.extend([[base, base + 1, base + 2], [base + 3, base + 4, base + 5]]);
     m.material.extend([0, 0]);
     let cam = camera(64, 64, 20.0, 30.0);
-    let settings = RenderSettings { spp: 4, depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(4), depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let pose = Pose { sun_dir: sun_at_incidence(40.0), ..Pose::ahead(3.0) };
     let s = scene(m, vec![lambert("a", 0.9)], cam.clone(), pose, settings);
     let (img, stats) = render(&s, &cam, &pose, &settings, 0);
@@ -140,7 +145,8 @@ fn near_degenerate_triangles_stay_finite() {
 #[test]
 fn quaternions_at_plus_and_minus_180_degrees_are_the_same_attitude() {
     let cam = camera(48, 48, 20.0, 30.0);
-    let settings = RenderSettings { spp: 2, depth: 2, sampler: SamplerKind::Cosine, seed: 4, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(2), depth: 2, sampler: SamplerKind::Cosine, seed: 4, ..Default::default() };
     let mut m = square(0.0, 0.0, 0.0, 1.0, 0);
     m.append(&square(0.2, 0.1, -0.2, 0.3, 0));
     let axis = DVec3::new(1.0, 1.0, 0.2).normalize();

@@ -9,6 +9,7 @@ use hilcam::bsdf::{Bsdf, ImprovedBlinnPhong, Lambert};
 use hilcam::film::RadianceImage;
 use hilcam::fold::FoldLevel;
 use hilcam::fold::disk::reference_disk;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{RenderSettings, SamplerKind};
 use hilcam::sampling::Sequence;
 
@@ -67,7 +68,7 @@ fn check_unbiased(bsdf: Bsdf, spp: u32) {
     let case = sky_case(bsdf);
     for sampler in [SamplerKind::Uniform, SamplerKind::Cosine, SamplerKind::Brdf] {
         let s = RenderSettings {
-            spp,
+            spp: Spp::whole(spp),
             depth: 2,
             sampler,
             sequence: Sequence::Independent,
@@ -100,7 +101,7 @@ fn cosine_is_exact_for_lambert_under_uniform_sky() {
     let case = sky_case(Bsdf::Lambert(Lambert::new(0.3717).unwrap()));
     let render = |sampler| {
         let s = RenderSettings {
-            spp: 8,
+            spp: Spp::whole(8),
             depth: 2,
             sampler,
             sequence: Sequence::Independent,

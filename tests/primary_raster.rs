@@ -7,6 +7,7 @@ mod common;
 use glam::{DQuat, DVec3};
 use hilcam::camera::{CameraModel, View};
 use hilcam::geometry::bvh::brute_force;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{RenderSettings, SamplerKind};
 use hilcam::pose::Pose;
 use hilcam::render::coverage::Coverage;
@@ -44,7 +45,7 @@ fn compare(
         }
         let (row, col) = (i / cam.width as usize, i % cam.width as usize);
         let mut bvh_wrong = false;
-        for s in 0..settings.spp {
+        for s in 0..settings.spp.floor() {
             let mut rng = SobolStream::for_sample(settings.seed, FRAME, i as u64, s);
             let j = rng.next_2d();
             let Some(ray) = view.primary_ray(col as f64 + f64::from(j.x), row as f64 + f64::from(j.y)) else {
@@ -70,7 +71,7 @@ fn rasterised_primary_hits_give_the_same_bytes_as_tracing() {
     let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let cam = small_nav(&scene, 160, 120);
     let settings = RenderSettings {
-        spp: 3,
+        spp: Spp::whole(3),
         depth: 3,
         sampler: SamplerKind::Brdf,
         sequence: Sequence::Sobol,
@@ -119,7 +120,7 @@ fn rasterised_primary_hits_give_the_same_bytes_as_tracing() {
 fn camera_among_the_triangles_falls_back_to_tracing() {
     let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let cam = small_nav(&scene, 64, 48);
-    let settings = RenderSettings { spp: 2, depth: 2, ..RenderSettings::default() };
+    let settings = RenderSettings { spp: Spp::whole(2), depth: 2, ..RenderSettings::default() };
     // Camera at the centre of the target's bounds, looking along its boresight.
     // (camera centre in the body frame −Rᵀp = the render frame's origin ⇒ p = −R·origin)
     let pose = Pose { position: scene.pose.attitude * -scene.frame_origin_body, ..scene.pose };
@@ -133,7 +134,7 @@ fn camera_among_the_triangles_falls_back_to_tracing() {
 #[test]
 fn auto_traces_packets_or_rasterises_with_enough_samples_per_triangle() {
     use hilcam::geometry::{Accel, BvhLayout};
-    let settings = RenderSettings { spp: 1, depth: 1, ..RenderSettings::default() };
+    let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..RenderSettings::default() };
     let mut plate = hilcam::scene::file::load(std::path::Path::new("scenes/plate.toml")).unwrap();
     let cam = small_nav(&plate, 64, 64);
     let view = View::new(&cam, &plate.pose, plate.frame_origin_body, plate.bounds);

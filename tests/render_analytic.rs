@@ -4,6 +4,7 @@ mod common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam::camera::View;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{RenderSettings, SamplerKind};
 use hilcam::pose::Pose;
 use hilcam::render::render;
@@ -34,7 +35,7 @@ fn lambert_plate_radiance_is_rho_e_cos_over_pi() {
     // 1 m plate at 10 m; 256 px, 20 µm, 40 mm: 1 m spans 200 px.
     let cam = camera(256, 256, 20.0, 40.0);
     for (incidence, sampler) in [(30.0, SamplerKind::Cosine), (60.0, SamplerKind::Uniform), (0.0, SamplerKind::Brdf)] {
-        let settings = RenderSettings { spp: 2, depth: 1, sampler, seed: 1, ..Default::default() };
+        let settings = RenderSettings { spp: Spp::whole(2), depth: 1, sampler, seed: 1, ..Default::default() };
         let s = scene(
             square(0.0, 0.0, 0.0, 1.0, 0),
             vec![lambert("paint", 0.522)],
@@ -68,7 +69,8 @@ fn half_shadowed_plate_is_exactly_zero_in_shadow_at_depth_1() {
     let cam = camera(256, 256, 20.0, 40.0);
     let mut mesh = square(0.0, 0.0, 0.0, 1.0, 0);
     mesh.append(&square(0.5, 0.0, -2.0, 0.5, 0));
-    let settings = RenderSettings { spp: 4, depth: 1, sampler: SamplerKind::Cosine, seed: 3, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(4), depth: 1, sampler: SamplerKind::Cosine, seed: 3, ..Default::default() };
     let q = DQuat::from_rotation_y(40f64.to_radians());
     let pose = Pose { attitude: q, sun_dir: q * DVec3::new(0.0, 0.0, -1.0), ..Pose::ahead(10.0) };
     let s = scene(mesh, vec![lambert("paint", 0.522)], cam.clone(), pose, settings);
@@ -108,7 +110,8 @@ fn same_bytes_whatever_the_thread_count() {
     let cam = camera(128, 96, 20.0, 30.0);
     let mut mesh = square(0.0, 0.0, 0.0, 1.0, 0);
     mesh.append(&square(0.2, 0.1, -0.3, 0.4, 0));
-    let settings = RenderSettings { spp: 3, depth: 4, sampler: SamplerKind::Cosine, seed: 9, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(3), depth: 4, sampler: SamplerKind::Cosine, seed: 9, ..Default::default() };
     let s = scene(mesh, vec![lambert("paint", 0.8)], cam.clone(), plate_pose(3.0, 20.0), settings);
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -153,7 +156,8 @@ fn a_vertex_lands_on_the_pixel_the_pinhole_model_predicts() {
         sun_dir: q * DVec3::new(0.0, 0.0, -1.0),
         ..Pose::ahead(6.0)
     };
-    let settings = RenderSettings { spp: 64, depth: 1, sampler: SamplerKind::Cosine, seed: 0, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(64), depth: 1, sampler: SamplerKind::Cosine, seed: 0, ..Default::default() };
     let s = scene(mesh, vec![lambert("paint", 0.5)], cam.clone(), pose, settings);
     let (img, _) = render(&s, &cam, &pose, &settings, 0);
     let p_cam = q * point.as_dvec3() + pose.position;
@@ -177,7 +181,8 @@ fn a_vertex_lands_on_the_pixel_the_pinhole_model_predicts() {
 fn range_difference(mesh: hilcam::geometry::TriMesh, attitude: DQuat, near: f64, far: f64) -> f64 {
     let cam_near = camera(96, 96, 20.0, 40.0);
     let cam_far = camera(96, 96, 20.0, 40.0 * far / near);
-    let settings = RenderSettings { spp: 4, depth: 2, sampler: SamplerKind::Cosine, seed: 5, ..Default::default() };
+    let settings =
+        RenderSettings { spp: Spp::whole(4), depth: 2, sampler: SamplerKind::Cosine, seed: 5, ..Default::default() };
     let near_pose = Pose { attitude, sun_dir: sun_at_incidence(35.0), ..Pose::ahead(near) };
     let far_pose = Pose { position: DVec3::new(0.0, 0.0, far), ..near_pose };
     let s = scene(mesh, vec![lambert("paint", 0.7), lambert("dark", 0.1)], cam_near.clone(), near_pose, settings);
@@ -225,7 +230,7 @@ fn target_out_of_view_costs_nothing_and_is_background() {
 #[test]
 fn far_small_target_traces_only_the_pixels_near_it() {
     let cam = camera(512, 512, 20.0, 40.0);
-    let settings = RenderSettings { spp: 1, depth: 1, ..Default::default() };
+    let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..Default::default() };
     let s =
         scene(square(0.0, 0.0, 0.0, 1.0, 0), vec![lambert("paint", 0.5)], cam.clone(), Pose::ahead(100.0), settings);
     let (_, stats) = render(&s, &cam, &s.pose, &settings, 0);
@@ -241,7 +246,7 @@ fn lambert_furnace_returns_albedo_times_background_for_every_sampler() {
     let cam = camera(64, 64, 20.0, 40.0);
     let rho = 0.8;
     for sampler in [SamplerKind::Uniform, SamplerKind::Cosine, SamplerKind::Brdf] {
-        let settings = RenderSettings { spp: 64, depth: 3, sampler, seed: 11, ..Default::default() };
+        let settings = RenderSettings { spp: Spp::whole(64), depth: 3, sampler, seed: 11, ..Default::default() };
         let mut s =
             scene(square(0.0, 0.0, 0.0, 2.0, 0), vec![lambert("paint", rho)], cam.clone(), Pose::ahead(5.0), settings);
         s.sun_irradiance = 0.0;
@@ -266,7 +271,13 @@ fn grazing_and_hidden_sun_give_finite_images() {
     // 89.9° grazing; exactly in the plates' plane; straight behind the target.
     for (sun, expect_lit) in [(sun_at_incidence(89.9), true), (DVec3::X, false), (DVec3::Z, false)] {
         let deg = sun.angle_between(-DVec3::Z).to_degrees();
-        let settings = RenderSettings { spp: 4, depth: 4, sampler: SamplerKind::Cosine, seed: 2, ..Default::default() };
+        let settings = RenderSettings {
+            spp: Spp::whole(4),
+            depth: 4,
+            sampler: SamplerKind::Cosine,
+            seed: 2,
+            ..Default::default()
+        };
         let pose = Pose { sun_dir: sun, ..Pose::ahead(5.0) };
         let s = scene(mesh.clone(), vec![lambert("paint", 0.9)], cam.clone(), pose, settings);
         let (img, stats) = render(&s, &cam, &pose, &settings, 0);
@@ -286,7 +297,7 @@ fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster(
     let rho = 0.6f32;
     let run = |sequence, spp| {
         let settings = RenderSettings {
-            spp,
+            spp: Spp::whole(spp),
             depth: 2,
             sampler: SamplerKind::Uniform,
             sequence,
@@ -327,8 +338,14 @@ fn russian_roulette_is_unbiased() {
     }
     mesh.append(&wall);
     let run = |roulette| {
-        let settings =
-            RenderSettings { spp: 64, depth: 4, sampler: SamplerKind::Cosine, roulette, seed: 8, ..Default::default() };
+        let settings = RenderSettings {
+            spp: Spp::whole(64),
+            depth: 4,
+            sampler: SamplerKind::Cosine,
+            roulette,
+            seed: 8,
+            ..Default::default()
+        };
         let pose = Pose {
             attitude: DQuat::from_rotation_y(-0.4),
             sun_dir: DVec3::new(-0.6, 0.2, -0.77).normalize(),

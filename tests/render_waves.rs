@@ -6,6 +6,7 @@
 
 use hilcam::camera::{CameraModel, View};
 use hilcam::film::RadianceImage;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
 use hilcam::render::render;
 use hilcam::sampling::{PerSample, Rng, Sequence, SobolStream};
@@ -25,7 +26,7 @@ fn per_sample_reference<S: PerSample>(
         for col in 0..cam.width {
             let pixel = u64::from(row) * u64::from(cam.width) + u64::from(col);
             let mut sum = 0.0f32;
-            for s in 0..settings.spp {
+            for s in 0..settings.spp.floor() {
                 let mut rng = S::for_sample(settings.seed, frame, pixel, s);
                 let j = rng.next_2d();
                 let ray = view.primary_ray(f64::from(col) + f64::from(j.x), f64::from(row) + f64::from(j.y));
@@ -37,7 +38,7 @@ fn per_sample_reference<S: PerSample>(
                     sum += v;
                 }
             }
-            img.data[(row * cam.width + col) as usize] = sum * (1.0 / settings.spp as f32);
+            img.data[(row * cam.width + col) as usize] = sum * (1.0 / settings.spp.floor() as f32);
         }
     }
     (img, counts)
@@ -62,7 +63,8 @@ fn waves_give_the_same_bytes_as_tracing_sample_by_sample() {
         (Sequence::Independent, SamplerKind::Brdf, true, 5, 2),
     ];
     for (sequence, sampler, roulette, spp, depth) in cases {
-        let settings = RenderSettings { spp, depth, sampler, sequence, roulette, adaptive: false, seed: 11 };
+        let settings =
+            RenderSettings { spp: Spp::whole(spp), depth, sampler, sequence, roulette, adaptive: false, seed: 11 };
         let (img, stats) = render(&scene, &cam, &scene.pose, &settings, 7);
         let (reference, counts) = match sequence {
             Sequence::Independent => per_sample_reference::<Rng>(&scene, &cam, &settings, 7),

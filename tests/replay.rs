@@ -7,6 +7,7 @@ use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam::frame::CRC32;
 use hilcam::integrator::RenderSettings;
+use hilcam::integrator::Spp;
 use hilcam::pipeline::FramePipeline;
 use hilcam::pose::Pose;
 use hilcam::replay::{
@@ -20,7 +21,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 const SETTINGS: RenderSettings = RenderSettings {
-    spp: 2,
+    spp: Spp::whole(2),
     depth: 2,
     sampler: hilcam::integrator::SamplerKind::Cosine,
     sequence: hilcam::sampling::Sequence::Sobol,
@@ -95,7 +96,7 @@ fn writes_every_frame_and_matches_live_frames_bit_for_bit() {
         assert!(payload.iter().any(|b| *b != 0), "frame {k} is not black");
         assert_eq!((rec.frame_seq, rec.pose_seq, rec.pose_t_ns), (k as u64, k as u32, (k as u64) * 100_000_000));
         assert_eq!(rec.payload_crc32, CRC32.checksum(&payload), "frame {k} CRC");
-        assert_eq!((rec.width, rec.height, rec.spp, rec.depth), (12, 12, 2, 2));
+        assert_eq!((rec.width, rec.height, rec.spp, rec.depth), (12, 12, Spp::whole(2), 2));
         // The file holds the same f32 values (PFM is lossless for Float32).
         let img = hilcam::film::read_pfm(&dir.path().join(&rec.file)).unwrap();
         let bytes: Vec<u8> = img.data.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -280,7 +281,7 @@ fn resuming_with_other_settings_is_refused_naming_the_directory_and_field() {
     let variants: [(&str, &str, &str, Change); 6] = [
         ("seed", "7", "8", |c| c.settings.seed = 8),
         ("sampler", "cosine", "uniform", |c| c.settings.sampler = hilcam::integrator::SamplerKind::Uniform),
-        ("spp", "2", "4", |c| c.settings.spp = 4),
+        ("spp", "2", "4", |c| c.settings.spp = Spp::whole(4)),
         ("depth", "2", "3", |c| c.settings.depth = 3),
         ("scene", "plate", "other", |c| c.scene = "other".into()),
         ("format", "pfm", "exr", |c| c.format = ImageFormat::Exr),
@@ -307,7 +308,7 @@ fn jobs_carry_their_own_settings_flags_and_expected_crc() {
     let dir = tempfile::tempdir().unwrap();
     let mut jobs = trajectory_jobs(&samples(3), &SETTINGS);
     // Frame 1 as a governor-degraded, extrapolated frame; its CRC computed independently.
-    jobs[1].settings.spp = 1;
+    jobs[1].settings.spp = Spp::ONE;
     jobs[1].flags = FrameFlags(FrameFlags::DEGRADED | FrameFlags::EXTRAPOLATED);
     let mut live = pipeline(plate_scene());
     for j in &mut jobs {
@@ -316,7 +317,7 @@ fn jobs_carry_their_own_settings_flags_and_expected_crc() {
     }
     replay_jobs(&mut pipeline(plate_scene()), &jobs, &cfg(dir.path(), Shard::ALL), |_| {}).unwrap();
     let recs = records(&dir.path().join("frames.jsonl"));
-    assert_eq!(recs.iter().map(|r| r.spp).collect::<Vec<_>>(), vec![2, 1, 2]);
+    assert_eq!(recs.iter().map(|r| r.spp).collect::<Vec<_>>(), vec![Spp::whole(2), Spp::ONE, Spp::whole(2)]);
     assert!(recs[1].extrapolated && recs[1].flags == FrameFlags::DEGRADED | FrameFlags::EXTRAPOLATED);
     for (r, j) in recs.iter().zip(&jobs) {
         assert_eq!(Some(r.payload_crc32), j.expect_crc32);

@@ -50,6 +50,9 @@ fn a_minimal_scene_loads_with_defaults() {
     assert_eq!(scene.sun_irradiance, 593.1);
     assert_eq!(scene.background, 0.0);
     assert_eq!(scene.camera.width, 64);
+    // A budget with a fraction is read exactly.
+    let frac = load(&write(dir.path(), "f.toml", &format!("{GOOD}\n[render]\nspp = 1.25\n"))).unwrap();
+    assert_eq!(frac.render.spp.milli(), 1250);
 }
 
 fn error_of(text: &str) -> String {
@@ -84,6 +87,8 @@ fn missing_obj_and_unknown_key_and_bad_camera_are_named() {
     assert!(e.contains("s.toml:") && e.contains("camera.pitch_um"), "{e}");
     let e = error_of(&format!("{GOOD}\n[render]\nspp = 0\n"));
     assert!(e.contains("render.spp"), "{e}");
+    let e = error_of(&format!("{GOOD}\n[render]\nspp = 1.0625\n"));
+    assert!(e.contains("render.spp") && e.contains("thousandths"), "{e}");
     let e = error_of(&format!("{GOOD}\n[pose]\nposition = [0, 0, 5]\nattitude = [2, 0, 0, 0]\nsun = [0, 0, -1]\n"));
     assert!(e.contains("pose.attitude") && e.contains(":17:"), "{e}");
 }

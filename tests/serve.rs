@@ -4,6 +4,7 @@
 mod serve_common;
 use glam::{DMat3, DQuat, DVec3};
 use hilcam::frame::{Frame, FrameFlags};
+use hilcam::integrator::Spp;
 use hilcam::pose::{Message, Pose};
 use hilcam::serve::ServeReport;
 use hilcam::serve::config::{GovernorConfig, InputConfig, InputKind, RecordSection, TriggerConfig};
@@ -261,7 +262,7 @@ async fn run_with_policy(policy: Policy, budget_ms: f64, spp: u32) -> (Vec<Frame
 async fn fixed_quality_reports_late_frames_and_fixed_rate_lowers_quality_to_meet_the_budget() {
     // An impossible budget with fixed quality: every frame keeps its quality and is late.
     let (frames, report) = run_with_policy(Policy::FixedQuality, 0.001, 64).await;
-    assert!(frames.iter().all(|f| f.meta.spp == 64 && f.meta.flags.contains(FrameFlags::LATE)));
+    assert!(frames.iter().all(|f| f.meta.spp == Spp::whole(64) && f.meta.flags.contains(FrameFlags::LATE)));
     assert_eq!(report.scheduler.late, 10);
 
     // Fixed rate: measure what the best quality costs here, then give a budget that only
@@ -270,7 +271,11 @@ async fn fixed_quality_reports_late_frames_and_fixed_rate_lowers_quality_to_meet
     assert!(best.iter().all(|f| !f.meta.flags.contains(FrameFlags::LATE)));
     let (frames, report) = run_with_policy(Policy::FixedRate, 1e-3, 64).await;
     let last = frames.last().unwrap();
-    assert!(last.meta.spp < 64 && last.meta.flags.contains(FrameFlags::DEGRADED), "last frame spp {}", last.meta.spp);
+    assert!(
+        last.meta.spp < Spp::whole(64) && last.meta.flags.contains(FrameFlags::DEGRADED),
+        "last frame spp {}",
+        last.meta.spp
+    );
     assert!(report.scheduler.degraded > 0);
 }
 

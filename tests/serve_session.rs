@@ -127,7 +127,7 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
     for (f, line) in streamed.iter().zip(&s.frames) {
         assert_eq!(line.index, f.meta.frame_seq);
         assert_eq!(line.source_seq, f.meta.pose_seq);
-        assert_eq!((line.flags, line.settings.spp), (f.meta.flags.0, u32::from(f.meta.spp)));
+        assert_eq!((line.flags, line.settings.spp), (f.meta.flags.0, f.meta.spp));
         let payload: Vec<u8> = f.pixels.to_le_bytes();
         assert_eq!(line.payload_crc32, CRC32.checksum(&payload), "frame {}", line.index);
     }

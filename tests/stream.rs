@@ -3,6 +3,7 @@
 
 use hilcam::film::Pixels;
 use hilcam::frame::*;
+use hilcam::integrator::Spp;
 use hilcam::metrics::Registry;
 use hilcam::sink::client::{RecvOptions, receive};
 use hilcam::sink::recorder::{FrameRecord, ImageFormat, LOG_NAME, Recorder, RecorderConfig};
@@ -29,7 +30,7 @@ fn example_frame() -> Frame {
         height: 2,
         format: PixelFormat::Mono8, // replaced from the pixels by Frame::new
         bit_depth: 0,
-        spp: 4,
+        spp: Spp::whole(4),
         depth: 3,
         integration_s: 0.001,
         flags: FrameFlags(FrameFlags::LATE | FrameFlags::EXTRAPOLATED),
@@ -172,7 +173,7 @@ fn any_frame() -> impl Strategy<Value = Frame> {
                 height: h,
                 format: PixelFormat::Mono8,
                 bit_depth: 8,
-                spp: m.5,
+                spp: Spp::from_milli(u32::from(m.5.max(1)) * 1000 + u32::from(m.5) % 1000),
                 depth: m.6,
                 integration_s: f32::from_bits(m.7),
                 flags: FrameFlags(m.8),
@@ -221,7 +222,7 @@ fn float_frame(seq: u64, w: u32, h: u32) -> Arc<EncodedFrame> {
         height: h,
         format: PixelFormat::Float32,
         bit_depth: 32,
-        spp: 1,
+        spp: Spp::whole(1),
         depth: 2,
         integration_s: 0.0,
         flags: FrameFlags::default(),

@@ -10,6 +10,7 @@ use glam::{DVec3, Vec3};
 use hilcam::camera::CameraModel;
 use hilcam::geometry::bvh::brute_force;
 use hilcam::geometry::{Ray, SunShadow, TriMesh};
+use hilcam::integrator::Spp;
 use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
 use hilcam::pose::Pose;
 use hilcam::render::{render, render_logged};
@@ -39,8 +40,13 @@ fn logged_shadow_rays(scene: &Scene, pose: &Pose, sun_body: DVec3, w: u32) -> (V
     let mut pose = *pose;
     pose.sun_dir = pose.attitude * sun_body.normalize();
     let cam = small_camera(scene, w);
-    let settings =
-        RenderSettings { spp: 2, depth: 3, sampler: SamplerKind::Cosine, roulette: false, ..Default::default() };
+    let settings = RenderSettings {
+        spp: Spp::whole(2),
+        depth: 3,
+        sampler: SamplerKind::Cosine,
+        roulette: false,
+        ..Default::default()
+    };
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, &cam, &pose, &settings, 3);
     let rays: Vec<Ray> = logs.into_iter().flat_map(|l| l.shadow).collect();
     assert_eq!(rays.len() as u64, stats.rays.shadow);
@@ -220,7 +226,7 @@ fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
         [(scene.pose, Sequence::Sobol), (turned, Sequence::Independent), (scene.pose, Sequence::Sobol)]
     {
         let settings = RenderSettings {
-            spp: 3,
+            spp: Spp::whole(3),
             depth: 4,
             sampler: SamplerKind::Brdf,
             sequence,

@@ -9,6 +9,7 @@ use common::scenes::scaled_camera;
 use glam::{DQuat, DVec3};
 use hilcam::camera::View;
 use hilcam::integrator::RenderSettings;
+use hilcam::integrator::Spp;
 use hilcam::pose::Pose;
 use hilcam::render::{FrameBuffers, PrimaryVisibility, render_view_into, render_view_with};
 use hilcam::sampling::Sequence;
@@ -76,7 +77,7 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
         ..scene.pose
     };
     let poses = [scene.pose, near];
-    let base = RenderSettings { spp: 4, depth: 4, roulette: false, ..scene.render };
+    let base = RenderSettings { spp: Spp::whole(4), depth: 4, roulette: false, ..scene.render };
     let settings = [
         RenderSettings { adaptive: true, sequence: Sequence::Sobol, ..base },
         RenderSettings { adaptive: false, sequence: Sequence::Sobol, ..base },
@@ -167,7 +168,7 @@ fn sensor_stage_allocates_per_frame_not_per_row() {
         let camera = scaled_camera(&scene, size, size, [0.0, 0.0]);
         let sensor = hilcam::sensor::Sensor::new(&camera, &scene.sensor).unwrap();
         let view = View::new(&camera, &scene.pose, scene.frame_origin_body, scene.bounds);
-        let settings = RenderSettings { spp: 1, depth: 1, ..RenderSettings::default() };
+        let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..RenderSettings::default() };
         let (img, _, _) = render_view_with::<()>(&scene, &camera, &view, &settings, 3, PrimaryVisibility::Raster);
         // A single-thread pool: rayon's own job bookkeeping is not what is counted.
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
@@ -194,7 +195,7 @@ fn reused_buffers_follow_a_change_of_background() {
     lit.background = 0.25;
     let camera = scaled_camera(&dark, 96, 96, [0.0, 0.0]);
     let view = View::new(&camera, &dark.pose, dark.frame_origin_body, dark.bounds);
-    let settings = RenderSettings { spp: 1, depth: 2, ..dark.render };
+    let settings = RenderSettings { spp: Spp::whole(1), depth: 2, ..dark.render };
     let fresh = |s: &Scene| render_view_with::<()>(s, &camera, &view, &settings, 0, PrimaryVisibility::Auto).0.data;
     let (want_dark, want_lit) = (fresh(&dark), fresh(&lit));
     assert!(want_lit.iter().filter(|&&v| v == 0.25).count() > 96 * 96 / 2, "most of the frame is sky");

@@ -14,7 +14,7 @@ use crate::bsdf::{Bsdf, Lambert};
 use crate::camera::{CameraModel, View};
 use crate::film::RadianceImage;
 use crate::geometry::{BvhLayout, TriMesh};
-use crate::integrator::{RenderSettings, SamplerKind};
+use crate::integrator::{RenderSettings, SamplerKind, Spp};
 use crate::pose::Pose;
 use crate::render::render;
 use crate::sampling::Sequence;
@@ -150,7 +150,7 @@ pub struct Reference {
 /// Render the reference with `sampler` and the Sobol sequence, `2 × half_spp` samples.
 pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u32) -> Reference {
     let s = |seed| RenderSettings {
-        spp: half_spp,
+        spp: Spp::whole(half_spp),
         depth,
         sampler,
         sequence: Sequence::Sobol,
@@ -217,7 +217,7 @@ pub fn sweep(
         .iter()
         .map(|&spp| {
             case.render(&RenderSettings {
-                spp,
+                spp: Spp::whole(spp),
                 depth: 1,
                 sampler: SamplerKind::Cosine,
                 sequence,
@@ -230,7 +230,15 @@ pub fn sweep(
         .collect();
     for &sampler in samplers {
         for (k, &spp) in spps.iter().enumerate() {
-            let settings = RenderSettings { spp, depth, sampler, sequence, roulette: false, adaptive: false, seed };
+            let settings = RenderSettings {
+                spp: Spp::whole(spp),
+                depth,
+                sampler,
+                sequence,
+                roulette: false,
+                adaptive: false,
+                seed,
+            };
             let (img, time_s) = case.render(&settings);
             let e = rmse(&img, &reference.image, &case.mask);
             let ei = rmse(&minus(&img, &direct[k]), &ref_indirect, &case.mask);
@@ -346,7 +354,7 @@ mod tests {
     fn flat_disk_direct_only_matches_lambert() {
         // Depth 1 on a flat disk: every disk pixel is ρ·E·cosθi/π exactly (no noise).
         let case = PlaneCase::paper_lambert(crate::fold::disk::reference_disk(), 16);
-        let s = RenderSettings { spp: 2, depth: 1, roulette: false, ..Default::default() };
+        let s = RenderSettings { spp: Spp::whole(2), depth: 1, roulette: false, ..Default::default() };
         let (img, _) = case.render(&s);
         let want = f64::from(PAPER_RHO) * PAPER_IRRADIANCE * 10f64.to_radians().cos() / std::f64::consts::PI;
         let n = case.disk_pixels();
@@ -384,7 +392,7 @@ mod tests {
         let case = PlaneCase::paper_lambert_lit(crate::fold::disk::reference_disk(), 16, sun, sky);
         assert_eq!(case.scene.background, sky as f32);
         let s = RenderSettings {
-            spp: 4,
+            spp: Spp::whole(4),
             depth: 2,
             sampler: SamplerKind::Cosine,
             sequence: Sequence::Independent,

@@ -6,6 +6,7 @@
 //! frame. The difference between the two p99s is what the scheduler, encoder and stream
 //! add to the render.
 
+use crate::integrator::Spp;
 use crate::serve::config::ServeConfig;
 use crate::serve::{Embed, ServeReport, run};
 use crate::sink::{ImageFormat, RecvOptions, receive};
@@ -25,7 +26,7 @@ pub struct ServeBenchRow {
 /// Serve `frames` frames of `scene` (scaled to `width`) and measure. Poses are paced at
 /// 1.5× the render time of a warm-up frame, so none waits behind another (superseded
 /// poses, if the machine slows down, are reported).
-pub async fn measure(scene: &Path, width: u32, spp: u32, frames: u64, label: &str) -> anyhow::Result<ServeBenchRow> {
+pub async fn measure(scene: &Path, width: u32, spp: Spp, frames: u64, label: &str) -> anyhow::Result<ServeBenchRow> {
     let text = "scene = \"x\"\n[stream]\nlisten = \"127.0.0.1:0\"\n[metrics]\nprint_interval_s = 3600.0\n";
     let mut cfg: ServeConfig = toml::from_str(text)?;
     cfg.scene = scene.to_path_buf();

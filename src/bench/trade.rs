@@ -14,7 +14,7 @@
 //! detector clips, left out).
 
 use crate::film::RadianceImage;
-use crate::integrator::{RenderSettings, SamplerKind};
+use crate::integrator::{RenderSettings, SamplerKind, Spp};
 use crate::pipeline::FramePipeline;
 use crate::pose::Pose;
 use std::fmt::Write as _;
@@ -111,7 +111,7 @@ pub fn measure(
     mut progress: impl FnMut(&TradePoint),
 ) -> (Vec<TradePoint>, f64) {
     let ref_settings = RenderSettings {
-        spp: grid.reference_spp,
+        spp: Spp::whole(grid.reference_spp),
         depth: grid.reference_depth,
         sampler: SamplerKind::Brdf,
         // Every pixel alike: the reference must not depend on the sampling under test.
@@ -125,7 +125,7 @@ pub fn measure(
     for &depth in &grid.depths {
         for &sampler in &grid.samplers {
             for &spp in &grid.spp {
-                let s = RenderSettings { spp, depth, sampler, ..grid.base };
+                let s = RenderSettings { spp: Spp::whole(spp), depth, sampler, ..grid.base };
                 let mut times = Vec::new();
                 let (mut err, mut body) = (f64::NAN, f64::NAN);
                 for _ in 0..grid.rounds.max(1) {

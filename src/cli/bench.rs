@@ -183,7 +183,12 @@ fn glints(a: GlintBenchArgs) -> anyhow::Result<()> {
 
 fn render(a: RenderBenchArgs) -> anyhow::Result<()> {
     rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
-    let settings = RenderSettings { spp: a.spp, depth: a.depth, sampler: SamplerKind::Cosine, ..Default::default() };
+    let settings = RenderSettings {
+        spp: crate::integrator::Spp::whole(a.spp),
+        depth: a.depth,
+        sampler: SamplerKind::Cosine,
+        ..Default::default()
+    };
     let mut rows = Vec::new();
     for layout in &a.bvh {
         let scene = crate::scene::file::load_with_layout(&a.scene, Some(*layout))?;
@@ -236,14 +241,20 @@ fn serve_bench(a: ServeBenchArgs) -> anyhow::Result<()> {
         let nav = measure(
             std::path::Path::new("scenes/satellite.toml"),
             1024,
-            a.spp,
+            crate::integrator::Spp::whole(a.spp),
             a.frames,
             "satellite, nav camera 1024²",
         )
         .await?;
         let label = format!("Jason, paper camera at {}²", a.paper_width);
-        let paper =
-            measure(std::path::Path::new("scenes/jason_paper.toml"), a.paper_width, a.spp, a.frames, &label).await?;
+        let paper = measure(
+            std::path::Path::new("scenes/jason_paper.toml"),
+            a.paper_width,
+            crate::integrator::Spp::whole(a.spp),
+            a.frames,
+            &label,
+        )
+        .await?;
         anyhow::Ok(vec![nav, paper])
     })?;
     print_table(&rows);

@@ -2,7 +2,7 @@
 
 use crate::camera::CameraModel;
 use crate::film::write_radiance;
-use crate::integrator::SamplerKind;
+use crate::integrator::{SamplerKind, Spp};
 use crate::pipeline::FramePipeline;
 use crate::pose::Pose;
 use anyhow::{Context, bail};
@@ -17,7 +17,7 @@ pub struct RenderArgs {
     #[arg(long, short)]
     pub out: PathBuf,
     #[arg(long)]
-    pub spp: Option<u32>,
+    pub spp: Option<Spp>,
     /// Surface interactions per path (1 = direct sunlight only).
     #[arg(long)]
     pub depth: Option<u32>,
@@ -155,7 +155,11 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         camera.width,
         camera.height,
         settings.spp,
-        if settings.adaptive && settings.spp > 1 { " (adaptive, average)" } else { "" },
+        if !settings.spp.is_whole() || (settings.adaptive && settings.spp > Spp::ONE) {
+            " (adaptive, average)"
+        } else {
+            ""
+        },
         settings.depth,
         settings.sampler,
         stats.time.as_secs_f64(),

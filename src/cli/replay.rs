@@ -47,7 +47,7 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub width: Option<u32>,
     #[arg(long)]
-    pub spp: Option<u32>,
+    pub spp: Option<crate::integrator::Spp>,
     #[arg(long)]
     pub depth: Option<u32>,
     #[arg(long, value_enum)]

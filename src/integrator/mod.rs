@@ -15,6 +15,9 @@ use glam::Vec3;
 use serde::Deserialize;
 use std::sync::Arc;
 
+mod spp;
+pub use spp::{Spp, SppError};
+
 /// How indirect directions are drawn.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
@@ -31,7 +34,8 @@ pub enum SamplerKind {
 /// Quality settings of one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
-    pub spp: u32,
+    /// Camera samples per pixel (a fraction is shared out by a second stage).
+    pub spp: Spp,
     /// Surface interactions per path (≥ 1).
     pub depth: u32,
     pub sampler: SamplerKind,
@@ -48,7 +52,7 @@ pub struct RenderSettings {
 impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
-            spp: 4,
+            spp: Spp::whole(4),
             depth: 2,
             sampler: SamplerKind::Cosine,
             sequence: Sequence::Sobol,
@@ -64,13 +68,13 @@ impl RenderSettings {
     /// least 1). One place for `render`, `replay` and `serve`.
     pub fn overridden(
         mut self,
-        spp: Option<u32>,
+        spp: Option<Spp>,
         depth: Option<u32>,
         sampler: Option<SamplerKind>,
         seed: Option<u64>,
     ) -> Self {
         if let Some(v) = spp {
-            self.spp = v.max(1);
+            self.spp = v;
         }
         if let Some(v) = depth {
             self.depth = v.max(1);

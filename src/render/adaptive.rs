@@ -5,8 +5,9 @@
 //! antenna dish where light bounces) hold 80 % of the squared error. Spending the samples
 //! where the variance is minimises Σ σ²ₚ / Nₚ for a fixed Σ Nₚ at Nₚ ∝ σₚ.
 //!
-//! So a frame is rendered in two stages: a pilot of `pilot` = ⌊spp/2⌋ samples in every
-//! pixel, then the rest of the budget (`spp` per pixel on average) shared out by a weight
+//! So a frame is rendered in two stages: a pilot of `pilot` = ⌊spp/2⌋ samples (at least
+//! one) in every pixel, then the rest of the budget (`spp` per pixel on average, which
+//! may have a fraction: 1.25 leaves a quarter of a sample per pixel) shared out by a weight
 //! that grows with each pixel's estimated standard deviation σ̂: the variance between its
 //! neighbours' pilot means (edges, shadow boundaries, and noise) plus the mean variance
 //! within their pilots (noise; none with a one-sample pilot). The weight is √σ̂, not σ̂:
@@ -28,6 +29,7 @@
 //! in the number of pixels, ~10⁻⁵ on a 1024² frame — far below any measurable bias; the
 //! tests check means to 0.3 %.)
 
+use crate::integrator::Spp;
 use crate::sampling::mix64;
 
 /// Share of the mean weight added to every pixel's: a pixel whose neighbours all looked
@@ -41,19 +43,38 @@ const CAP: u32 = 16;
 pub struct Adaptive {
     /// Samples every pixel gets in the pilot stage.
     pub pilot: u32,
-    /// Average samples per sampled pixel over the whole frame.
-    pub spp: u32,
+    /// Average samples per sampled pixel over the whole frame, in thousandths.
+    pub spp_milli: u32,
+    /// Share the rest evenly (a fraction of a sample in every pixel, dithered) instead of
+    /// by what the pilot saw: a fractional budget without adaptive sampling.
+    pub uniform: bool,
 }
 
 impl Adaptive {
-    /// The plan for `spp` samples per pixel on average; `None` for 1 (nothing to move).
-    pub fn new(spp: u32) -> Option<Adaptive> {
-        (spp >= 2).then_some(Adaptive { pilot: spp / 2, spp })
+    /// The plan for `spp` samples per pixel on average, shared out by the pilot's variance
+    /// when `adaptive`; `None` when every pixel gets the same whole number of samples
+    /// (`spp` 1, or a whole `spp` without `adaptive`).
+    ///
+    /// The pilot is half the budget, and at least one sample: from 1 to 2 spp the pilot is
+    /// one sample and the fraction goes where it saw variance.
+    pub fn new(spp: Spp, adaptive: bool) -> Option<Adaptive> {
+        if adaptive && spp > Spp::ONE {
+            Some(Adaptive { pilot: (spp.floor() / 2).max(1), spp_milli: spp.milli(), uniform: false })
+        } else if !spp.is_whole() {
+            Some(Adaptive { pilot: spp.floor(), spp_milli: spp.milli(), uniform: true })
+        } else {
+            None
+        }
+    }
+
+    /// Average samples per pixel beyond the pilot.
+    fn extra(&self) -> f64 {
+        f64::from(self.spp_milli) / 1000.0 - f64::from(self.pilot)
     }
 
     /// Largest sample count a pixel can get.
     pub fn max_samples(&self) -> u32 {
-        self.pilot + CAP * (self.spp - self.pilot)
+        self.pilot + (f64::from(CAP) * self.extra()).ceil() as u32
     }
 
     /// What the pilot of one pixel tells its neighbours, from the sum and sum of squares
@@ -96,7 +117,7 @@ impl Adaptive {
     /// count): in proportion to `weight + FLOOR·mean`, at most `CAP` times the average
     /// extra per pixel, and what the capped pixels cannot take goes to the others.
     pub fn shares<'a>(&self, bands: impl Iterator<Item = &'a [f32]> + Clone) -> Shares {
-        let extra = f64::from(self.spp - self.pilot);
+        let extra = self.extra();
         let cap = f64::from(CAP) * extra;
         let (mut total, mut pixels) = (0.0f64, 0u64);
         for b in bands.clone() {
@@ -177,16 +198,53 @@ mod tests {
 
     #[test]
     fn pilot_is_half_the_budget() {
-        assert_eq!(Adaptive::new(1), None);
-        assert_eq!(Adaptive::new(2), Some(Adaptive { pilot: 1, spp: 2 }));
-        assert_eq!(Adaptive::new(3).unwrap().pilot, 1);
-        assert_eq!(Adaptive::new(4).unwrap().pilot, 2);
-        assert_eq!(Adaptive::new(64).unwrap().pilot, 32);
+        let spp = |s: &str| s.parse::<Spp>().unwrap();
+        assert_eq!(Adaptive::new(spp("1"), true), None);
+        assert_eq!(Adaptive::new(spp("2"), true), Some(Adaptive { pilot: 1, spp_milli: 2000, uniform: false }));
+        assert_eq!(Adaptive::new(spp("3"), true).unwrap().pilot, 1);
+        assert_eq!(Adaptive::new(spp("4"), true).unwrap().pilot, 2);
+        assert_eq!(Adaptive::new(spp("64"), true).unwrap().pilot, 32);
+        // A fraction between 1 and 2: one pilot sample, the fraction shared out.
+        assert_eq!(Adaptive::new(spp("1.25"), true), Some(Adaptive { pilot: 1, spp_milli: 1250, uniform: false }));
+        assert_eq!(Adaptive::new(spp("1.25"), true).unwrap().max_samples(), 1 + 4);
+        // Without adaptive sampling: a whole budget is one stage, a fraction is dithered.
+        assert_eq!(Adaptive::new(spp("4"), false), None);
+        assert_eq!(Adaptive::new(spp("2.5"), false), Some(Adaptive { pilot: 2, spp_milli: 2500, uniform: true }));
+    }
+
+    #[test]
+    fn a_fraction_is_spent_evenly_without_adaptive_sampling() {
+        let plan = Adaptive::new("1.3".parse().unwrap(), false).unwrap();
+        let n = 50_000usize;
+        let zero = vec![0.0f32; n];
+        let index: Vec<u64> = (0..n as u64).collect();
+        let shares = plan.shares(std::iter::once(&zero[..]));
+        let counts = plan.counts(&shares, &zero, &index, 3, 4);
+        assert!(counts.iter().all(|&c| c == 1 || c == 2));
+        let mean = counts.iter().map(|&c| f64::from(c)).sum::<f64>() / n as f64;
+        assert!((mean - 1.3).abs() < 0.01, "mean {mean}");
+    }
+
+    #[test]
+    fn a_fractional_budget_is_kept_on_average() {
+        // 1.125 spp: 1 pilot sample, an eighth of a sample per pixel more where it varies.
+        let plan = Adaptive::new("1.125".parse().unwrap(), true).unwrap();
+        let n = 40_000usize;
+        let w: Vec<f32> = (0..n).map(|i| if i % 10 == 0 { 1.0 } else { 0.0 }).collect();
+        let index: Vec<u64> = (0..n as u64).collect();
+        let shares = plan.shares(std::iter::once(&w[..]));
+        let counts = plan.counts(&shares, &w, &index, 5, 6);
+        let sum: u64 = counts.iter().map(|&c| u64::from(c)).sum();
+        assert!((sum as f64 / n as f64 - 1.125).abs() < 0.01, "{sum} samples for {n} pixels");
+        assert!(counts.iter().all(|&c| c >= 1 && c <= plan.max_samples()));
+        // The tenth of the pixels that vary get most of it.
+        let busy: u64 = counts.iter().step_by(10).map(|&c| u64::from(c - 1)).sum();
+        assert!(busy as f64 > 0.6 * (sum - n as u64) as f64, "{busy} of {}", sum - n as u64);
     }
 
     #[test]
     fn weight_reads_the_neighbours_only() {
-        let plan = Adaptive { pilot: 2, spp: 4 };
+        let plan = Adaptive { pilot: 2, spp_milli: 4000, uniform: false };
         // Neighbours all alike with no pilot variance: weight 0, whatever the centre holds.
         let mut stat = vec![[3.0f32, 0.0]; 9];
         stat[4] = [100.0, 1e6];
@@ -210,7 +268,7 @@ mod tests {
 
     #[test]
     fn counts_share_the_budget_in_proportion_and_keep_its_total() {
-        let plan = Adaptive { pilot: 2, spp: 8 }; // 6 extra per pixel on average
+        let plan = Adaptive { pilot: 2, spp_milli: 8000, uniform: false }; // 6 extra per pixel on average
         let n = 20_000usize;
         // Half the pixels flat, half with σ = 1: the noisy half gets ~41× the extra samples
         // of the flat half ((1 + f)/f with f = FLOOR · mean σ = 0.025).
@@ -232,7 +290,7 @@ mod tests {
 
     #[test]
     fn flat_frames_are_sampled_uniformly() {
-        let plan = Adaptive::new(4).unwrap();
+        let plan = Adaptive::new(Spp::whole(4), true).unwrap();
         let flat = [0.0; 5];
         let shares = plan.shares(std::iter::once(&flat[..]));
         assert_eq!(plan.counts(&shares, &flat, &[0, 1, 2, 3, 4], 0, 0), vec![4; 5]);
@@ -242,7 +300,7 @@ mod tests {
     fn what_capped_pixels_cannot_take_goes_to_the_others() {
         // One pixel with a huge weight among 999 equal ones: it is capped at 16× the
         // average extra, and the budget is still spent.
-        let plan = Adaptive { pilot: 1, spp: 2 };
+        let plan = Adaptive { pilot: 1, spp_milli: 2000, uniform: false };
         let mut w = vec![1.0f32; 1000];
         w[0] = 1e6;
         let index: Vec<u64> = (0..1000).collect();

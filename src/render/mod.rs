@@ -215,14 +215,14 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
         // Neighbouring primary rays walked eight at a time (`Accel::intersect_packet`) cost
         // less than the rasteriser's per-sample work alone, so where the tree walks
         // packets, primary rays are traced (docs/performance.md, session 8).
-        let planned: u64 = (rect.row0..rect.row1)
+        let planned = (rect.row0..rect.row1)
             .map(|r| {
                 let (a, b) = span(r);
                 u64::from(b.saturating_sub(a))
             })
-            .sum::<u64>()
-            * u64::from(settings.spp.max(1));
-        let pays = planned >= RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64;
+            .sum::<u64>() as f64
+            * settings.spp.get();
+        let pays = planned >= (RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64) as f64;
         let rasterise = match primary {
             PrimaryVisibility::Auto => pays && !scene.accel.walks_packets(),
             PrimaryVisibility::Raster => true,
@@ -244,8 +244,8 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             frame,
             width: camera.width as usize,
         };
-        let spp = settings.spp.max(1);
-        let adaptive = if settings.adaptive { Adaptive::new(spp) } else { None };
+        let spp = settings.spp.floor();
+        let adaptive = Adaptive::new(settings.spp, settings.adaptive);
         let n_bands = (rect.row1 as usize).saturating_sub(rect.row0 as usize).div_ceil(BAND_ROWS);
         if band_buffers.len() < n_bands {
             band_buffers.resize_with(n_bands, Band::default);
@@ -347,7 +347,7 @@ impl<L> Band<L> {
 
 /// Render the rectangle's rows band by band (rayon over bands), each band pass by pass:
 /// `spp` samples in every pixel, or (`adaptive`) a pilot in every pixel and the rest of
-/// the budget where the pilot saw variance.
+/// the budget where the pilot saw variance (or, `uniform`, evenly).
 fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     job: &TileJob,
     parts: FrameParts<L>,
@@ -361,6 +361,7 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     let w = job.width;
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
     let first_stage = adaptive.map_or(spp, |a| a.pilot);
+    let squares = adaptive.is_some_and(|a| !a.uniform);
     workers.ensure();
     let shared = &*workers;
     bands.par_iter_mut().enumerate().for_each(|(b, band)| {
@@ -373,7 +374,7 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
             band.sums.clear();
             band.sums.resize(n, 0.0);
             band.sum_sq.clear();
-            if adaptive.is_some() {
+            if squares {
                 band.sum_sq.resize(n, 0.0);
             }
             band.counts.clear();
@@ -385,7 +386,7 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
                 pass.extend(band.pixels.iter().map(|&(row, col)| CameraSample { row, col, index: s }));
                 let values = job.trace_pass(pass, tile, &mut band.rays, &mut band.log);
                 for (i, &v) in values.iter().enumerate() {
-                    band.add_sample(i, v, adaptive.is_some());
+                    band.add_sample(i, v, squares);
                 }
             }
         })
@@ -412,24 +413,15 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
     height: usize,
 ) {
     let w = job.width;
-    // The statistics of the sampled rows and the row on either side (what the weights
-    // read), not of the whole frame: the rest is background and is never read. Filled in
-    // parallel (a full 1024² frame's took 1.5 ms serially).
-    let first = bands.first().map_or(0, |b| b.first_row);
-    let (base, end) = (first.saturating_sub(1), (first + bands.len() * BAND_ROWS + 1).min(height));
-    stat.clear();
-    stat.par_extend(rayon::iter::repeat_n(plan.background_statistic(job.ctx.scene.background), (end - base) * w));
-    // Bands own disjoint rows: each writes its own.
-    stat[(first - base) * w..].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).for_each(|(mine, band)| {
-        for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
-            mine[(row as usize - band.first_row) * w + col as usize] = plan.statistic(sum, sq);
-        }
-    });
-    let (stat, rows) = (&*stat, end - base);
-    bands.par_iter_mut().for_each(|b| {
-        b.weight.clear();
-        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, rows, r as usize - base, c as usize)));
-    });
+    if plan.uniform {
+        // An even share of a fraction: no pilot statistics to read.
+        bands.par_iter_mut().for_each(|b| {
+            b.weight.clear();
+            b.weight.resize(b.pixels.len(), 0.0);
+        });
+    } else {
+        pilot_weights(job, bands, stat, plan, height);
+    }
     let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
     bands.par_iter_mut().for_each(|band| {
         workers.with(|WorkerScratch { tile, pass, owner }| {
@@ -454,6 +446,36 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
                 }
             }
         })
+    });
+}
+
+/// Each sampled pixel's weight for the second stage, from the pilot statistics of its
+/// neighbours (`Adaptive::weight`), into `band.weight`.
+fn pilot_weights<L: Send + Sync>(
+    job: &TileJob,
+    bands: &mut [Band<L>],
+    stat: &mut Vec<[f32; 2]>,
+    plan: Adaptive,
+    height: usize,
+) {
+    let w = job.width;
+    // The statistics of the sampled rows and the row on either side (what the weights
+    // read), not of the whole frame: the rest is background and is never read. Filled in
+    // parallel (a full 1024² frame's took 1.5 ms serially).
+    let first = bands.first().map_or(0, |b| b.first_row);
+    let (base, end) = (first.saturating_sub(1), (first + bands.len() * BAND_ROWS + 1).min(height));
+    stat.clear();
+    stat.par_extend(rayon::iter::repeat_n(plan.background_statistic(job.ctx.scene.background), (end - base) * w));
+    // Bands own disjoint rows: each writes its own.
+    stat[(first - base) * w..].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).for_each(|(mine, band)| {
+        for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
+            mine[(row as usize - band.first_row) * w + col as usize] = plan.statistic(sum, sq);
+        }
+    });
+    let (stat, rows) = (&*stat, end - base);
+    bands.par_iter_mut().for_each(|b| {
+        b.weight.clear();
+        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, rows, r as usize - base, c as usize)));
     });
 }
 

@@ -30,7 +30,7 @@ pub struct ReplayManifest {
     pub sequence: Sequence,
     pub roulette: bool,
     /// Best quality (a session's degraded frames carry their own on their log lines).
-    pub spp: u32,
+    pub spp: crate::integrator::Spp,
     pub depth: u32,
 }
 

@@ -42,7 +42,7 @@ use crate::bsdf::BsdfSpec;
 use crate::camera::CameraModel;
 use crate::fold::{FoldLevel, FoldTarget, fit_for_edge, wrap_faces_report};
 use crate::geometry::{BvhLayout, TriMesh};
-use crate::integrator::{RenderSettings, SamplerKind};
+use crate::integrator::{RenderSettings, SamplerKind, Spp};
 use crate::pose::Pose;
 use crate::sampling::Sequence;
 use crate::sensor::{CameraPreset, SensorConfig};
@@ -177,7 +177,8 @@ impl Default for PoseSection {
 #[serde(deny_unknown_fields)]
 struct RenderSection {
     #[serde(default = "default_spp")]
-    spp: Spanned<u32>,
+    /// A number ≥ 1 (checked below, so that the error names `render.spp`).
+    spp: Spanned<f64>,
     #[serde(default = "default_depth")]
     depth: Spanned<u32>,
     #[serde(default)]
@@ -198,8 +199,8 @@ fn yes() -> bool {
     true
 }
 
-fn default_spp() -> Spanned<u32> {
-    Spanned::new(0..0, RenderSettings::default().spp)
+fn default_spp() -> Spanned<f64> {
+    Spanned::new(0..0, RenderSettings::default().spp.get())
 }
 fn default_depth() -> Spanned<u32> {
     Spanned::new(0..0, RenderSettings::default().depth)
@@ -376,7 +377,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     }
     let r = &file.render;
     let render = RenderSettings {
-        spp: *r.spp.get_ref(),
+        spp: Spp::try_from(*r.spp.get_ref()).map_err(|e| field(r.spp.span(), "render.spp", e.to_string()))?,
         depth: *r.depth.get_ref(),
         sampler: r.sampler,
         sequence: r.sequence,
@@ -384,9 +385,6 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         adaptive: r.adaptive,
         seed: r.seed,
     };
-    if render.spp == 0 {
-        return Err(field(r.spp.span(), "render.spp", "must be at least 1".into()));
-    }
     if render.depth == 0 {
         return Err(field(r.depth.span(), "render.depth", "must be at least 1 (1 = direct sunlight only)".into()));
     }

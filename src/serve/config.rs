@@ -146,7 +146,7 @@ pub struct GovernorConfig {
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderOverrides {
-    pub spp: Option<u32>,
+    pub spp: Option<crate::integrator::Spp>,
     pub depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub seed: Option<u64>,
@@ -265,9 +265,6 @@ impl ServeConfig {
             && !(b.is_finite() && b > 0.0)
         {
             return Err(("governor.budget_ms", format!("must be positive, got {b}")));
-        }
-        if self.render.spp == Some(0) {
-            return Err(("render.spp", "must be at least 1".into()));
         }
         if self.render.depth == Some(0) {
             return Err(("render.depth", "must be at least 1".into()));

@@ -5,6 +5,7 @@
 //! 1 — to keep the render time inside the frame budget, and climbs back when a step up is
 //! predicted to fit. Pure: it only sees the render times it is told about.
 
+use crate::integrator::Spp;
 use std::time::Duration;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, Default)]
@@ -20,7 +21,7 @@ pub enum Policy {
 /// One rung of the ladder.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Quality {
-    pub spp: u32,
+    pub spp: Spp,
     pub depth: u32,
 }
 
@@ -41,16 +42,16 @@ pub struct Governor {
 impl Governor {
     pub fn new(policy: Policy, budget: Duration, best: Quality) -> Self {
         let mut ladder = Vec::new();
-        let mut spp = best.spp.max(1);
+        let mut spp = best.spp;
         loop {
             ladder.push(Quality { spp, depth: best.depth.max(1) });
-            if spp == 1 {
+            if spp == Spp::ONE {
                 break;
             }
-            spp = spp.div_ceil(2);
+            spp = spp.halved();
         }
         for depth in (1..best.depth.max(1)).rev() {
-            ladder.push(Quality { spp: 1, depth });
+            ladder.push(Quality { spp: Spp::ONE, depth });
         }
         Governor { policy, budget, ladder, level: 0, rate: None }
     }
@@ -67,7 +68,7 @@ impl Governor {
     /// Relative cost of a rung: spp × a depth factor (each extra bounce costs less than
     /// the first hit because many bounce rays escape).
     fn cost(q: Quality) -> f64 {
-        f64::from(q.spp) * (1.0 + 0.7 * f64::from(q.depth - 1))
+        q.spp.get() * (1.0 + 0.7 * f64::from(q.depth - 1))
     }
 
     fn predict(&self, level: usize) -> f64 {
@@ -110,14 +111,14 @@ mod tests {
 
     #[test]
     fn ladder_halves_spp_then_lowers_depth() {
-        let g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: 16, depth: 4 });
-        let l: Vec<(u32, u32)> = g.ladder.iter().map(|q| (q.spp, q.depth)).collect();
+        let g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: Spp::whole(16), depth: 4 });
+        let l: Vec<(u32, u32)> = g.ladder.iter().map(|q| (q.spp.floor(), q.depth)).collect();
         assert_eq!(l, vec![(16, 4), (8, 4), (4, 4), (2, 4), (1, 4), (1, 3), (1, 2), (1, 1)]);
     }
 
     /// A simulated renderer whose time is proportional to the rung's cost.
     fn simulate(policy: Policy, budget_ms: f64, ms_per_cost: f64, frames: usize) -> (Governor, Vec<Quality>) {
-        let mut g = Governor::new(policy, ms(budget_ms), Quality { spp: 16, depth: 4 });
+        let mut g = Governor::new(policy, ms(budget_ms), Quality { spp: Spp::whole(16), depth: 4 });
         let mut seen = Vec::new();
         for _ in 0..frames {
             let q = g.current();
@@ -143,31 +144,35 @@ mod tests {
 
     #[test]
     fn fixed_rate_climbs_back_when_load_drops() {
-        let mut g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: 8, depth: 2 });
+        let mut g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: Spp::whole(8), depth: 2 });
         // Heavy load: everything takes 10× longer.
         for _ in 0..10 {
             let q = g.current();
             g.observe(q, ms(Governor::cost(q) * 40.0));
         }
         let low = g.current();
-        assert!(low.spp < 8);
+        assert!(low.spp < Spp::whole(8));
         for _ in 0..40 {
             let q = g.current();
             g.observe(q, ms(Governor::cost(q) * 4.0));
         }
-        assert_eq!(g.current(), Quality { spp: 8, depth: 2 }, "came down to {low:?}, should be back at best");
+        assert_eq!(
+            g.current(),
+            Quality { spp: Spp::whole(8), depth: 2 },
+            "came down to {low:?}, should be back at best"
+        );
     }
 
     #[test]
     fn fixed_quality_never_changes() {
         let (g, seen) = simulate(Policy::FixedQuality, 1.0, 10.0, 10);
-        assert!(seen.iter().all(|q| *q == Quality { spp: 16, depth: 4 }));
-        assert_eq!(g.current(), Quality { spp: 16, depth: 4 });
+        assert!(seen.iter().all(|q| *q == Quality { spp: Spp::whole(16), depth: 4 }));
+        assert_eq!(g.current(), Quality { spp: Spp::whole(16), depth: 4 });
     }
 
     #[test]
     fn impossible_budget_bottoms_out_at_one_spp_depth_one() {
         let (g, _) = simulate(Policy::FixedRate, 1.0, 100.0, 30);
-        assert_eq!(g.current(), Quality { spp: 1, depth: 1 });
+        assert_eq!(g.current(), Quality { spp: Spp::whole(1), depth: 1 });
     }
 }

@@ -244,7 +244,7 @@ pub async fn run(
         stream = %stream_addr,
         metrics = ?metrics_addr,
         camera = format!("{}x{}", camera.width, camera.height),
-        spp = settings.spp,
+        spp = %settings.spp,
         depth = settings.depth,
         "serving"
     );

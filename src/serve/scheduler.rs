@@ -128,7 +128,11 @@ impl Metrics {
             failed: r.counter("hilcam_frames_failed_total", "Frames whose sensor stage failed", &[]),
             triggers: r.counter("hilcam_triggers_total", "External trigger messages received", &[]),
             render: r.histogram("hilcam_render_seconds", "Render + sensor + encode time per frame", &[]),
-            spp: r.gauge("hilcam_frame_spp", "Samples per pixel of the last frame", &[]),
+            spp: r.gauge(
+                "hilcam_frame_spp_milli",
+                "Samples per pixel of the last frame, in thousandths (1250 = 1.25)",
+                &[],
+            ),
             depth: r.gauge("hilcam_frame_depth", "Path depth of the last frame", &[]),
         }
     }
@@ -203,7 +207,7 @@ fn spawn_renderer(
                             height: f.height,
                             format: f.pixels.format(),
                             bit_depth: 0,
-                            spp: job.settings.spp.min(u32::from(u16::MAX)) as u16,
+                            spp: job.settings.spp,
                             depth: job.settings.depth.min(u32::from(u16::MAX)) as u16,
                             integration_s: f.integration_s.unwrap_or(0.0) as f32,
                             flags,
@@ -324,7 +328,7 @@ pub async fn run_scheduler(
                         }
                         s.frames += 1;
                         m.frames.inc();
-                        m.spp.set(i64::from(d.quality.spp));
+                        m.spp.set(i64::from(d.quality.spp.milli()));
                         m.depth.set(i64::from(d.quality.depth));
                         if d.late {
                             s.late += 1;

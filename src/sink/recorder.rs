@@ -83,7 +83,8 @@ pub struct FrameRecord {
     /// "Mono8", "Mono16" or "Float32".
     pub pixel_format: String,
     pub bit_depth: u8,
-    pub spp: u16,
+    /// Average samples per pixel (a number, with a fraction when the budget had one).
+    pub spp: crate::integrator::Spp,
     pub depth: u16,
     pub integration_s: f32,
     pub flags: u32,

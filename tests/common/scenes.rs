@@ -26,8 +26,13 @@ pub fn scaled_camera(scene: &Scene, width: u32, height: u32, pp: [f64; 2]) -> Ca
 pub fn recorded_rays(scene: &Scene, width: u32, spp: u32) -> (Vec<hilcam::geometry::Ray>, Vec<hilcam::geometry::Ray>) {
     use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
     let cam = scaled_camera(scene, width, width, [0.0, 0.0]);
-    let settings =
-        RenderSettings { spp, depth: 4, sampler: SamplerKind::Cosine, roulette: false, ..Default::default() };
+    let settings = RenderSettings {
+        spp: hilcam::integrator::Spp::whole(spp),
+        depth: 4,
+        sampler: SamplerKind::Cosine,
+        roulette: false,
+        ..Default::default()
+    };
     let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(scene, &cam, &scene.pose, &settings, 0);
     let closest = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
