@@ -806,13 +806,14 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         renderers.append(("hilcam-uniform", args.hilcam_sequence, h_uniform))
     renderers += [("mitsuba", smp, m) for smp, m in ms.items()]
     rows = []
-    for spp in args.spp:
+    # hilcam's own budgets (fractions: --hilcam-spp) join Mitsuba's in one alternation.
+    for spp in sorted(set(args.spp) | set(args.hilcam_spp)):
         for rep in range(args.reps):
             seed = 1 + rep
             # Alternate renderers (order rotated every repetition) so machine load hits all.
             k = rep % len(renderers)
             for name, smp, r in renderers[k:] + renderers[:k]:
-                if not timed(name, smp, spp):
+                if not timed(name, smp, spp) or (name != "hilcam" and spp not in args.spp):
                     continue
                 img, t = r.render(spp, seed, warm=True) if isinstance(r, Hilcam) else r.render(spp, seed)
                 raw = rel_rmse(img, ref)
@@ -824,7 +825,7 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         times = "   ".join(
             f"{label(n, smp)} {statistics.median(r['time_s'] for r in cur if (r['renderer'], r['sampler']) == (n, smp)) * 1e3:9.2f} ms"
             for n, smp, _ in renderers
-            if timed(n, smp, spp)
+            if any((r["renderer"], r["sampler"]) == (n, smp) for r in cur)
         )
         log(f"  spp {spp:>4}: {times}")
 
@@ -849,8 +850,17 @@ def mitsuba_spp(sampler: str, spp: int) -> int:
     return rx * -(-spp // rx)
 
 
-def timed(renderer: str, sampler: str, spp: int) -> bool:
-    return renderer.startswith("hilcam") or mitsuba_spp(sampler, spp) == spp
+def timed(renderer: str, sampler: str, spp) -> bool:
+    """Whether this renderer's curve has a point at `spp` (Mitsuba: whole counts it really takes)."""
+    if renderer.startswith("hilcam"):
+        return True
+    return float(spp).is_integer() and mitsuba_spp(sampler, int(spp)) == spp
+
+
+def spp_number(text: str):
+    """A budget as written: an int when whole (4), else a float (1.25)."""
+    v = float(text)
+    return int(v) if v.is_integer() else v
 
 
 def label(renderer: str, sampler: str) -> str:
@@ -979,6 +989,14 @@ def main() -> int:
     ap.add_argument("scenes", nargs="*", type=Path, help="hilcam scene files (default: sphere and plate)")
     ap.add_argument("--depth", type=int, action="append", help="surface interactions (repeatable; default: the scene's)")
     ap.add_argument("--spp", type=lambda s: [int(v) for v in s.split(",")], default=[1, 2, 4, 8, 16, 32, 64])
+    ap.add_argument(
+        "--hilcam-spp",
+        type=lambda s: [spp_number(v) for v in s.split(",")],
+        default=[],
+        metavar="LIST",
+        help="budgets only hilcam renders, in the same alternation (fractions too, e.g. 1.25,1.5: "
+        "hilcam's curve gets points between Mitsuba's whole sample counts)",
+    )
     ap.add_argument("--reps", type=int, default=3, help="repetitions per spp (median time)")
     ap.add_argument("--width", type=int, default=None, help="image width (default: the camera's)")
     ap.add_argument("--height", type=int, default=None)
@@ -1027,7 +1045,7 @@ def main() -> int:
         bootstrap()  # for matplotlib
         with args.report.open() as f:
             rows = [
-                {k: (float(v) if k in ("time_s", "rel_rmse", "rel_rmse_raw", "ref_noise") else int(v) if k in ("spp", "rep", "width", "height", "depth") else v) for k, v in r.items()}
+                {k: (float(v) if k in ("time_s", "rel_rmse", "rel_rmse_raw", "ref_noise") else spp_number(v) if k == "spp" else int(v) if k in ("rep", "width", "height", "depth") else v) for k, v in r.items()}
                 for r in csv.DictReader(f)
             ]  # fmt: skip
         plot(rows, report(rows, args.report.stem), args.report.stem)
