@@ -19,7 +19,7 @@ MAGIC = b"HLCF"
 HEADER_LEN = 88
 # magic, version, header_len, frame_seq, pose_seq, flags, pose_t_ns,
 # pose_arrival_unix_ns, emit_unix_ns, width, height, pixel_format, bit_depth, spp,
-# depth, reserved, integration_s, payload_crc32, payload_len, reserved, header_crc32
+# depth, spp_milli (thousandths beyond spp), integration_s, payload_crc32, payload_len, reserved, header_crc32
 HEADER = struct.Struct("<4sHHQIIQQQIIBBHHHfIQII")
 assert HEADER.size == HEADER_LEN
 FORMATS = {1: ("Mono8", 1), 2: ("Mono16", 2), 3: ("Float32", 4)}
@@ -42,7 +42,7 @@ def read_exact(sock, n):
 def parse_header(raw):
     f = HEADER.unpack(raw)
     (magic, version, header_len, frame_seq, pose_seq, flags, pose_t_ns, arrival_ns,
-     emit_ns, width, height, fmt, bits, spp, depth, _r1, integration_s, payload_crc,
+     emit_ns, width, height, fmt, bits, spp_whole, depth, spp_milli, integration_s, payload_crc,
      payload_len, _r2, header_crc) = f
     if magic != MAGIC:
         raise ValueError("bad magic %r" % magic)
@@ -53,6 +53,7 @@ def parse_header(raw):
     if fmt not in FORMATS:
         raise ValueError("unknown pixel format %d" % fmt)
     name, bpp = FORMATS[fmt]
+    spp = spp_whole + spp_milli / 1000 if spp_milli else spp_whole  # 1.25 spp: whole 1, milli 250
     if payload_len != width * height * bpp:
         raise ValueError("payload_len %d does not match %dx%d %s" % (payload_len, width, height, name))
     return dict(frame_seq=frame_seq, pose_seq=pose_seq, flags=flags, pose_t_ns=pose_t_ns,
@@ -98,7 +99,7 @@ def main():
         latencies_ms.append(latency_ms)
         if not args.quiet:
             flags = ",".join(n for b, n in FLAGS.items() if h["flags"] & b) or "-"
-            print("frame seq=%d pose_seq=%d %dx%d %s bits=%d spp=%d depth=%d flags=%s "
+            print("frame seq=%d pose_seq=%d %dx%d %s bits=%d spp=%s depth=%d flags=%s "
                   "crc=ok emit->recv=%.3fms" % (seq, h["pose_seq"], h["width"], h["height"],
                                                 h["pixel_format"], h["bit_depth"], h["spp"],
                                                 h["depth"], flags, latency_ms), flush=True)

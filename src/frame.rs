@@ -238,6 +238,8 @@ pub enum Malformed {
     PayloadLen { found: u64, expected: u64, width: u32, height: u32, format: PixelFormat },
     #[error("frame {seq}: payload CRC {found:#010x}, computed {computed:#010x}")]
     PayloadCrc { seq: u64, found: u32, computed: u32 },
+    #[error("spp {whole} and spp_milli {milli}: a budget is at least 1 and its thousandths at most 999")]
+    Spp { whole: u16, milli: u16 },
 }
 
 /// Encode the header for `meta` and `payload` (the payload's length and CRC go in it).
@@ -310,6 +312,10 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
     if !format.valid_bits(bit_depth) {
         return Err(Malformed::BitDepth { bits: bit_depth, format }.into());
     }
+    let (whole, milli) = (u16_at(b, 58), u16_at(b, 62));
+    if whole == 0 || milli > 999 {
+        return Err(Malformed::Spp { whole, milli }.into());
+    }
     let meta = FrameMeta {
         frame_seq: u64_at(b, 8),
         pose_seq: u32_at(b, 16),
@@ -321,7 +327,7 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
         height: u32_at(b, 52),
         format,
         bit_depth,
-        spp: Spp::from_milli(u32::from(u16_at(b, 58)) * 1000 + u32::from(u16_at(b, 62)).min(999)),
+        spp: Spp::from_milli(u32::from(whole) * 1000 + u32::from(milli)),
         depth: u16_at(b, 60),
         integration_s: f32::from_le_bytes(b[64..68].try_into().expect("4 bytes")),
     };

@@ -108,8 +108,27 @@ fn decoder_names_each_violation() {
     reseal(&mut b);
     assert!(matches!(mal(&b), Malformed::PayloadLen { found: 9, expected: 8, .. }));
     let mut b = good;
+    b[62..64].copy_from_slice(&1000u16.to_le_bytes()); // a thousandth part of 1000
+    reseal(&mut b);
+    assert_eq!(mal(&b), Malformed::Spp { whole: 4, milli: 1000 });
+    let mut b = good;
+    b[58] = 0; // 0 samples per pixel
+    reseal(&mut b);
+    assert_eq!(mal(&b), Malformed::Spp { whole: 0, milli: 0 });
+    let mut b = good;
     b[90] ^= 0x40; // payload bit flip
     assert!(matches!(mal(&b), Malformed::PayloadCrc { seq: 42, .. }));
+}
+
+#[test]
+fn a_fractional_budget_travels_in_the_header() {
+    let mut f = example_frame();
+    f.meta.spp = "1.25".parse().unwrap();
+    let enc = f.encode();
+    assert_eq!(&enc.bytes[58..60], &1u16.to_le_bytes());
+    assert_eq!(&enc.bytes[62..64], &250u16.to_le_bytes());
+    let (back, _) = decode_frame(&enc.bytes).unwrap();
+    assert_eq!(back.meta.spp.to_string(), "1.25");
 }
 
 #[test]
