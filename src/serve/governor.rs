@@ -114,6 +114,13 @@ mod tests {
         let g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: Spp::whole(16), depth: 4 });
         let l: Vec<(u32, u32)> = g.ladder.iter().map(|q| (q.spp.floor(), q.depth)).collect();
         assert_eq!(l, vec![(16, 4), (8, 4), (4, 4), (2, 4), (1, 4), (1, 3), (1, 2), (1, 1)]);
+        // Fractional budgets halve to the thousandth, down to 1.
+        let g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: "3".parse().unwrap(), depth: 1 });
+        let l: Vec<String> = g.ladder.iter().map(|q| q.spp.to_string()).collect();
+        assert_eq!(l, ["3", "1.5", "1"]);
+        let g = Governor::new(Policy::FixedRate, ms(100.0), Quality { spp: "2.5".parse().unwrap(), depth: 1 });
+        let l: Vec<String> = g.ladder.iter().map(|q| q.spp.to_string()).collect();
+        assert_eq!(l, ["2.5", "1.25", "1"]);
     }
 
     /// A simulated renderer whose time is proportional to the rung's cost.
