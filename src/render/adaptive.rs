@@ -181,9 +181,11 @@ impl Adaptive {
         out: &mut Vec<u32>,
     ) {
         out.clear();
+        // The frame's key once, then one mix per pixel.
+        let key = mix64(seed ^ mix64(frame ^ 0x6164_6170_7469_7665));
         out.extend(weight.iter().zip(index).map(|(&w, &i)| {
             let share = ((f64::from(w) + shares.floor) * shares.scale).min(shares.cap);
-            let u = (mix64(seed ^ mix64(frame ^ mix64(i ^ 0x6164_6170_7469_7665))) >> 11) as f64 / (1u64 << 53) as f64;
+            let u = (mix64(key ^ i) >> 11) as f64 / (1u64 << 53) as f64;
             self.pilot + (share + u).floor() as u32
         }));
     }
