@@ -16,6 +16,8 @@ pub struct RenderArgs {
     /// Output image: .exr/.pfm hold float radiance (W·sr⁻¹·m⁻²); .png/.tif a scaled preview.
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Samples per pixel, ≥ 1 (default: the scene's); a fraction such as 1.25 gives
+    /// every pixel one sample and shares the rest out where the pilot saw variance
     #[arg(long)]
     pub spp: Option<Spp>,
     /// Surface interactions per path (1 = direct sunlight only).
@@ -32,7 +34,8 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_roulette: bool,
     /// Give every pixel exactly `--spp` samples instead of sharing them out by the
-    /// variance a pilot pass sees around each pixel (`spp` is then the average).
+    /// variance a pilot pass sees around each pixel (`spp` is then the average); a
+    /// fraction is spread evenly (⌊spp⌋ or ⌊spp⌋ + 1 samples, at random).
     #[arg(long)]
     pub no_adaptive: bool,
     /// Also write a PNG heat map of the camera samples each pixel got (black: none; the

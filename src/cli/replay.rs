@@ -46,6 +46,8 @@ pub struct ReplayArgs {
     /// Render at this many columns (same field of view; default: the camera's).
     #[arg(long)]
     pub width: Option<u32>,
+    /// Samples per pixel, ≥ 1 (default: the scene's); a fraction such as 1.25 gives
+    /// every pixel one sample and shares the rest out where the pilot saw variance
     #[arg(long)]
     pub spp: Option<crate::integrator::Spp>,
     #[arg(long)]

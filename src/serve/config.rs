@@ -146,6 +146,7 @@ pub struct GovernorConfig {
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderOverrides {
+    /// Samples per pixel, ≥ 1 (a fraction such as 1.5 is allowed).
     pub spp: Option<crate::integrator::Spp>,
     pub depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
