@@ -8,6 +8,7 @@ use hilcam::bench::trade::{
     relative_rmse_up_to, to_csv,
 };
 use hilcam::film::RadianceImage;
+use hilcam::integrator::Spp;
 use hilcam::integrator::{RenderSettings, SamplerKind};
 use hilcam::pipeline::FramePipeline;
 use hilcam::pose::Pose;
@@ -32,7 +33,14 @@ fn relative_rmse_matches_its_definition() {
 }
 
 fn pt(time_s: f64, rel_rmse: f64, spp: u32) -> TradePoint {
-    TradePoint { spp, depth: 1, sampler: SamplerKind::Cosine, time_s, rel_rmse, rel_rmse_body: rel_rmse }
+    TradePoint {
+        spp: Spp::whole(spp),
+        depth: 1,
+        sampler: SamplerKind::Cosine,
+        time_s,
+        rel_rmse,
+        rel_rmse_body: rel_rmse,
+    }
 }
 
 #[test]
@@ -40,10 +48,10 @@ fn pareto_front_and_recommendations() {
     let pts =
         [pt(1.0, 0.5, 1), pt(2.0, 0.6, 2), pt(2.0, 0.3, 3), pt(4.0, 0.1, 4), pt(3.0, 0.4, 5), pt(8.0, f64::NAN, 6)];
     let f = pareto_front(&pts);
-    assert_eq!(f.iter().map(|p| p.spp).collect::<Vec<_>>(), vec![1, 3, 4]);
-    assert_eq!(best_for_fps(&f, 0.4).unwrap().spp, 3, "1/0.4 = 2.5 s budget");
+    assert_eq!(f.iter().map(|p| p.spp.floor()).collect::<Vec<_>>(), vec![1, 3, 4]);
+    assert_eq!(best_for_fps(&f, 0.4).unwrap().spp, Spp::whole(3), "1/0.4 = 2.5 s budget");
     assert_eq!(best_for_fps(&f, 100.0), None);
-    assert_eq!(best_for_error(&f, 0.35).unwrap().spp, 3);
+    assert_eq!(best_for_error(&f, 0.35).unwrap().spp, Spp::whole(3));
     assert_eq!(best_for_error(&f, 0.01), None);
     let csv = to_csv(&pts, &f);
     assert_eq!(csv.lines().count(), 7);
@@ -69,16 +77,19 @@ fn tiny_grid_measures_and_its_front_is_monotone() {
     grid.samplers = vec![SamplerKind::Cosine, SamplerKind::Brdf];
     grid.rounds = 1;
     grid.reference_spp = 256;
-    assert_eq!(grid.spp, vec![1, 2, 4, 8]);
+    let spps: Vec<String> = grid.spp.iter().map(|s| s.to_string()).collect();
+    assert_eq!(spps, ["1", "1.25", "1.5", "2", "4", "8"]);
     let mut seen = 0;
     let (points, _) = measure(&pipeline, &pose, &grid, |_| seen += 1);
-    assert_eq!((points.len(), seen), (16, 16));
+    assert_eq!((points.len(), seen), (24, 24));
     assert!(points.iter().all(|p| p.rel_rmse.is_finite() && p.rel_rmse > 0.0 && p.time_s > 0.0));
     assert!(points.iter().all(|p| p.rel_rmse_body.is_finite() && p.rel_rmse_body > 0.0));
     // More samples, less error (same depth and sampler): 8 spp beats 1 spp.
     for d in [1, 4] {
         for s in [SamplerKind::Cosine, SamplerKind::Brdf] {
-            let e = |spp| points.iter().find(|p| p.spp == spp && p.depth == d && p.sampler == s).unwrap().rel_rmse;
+            let e = |spp| {
+                points.iter().find(|p| p.spp == Spp::whole(spp) && p.depth == d && p.sampler == s).unwrap().rel_rmse
+            };
             assert!(e(8) < e(1), "depth {d} {s:?}: {} ≥ {}", e(8), e(1));
         }
     }

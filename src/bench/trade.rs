@@ -22,7 +22,7 @@ use std::fmt::Write as _;
 /// One measured grid point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TradePoint {
-    pub spp: u32,
+    pub spp: Spp,
     pub depth: u32,
     pub sampler: SamplerKind,
     /// Median render time of one frame, s.
@@ -43,7 +43,7 @@ impl TradePoint {
 /// The grid to measure.
 #[derive(Clone, Debug)]
 pub struct TradeGrid {
-    pub spp: Vec<u32>,
+    pub spp: Vec<Spp>,
     pub depths: Vec<u32>,
     pub samplers: Vec<SamplerKind>,
     /// Timed renders per point (the median is kept).
@@ -56,11 +56,16 @@ pub struct TradeGrid {
 }
 
 impl TradeGrid {
-    /// spp 1, 2, 4 … up to `max_spp`; depth 1/2/4; the three samplers; reference at
+    /// spp 1, 1.25, 1.5, then 2, 4 … up to `max_spp` (the fractions where the error
+    /// falls fastest, when `max_spp` ≥ 2); depth 1/2/4; the three samplers; reference at
     /// depth 4 and 4 × `max_spp`.
     pub fn standard(max_spp: u32, base: RenderSettings) -> TradeGrid {
-        let spp =
-            std::iter::successors(Some(1u32), |s| s.checked_mul(2)).take_while(|s| *s <= max_spp.max(1)).collect();
+        let max = max_spp.max(1);
+        let fractions = if max >= 2 { vec![Spp::from_milli(1250), Spp::from_milli(1500)] } else { vec![] };
+        let spp = std::iter::once(Spp::ONE)
+            .chain(fractions)
+            .chain(std::iter::successors(Some(2u32), |s| s.checked_mul(2)).take_while(|s| *s <= max).map(Spp::whole))
+            .collect();
         TradeGrid {
             spp,
             depths: vec![1, 2, 4],
@@ -125,7 +130,7 @@ pub fn measure(
     for &depth in &grid.depths {
         for &sampler in &grid.samplers {
             for &spp in &grid.spp {
-                let s = RenderSettings { spp: Spp::whole(spp), depth, sampler, ..grid.base };
+                let s = RenderSettings { spp, depth, sampler, ..grid.base };
                 let mut times = Vec::new();
                 let (mut err, mut body) = (f64::NAN, f64::NAN);
                 for _ in 0..grid.rounds.max(1) {

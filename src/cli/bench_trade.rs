@@ -17,7 +17,8 @@ pub struct TradeArgs {
     /// Render at this many columns (same field of view; default: the camera's).
     #[arg(long)]
     pub width: Option<u32>,
-    /// Largest spp of the grid (powers of two from 1); the reference uses 4× this at depth 4.
+    /// Largest spp of the grid (1, 1.25, 1.5, then powers of two from 2); the reference
+    /// uses 4× this at depth 4.
     #[arg(long, default_value_t = 1024)]
     pub max_spp: u32,
     /// Reference spp (default 4 × --max-spp).

@@ -68,12 +68,13 @@ impl Default for Spp {
 
 impl fmt::Display for Spp {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // Padded as a string, so that `{:>5}` lines up in tables.
         let frac = self.fraction_milli();
         if frac == 0 {
-            return write!(f, "{}", self.floor());
+            return f.pad(&self.floor().to_string());
         }
         let digits = format!("{frac:03}");
-        write!(f, "{}.{}", self.floor(), digits.trim_end_matches('0'))
+        f.pad(&format!("{}.{}", self.floor(), digits.trim_end_matches('0')))
     }
 }
 
@@ -208,6 +209,7 @@ mod tests {
         for s in ["1", "4", "1.25", "1.125", "1.5", "65535.999"] {
             assert_eq!(s.parse::<Spp>().unwrap().to_string(), s);
         }
+        assert_eq!(format!("{:>5}|{:<5}|", Spp::whole(8), "1.5".parse::<Spp>().unwrap()), "    8|1.5  |");
     }
 
     #[test]
