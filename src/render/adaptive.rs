@@ -213,6 +213,12 @@ pub fn sample_variance(sum: f32, sum_sq: f32, n: u32) -> f32 {
 mod tests {
     use super::*;
 
+    /// The counts `plan` gives pixels of weights `w` (pixel indices 0, 1, …), keyed by `seed`.
+    fn counts_of(plan: &Adaptive, w: &[f32], seed: u64) -> Vec<u32> {
+        let index: Vec<u64> = (0..w.len() as u64).collect();
+        plan.counts(&plan.shares(std::iter::once(w)), w, &index, seed, seed + 1)
+    }
+
     #[test]
     fn pilot_is_half_the_budget() {
         let spp = |s: &str| s.parse::<Spp>().unwrap();
@@ -233,10 +239,7 @@ mod tests {
     fn a_fraction_is_spent_evenly_without_adaptive_sampling() {
         let plan = Adaptive::new("1.3".parse().unwrap(), false).unwrap();
         let n = 50_000usize;
-        let zero = vec![0.0f32; n];
-        let index: Vec<u64> = (0..n as u64).collect();
-        let shares = plan.shares(std::iter::once(&zero[..]));
-        let counts = plan.counts(&shares, &zero, &index, 3, 4);
+        let counts = counts_of(&plan, &vec![0.0f32; n], 3);
         assert!(counts.iter().all(|&c| c == 1 || c == 2));
         let mean = counts.iter().map(|&c| f64::from(c)).sum::<f64>() / n as f64;
         assert!((mean - 1.3).abs() < 0.01, "mean {mean}");
@@ -248,9 +251,7 @@ mod tests {
         let plan = Adaptive::new("1.125".parse().unwrap(), true).unwrap();
         let n = 40_000usize;
         let w: Vec<f32> = (0..n).map(|i| if i % 10 == 0 { 1.0 } else { 0.0 }).collect();
-        let index: Vec<u64> = (0..n as u64).collect();
-        let shares = plan.shares(std::iter::once(&w[..]));
-        let counts = plan.counts(&shares, &w, &index, 5, 6);
+        let counts = counts_of(&plan, &w, 5);
         let sum: u64 = counts.iter().map(|&c| u64::from(c)).sum();
         assert!((sum as f64 / n as f64 - 1.125).abs() < 0.01, "{sum} samples for {n} pixels");
         assert!(counts.iter().all(|&c| c >= 1 && c <= plan.max_samples()));
@@ -295,9 +296,7 @@ mod tests {
         // Half the pixels flat, half with σ = 1: the noisy half gets ~41× the extra samples
         // of the flat half ((1 + f)/f with f = FLOOR · mean σ = 0.025).
         let sigma: Vec<f32> = (0..n).map(|i| if i % 2 == 0 { 0.0 } else { 1.0 }).collect();
-        let index: Vec<u64> = (0..n as u64).collect();
-        let shares = plan.shares(std::iter::once(&sigma[..]));
-        let counts = plan.counts(&shares, &sigma, &index, 1, 2);
+        let counts = counts_of(&plan, &sigma, 1);
         let sum: u64 = counts.iter().map(|&c| u64::from(c)).sum();
         let budget = 8.0 * n as f64;
         assert!((sum as f64 - budget).abs() < 0.01 * budget, "{sum} vs {budget}");
@@ -325,9 +324,7 @@ mod tests {
         let plan = Adaptive { pilot: 1, spp_milli: 2000, uniform: false };
         let mut w = vec![1.0f32; 1000];
         w[0] = 1e6;
-        let index: Vec<u64> = (0..1000).collect();
-        let shares = plan.shares(std::iter::once(&w[..]));
-        let counts = plan.counts(&shares, &w, &index, 0, 0);
+        let counts = counts_of(&plan, &w, 0);
         assert_eq!(counts[0], 1 + 16);
         let sum: u32 = counts.iter().sum();
         assert!((f64::from(sum) / 2000.0 - 1.0).abs() < 0.01, "{sum} samples for 2000");
