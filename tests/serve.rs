@@ -305,3 +305,29 @@ async fn a_trajectory_file_is_replayed_in_real_time_through_the_pose_path() {
     let report = server.finish().await;
     assert_eq!(report.poses_accepted, 5);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fractional_budget_reaches_the_frame_headers_and_the_metrics() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let dir = tempfile::tempdir().unwrap();
+    let gov = GovernorConfig { policy: Policy::FixedQuality, budget_ms: Some(10_000.0) };
+    let mut cfg = config(sphere_scene(dir.path(), 32, "1.5"), InputConfig::default(), TriggerConfig::default(), gov);
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
+    let (tx, rx) = mpsc::channel(16);
+    let server = start(cfg, Some(rx)).await;
+    let mut reader = Reader::connect(server.info.stream).await;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    for seq in 1..=3u32 {
+        let p = pose(seq, DVec3::new(0.0, 0.0, 10.0), DVec3::NEG_Z);
+        tx.send(InputEvent::Pose { pose: p, arrival: Instant::now() }).await.unwrap();
+        let f = reader.next().await;
+        assert_eq!(f.meta.spp.to_string(), "1.5", "frame {}", f.meta.frame_seq);
+    }
+    let mut s = tokio::net::TcpStream::connect(server.info.metrics.expect("metrics listener")).await.unwrap();
+    s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).await.unwrap();
+    assert!(text.lines().any(|l| l == "hilcam_frame_spp 1"), "{text}");
+    assert!(text.lines().any(|l| l == "hilcam_frame_spp_milli 1500"), "{text}");
+    server.finish().await;
+}

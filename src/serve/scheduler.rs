@@ -106,6 +106,7 @@ struct Metrics {
     triggers: Counter,
     render: Arc<Histogram>,
     spp: Gauge,
+    spp_milli: Gauge,
     depth: Gauge,
 }
 
@@ -129,6 +130,11 @@ impl Metrics {
             triggers: r.counter("hilcam_triggers_total", "External trigger messages received", &[]),
             render: r.histogram("hilcam_render_seconds", "Render + sensor + encode time per frame", &[]),
             spp: r.gauge(
+                "hilcam_frame_spp",
+                "Whole samples per pixel of the last frame (the budget's integer part)",
+                &[],
+            ),
+            spp_milli: r.gauge(
                 "hilcam_frame_spp_milli",
                 "Samples per pixel of the last frame, in thousandths (1250 = 1.25)",
                 &[],
@@ -328,7 +334,8 @@ pub async fn run_scheduler(
                         }
                         s.frames += 1;
                         m.frames.inc();
-                        m.spp.set(i64::from(d.quality.spp.milli()));
+                        m.spp.set(i64::from(d.quality.spp.floor()));
+                        m.spp_milli.set(i64::from(d.quality.spp.milli()));
                         m.depth.set(i64::from(d.quality.depth));
                         if d.late {
                             s.late += 1;

@@ -18,7 +18,7 @@ use tokio::sync::{mpsc, oneshot};
 pub const PATIENCE: Duration = Duration::from_secs(60);
 
 /// A sphere scene with a small float-output camera (no sensor): pixels are radiance.
-pub fn sphere_scene(dir: &Path, width: u32, spp: u32) -> PathBuf {
+pub fn sphere_scene(dir: &Path, width: u32, spp: impl std::fmt::Display) -> PathBuf {
     let mesh = std::fs::canonicalize("scenes/meshes/sphere.obj").unwrap();
     let text = format!(
         r#"
