@@ -158,10 +158,11 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         camera.width,
         camera.height,
         settings.spp,
-        if !settings.spp.is_whole() || (settings.adaptive && settings.spp > Spp::ONE) {
-            " (adaptive, average)"
-        } else {
-            ""
+        // The renderer's own plan says whether spp is an average, and whether adaptive.
+        match crate::render::adaptive::Adaptive::new(settings.spp, settings.adaptive) {
+            Some(plan) if !plan.uniform => " (adaptive, average)",
+            Some(_) => " (average)",
+            None => "",
         },
         settings.depth,
         settings.sampler,
