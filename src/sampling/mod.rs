@@ -20,7 +20,7 @@ const PCG_INC: u64 = 1442695040888963407;
 
 /// SplitMix64 finaliser: a strong 64-bit mixer for building keys.
 #[inline]
-pub fn mix64(mut z: u64) -> u64 {
+pub const fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d049bb133111eb);
     z ^ (z >> 31)

@@ -44,7 +44,8 @@ pub fn sobol_dim1_reference(mut i: u32) -> u32 {
 
 /// The generator matrix is linear over GF(2), so the result is the XOR of the four index
 /// bytes' contributions: four lookups instead of a loop over 32 bits (shuffled indices
-/// have random high bits).
+/// have random high bits). Bit reversal is linear too, so [`SOBOL1_REVERSED_TABLES`]
+/// holds the same entries reversed.
 const SOBOL1_TABLES: [[u32; 256]; 4] = {
     let mut t = [[0u32; 256]; 4];
     // Direction numbers v_k for index bit k.
@@ -76,14 +77,40 @@ const SOBOL1_TABLES: [[u32; 256]; 4] = {
     t
 };
 
-/// Second Sobol dimension (the first is the van der Corput radical inverse, `i.reverse_bits()`).
+/// [`SOBOL1_TABLES`] with every entry bit-reversed: `sobol_dim1(i).reverse_bits()` without
+/// the reversal, which x86 has no instruction for.
+const SOBOL1_REVERSED_TABLES: [[u32; 256]; 4] = {
+    let mut t = SOBOL1_TABLES;
+    let mut byte = 0;
+    while byte < 4 {
+        let mut b = 0;
+        while b < 256 {
+            t[byte][b] = t[byte][b].reverse_bits();
+            b += 1;
+        }
+        byte += 1;
+    }
+    t
+};
+
 #[inline]
-pub fn sobol_dim1(i: u32) -> u32 {
-    let t = &SOBOL1_TABLES;
+fn by_bytes(t: &[[u32; 256]; 4], i: u32) -> u32 {
     t[0][(i & 0xff) as usize]
         ^ t[1][((i >> 8) & 0xff) as usize]
         ^ t[2][((i >> 16) & 0xff) as usize]
         ^ t[3][(i >> 24) as usize]
+}
+
+/// Second Sobol dimension (the first is the van der Corput radical inverse, `i.reverse_bits()`).
+#[inline]
+pub fn sobol_dim1(i: u32) -> u32 {
+    by_bytes(&SOBOL1_TABLES, i)
+}
+
+/// `sobol_dim1(i).reverse_bits()`.
+#[inline]
+fn sobol_dim1_reversed(i: u32) -> u32 {
+    by_bytes(&SOBOL1_REVERSED_TABLES, i)
 }
 
 #[inline]
@@ -93,8 +120,22 @@ fn to_unit(x: u32) -> f32 {
 
 #[inline]
 fn hash32(a: u64, b: u64) -> u32 {
-    (mix64(a ^ mix64(b.wrapping_add(0x632b_e59b_d9b4_e019))) >> 32) as u32
+    (mix64(a ^ mix64(b.wrapping_add(PAIR_SALT))) >> 32) as u32
 }
+
+const PAIR_SALT: u64 = 0x632b_e59b_d9b4_e019;
+
+/// `mix64(pair + PAIR_SALT)` for every pair the sequence serves: `hash32(key, pair)` is
+/// then one mix instead of two.
+const PAIR_KEYS: [u64; MAX_PAIRS as usize] = {
+    let mut t = [0u64; MAX_PAIRS as usize];
+    let mut pair = 0;
+    while pair < t.len() {
+        t[pair] = mix64((pair as u64).wrapping_add(PAIR_SALT));
+        pair += 1;
+    }
+    t
+};
 
 /// The samples of one camera sample (pixel, index): 2-D points for successive dimension
 /// pairs. After `MAX_PAIRS` pairs it continues with independent random numbers, seeded
@@ -103,6 +144,8 @@ fn hash32(a: u64, b: u64) -> u32 {
 pub struct SobolStream {
     pixel_key: u64,
     index: u32,
+    /// `index.reverse_bits()`, the first step of every pair's index shuffle.
+    index_reversed: u32,
     pair: u32,
     rng: Option<Rng>,
 }
@@ -114,15 +157,30 @@ const MAX_PAIRS: u32 = 16;
 impl SobolStream {
     pub fn new(seed: u64, frame: u64, pixel: u64, index: u32) -> Self {
         let pixel_key = mix64(seed ^ mix64(frame.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel)));
-        SobolStream { pixel_key, index, pair: 0, rng: None }
+        SobolStream { pixel_key, index, index_reversed: index.reverse_bits(), pair: 0, rng: None }
     }
 
+    /// The pair's point is that of [`SobolStream::next_2d_reference`], with the reversals
+    /// that cancel left out (`owen_scramble(x, s)` is `laine_karras(x.reverse_bits(),
+    /// s).reverse_bits()`): three bit reversals instead of seven, and one mix per pair.
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         if self.pair >= MAX_PAIRS {
-            let (key, index) = (self.pixel_key, self.index);
-            let rng = self.rng.get_or_insert_with(|| Rng::from_state(mix64(key ^ mix64(u64::from(index) + 1))));
-            return rng.next_2d();
+            return self.past_the_last_pair();
+        }
+        let k = (mix64(self.pixel_key ^ PAIR_KEYS[self.pair as usize]) >> 32) as u32;
+        self.pair += 1;
+        let i = laine_karras(self.index_reversed, k).reverse_bits();
+        let x = laine_karras(i, k ^ 0xa511_e9b3).reverse_bits();
+        let y = laine_karras(sobol_dim1_reversed(i), k ^ 0x63d8_3595).reverse_bits();
+        Vec2::new(to_unit(x), to_unit(y))
+    }
+
+    /// The definition [`SobolStream::next_2d`] computes: the pair's shuffled index `i`, then
+    /// both Sobol coordinates of `i` Owen-scrambled, each with its own seed.
+    pub fn next_2d_reference(&mut self) -> Vec2 {
+        if self.pair >= MAX_PAIRS {
+            return self.past_the_last_pair();
         }
         let k = hash32(self.pixel_key, u64::from(self.pair));
         self.pair += 1;
@@ -130,6 +188,13 @@ impl SobolStream {
         let x = owen_scramble(i.reverse_bits(), k ^ 0xa511_e9b3);
         let y = owen_scramble(sobol_dim1(i), k ^ 0x63d8_3595);
         Vec2::new(to_unit(x), to_unit(y))
+    }
+
+    #[cold]
+    fn past_the_last_pair(&mut self) -> Vec2 {
+        let (key, index) = (self.pixel_key, self.index);
+        let rng = self.rng.get_or_insert_with(|| Rng::from_state(mix64(key ^ mix64(u64::from(index) + 1))));
+        rng.next_2d()
     }
 
     /// One number (uses a whole dimension pair; simple and keeps pairs aligned).
@@ -204,6 +269,32 @@ mod tests {
         }
         assert!((mean / f64::from(n) - 0.5).abs() < 0.005, "{}", mean / f64::from(n));
         assert!(firsts.len() as f64 > 0.99 * f64::from(n), "{} distinct of {n}", firsts.len());
+    }
+
+    #[test]
+    fn next_2d_is_the_reference_bit_for_bit() {
+        let mut r = Rng::from_state(11);
+        for n in 0..20_000u32 {
+            let (pixel, index) = (u64::from(r.next_u32()), if n < 4096 { n } else { r.next_u32() });
+            let (mut fast, mut reference) =
+                (SobolStream::new(5, 3, pixel, index), SobolStream::new(5, 3, pixel, index));
+            for pair in 0..MAX_PAIRS + 2 {
+                let (a, b) = (fast.next_2d(), reference.next_2d_reference());
+                assert_eq!(
+                    (a.x.to_bits(), a.y.to_bits()),
+                    (b.x.to_bits(), b.y.to_bits()),
+                    "pixel {pixel} index {index} pair {pair}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn reversed_table_is_the_reversed_sobol_dimension() {
+        let mut r = Rng::from_state(6);
+        for i in (0..4096u32).chain((0..10_000).map(|_| r.next_u32())).chain([u32::MAX]) {
+            assert_eq!(sobol_dim1_reversed(i), sobol_dim1(i).reverse_bits(), "index {i}");
+        }
     }
 
     #[test]
