@@ -117,48 +117,101 @@ impl TileJob<'_> {
         counts: &mut RayCounts,
         log: &mut L,
     ) -> &'s [f32] {
-        let ctx = self.ctx;
-        let scene = ctx.scene;
+        let scene = self.ctx.scene;
         let Scratch { paths, rays, ideal, primary, raster, active, hits, shadows, samples } = scratch;
         samples.clear();
         samples.resize(pass.len(), scene.background);
         paths.clear();
-        rays.clear();
-        ideal.clear();
-        for (i, &CameraSample { row, col, index }) in pass.iter().enumerate() {
-            let pixel = row as u64 * self.width as u64 + u64::from(col);
-            let mut rng = S::for_sample(self.seed, self.frame, pixel, index);
-            let j = rng.next_2d();
-            let (x, y) = (f64::from(col) + f64::from(j.x), f64::from(row) + f64::from(j.y));
-            // A ray that misses the bounding sphere sees the background (already set).
-            let traced = if self.raster.is_some() {
-                self.view.primary_ray_ideal(x, y).map(|(ray, at)| {
+        if let Some(r) = self.raster {
+            // The rasteriser wants every primary ray of the pass at once.
+            rays.clear();
+            ideal.clear();
+            for (i, &sample) in pass.iter().enumerate() {
+                let mut rng = self.sample_stream::<S>(sample);
+                let (x, y) = self.position(sample, &mut rng);
+                if let Some((ray, at)) = self.view.primary_ray_ideal(x, y) {
                     rays.push(ray);
                     ideal.push(at);
-                    ray
-                })
-            } else {
-                self.view.primary_ray(x, y)
-            };
-            if let Some(ray) = traced {
-                paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot: i as u32, alive: true });
+                    paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot: i as u32, alive: true });
+                }
+            }
+            r.closest_hits(&scene.accel, rays, ideal, raster, primary);
+            for tile in (0..paths.len()).step_by(TILE_PATHS) {
+                let end = (tile + TILE_PATHS).min(paths.len());
+                let waves = Waves { active, hits, shadows, primary: Some(&primary[tile..end]) };
+                self.trace_tile(&mut paths[tile..end], waves, counts, log);
+                for p in &paths[tile..end] {
+                    samples[p.slot as usize] = p.l;
+                }
+            }
+            return samples;
+        }
+        // Traced primary rays: each tile's paths are set up just before it runs, so they
+        // are still in the cache (the same tiles of `TILE_PATHS` paths as setting up the
+        // whole pass first, and so the same packets).
+        let mut next = 0;
+        while next < pass.len() {
+            paths.clear();
+            while paths.len() < TILE_PATHS && next < pass.len() {
+                let sample = pass[next];
+                let mut rng = self.sample_stream::<S>(sample);
+                let (x, y) = self.position(sample, &mut rng);
+                // A ray that misses the bounding sphere sees the background (already set).
+                if let Some(ray) = self.view.primary_ray(x, y) {
+                    paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot: next as u32, alive: true });
+                }
+                next += 1;
+            }
+            let waves = Waves { active, hits, shadows, primary: None };
+            self.trace_tile(paths, waves, counts, log);
+            for p in paths.iter() {
+                samples[p.slot as usize] = p.l;
             }
         }
-        if let Some(r) = self.raster {
-            r.closest_hits(&scene.accel, rays, ideal, raster, primary);
-        }
+        samples
+    }
 
-        for tile in (0..paths.len()).step_by(TILE_PATHS) {
-            let end = (tile + TILE_PATHS).min(paths.len());
-            active.clear();
-            active.extend(tile as u32..end as u32);
-            for bounce in 0..ctx.depth {
-                if active.is_empty() {
-                    break;
+    /// The random-number stream of one camera sample.
+    #[inline]
+    fn sample_stream<S: PerSample>(&self, CameraSample { row, col, index }: CameraSample) -> S {
+        let pixel = u64::from(row) * self.width as u64 + u64::from(col);
+        S::for_sample(self.seed, self.frame, pixel, index)
+    }
+
+    /// The sample's position in the image (its stream's first 2-D point within the pixel).
+    #[inline]
+    fn position<S: PerSample>(&self, CameraSample { row, col, .. }: CameraSample, rng: &mut S) -> (f64, f64) {
+        let j = rng.next_2d();
+        (f64::from(col) + f64::from(j.x), f64::from(row) + f64::from(j.y))
+    }
+
+    /// Advance one tile's paths one interaction at a time until every one has ended.
+    fn trace_tile<S: PerSample, L: RayLog>(
+        &self,
+        paths: &mut [Path<S>],
+        waves: Waves<'_>,
+        counts: &mut RayCounts,
+        log: &mut L,
+    ) {
+        let ctx = self.ctx;
+        let scene = ctx.scene;
+        let Waves { active, hits, shadows, primary } = waves;
+        active.clear();
+        active.extend(0..paths.len() as u32);
+        for bounce in 0..ctx.depth {
+            if active.is_empty() {
+                break;
+            }
+            // Wave 1: closest hits (the primary ones rasterised, when they are).
+            hits.clear();
+            match primary {
+                Some(primary) if bounce == 0 => {
+                    for &i in active.iter() {
+                        log.closest(&paths[i as usize].ray);
+                        hits.push(primary[i as usize]);
+                    }
                 }
-                // Wave 1: closest hits (the primary ones rasterised, when they are).
-                hits.clear();
-                if bounce == 0 && self.raster.is_none() {
+                None if bounce == 0 => {
                     // Neighbouring primary rays eight at a time (`Accel::intersect_packet`).
                     for chunk in active.chunks(PACKET) {
                         let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, tmax: 0.0 }; PACKET];
@@ -170,59 +223,63 @@ impl TileJob<'_> {
                         scene.accel.intersect_packet(&rays[..chunk.len()], &mut found);
                         hits.extend_from_slice(&found[..chunk.len()]);
                     }
-                } else {
+                }
+                _ => {
                     for &i in active.iter() {
                         let p = &paths[i as usize];
                         log.closest(&p.ray);
-                        hits.push(if bounce == 0 { primary[i as usize] } else { scene.accel.intersect(&p.ray) });
+                        hits.push(scene.accel.intersect(&p.ray));
                     }
                 }
-                if bounce == 0 {
-                    counts.primary += active.len() as u64;
-                } else {
-                    counts.bounce += active.len() as u64;
-                }
-                // Wave 2: shading, which queues shadow rays and draws the next directions.
-                shadows.clear();
-                for (&i, hit) in active.iter().zip(hits.iter()) {
-                    let p = &mut paths[i as usize];
-                    let Some(hit) = hit else {
-                        p.l += p.beta * scene.background;
-                        p.alive = false;
-                        continue;
-                    };
-                    let sc = ctx.scatter(&p.ray, hit, p.beta, bounce, &mut p.rng);
-                    if let Some((ray, contribution)) = sc.shadow {
-                        shadows.push((i, ray, contribution));
-                    }
-                    match sc.next {
-                        Some((ray, beta)) => (p.ray, p.beta) = (ray, beta),
-                        None => p.alive = false,
-                    }
-                }
-                // Wave 3: shadow rays toward the sun, eight at a time (`Accel::occluded_packet`:
-                // they share the sun's direction and start at neighbouring hits).
-                counts.shadow += shadows.len() as u64;
-                for chunk in shadows.chunks(PACKET) {
-                    let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, tmax: 0.0 }; PACKET];
-                    for ((_, ray, _), r) in chunk.iter().zip(rays.iter_mut()) {
-                        log.shadow(ray);
-                        *r = *ray;
-                    }
-                    let blocked = ctx.occluded_packet(&rays[..chunk.len()]);
-                    for (k, (i, _, contribution)) in chunk.iter().enumerate() {
-                        if blocked & (1 << k) == 0 {
-                            paths[*i as usize].l += contribution;
-                        }
-                    }
-                }
-                active.retain(|&i| paths[i as usize].alive);
             }
-            // Every path of the tile has ended (or used its last interaction).
-            for p in &paths[tile..end] {
-                samples[p.slot as usize] = p.l;
+            if bounce == 0 {
+                counts.primary += active.len() as u64;
+            } else {
+                counts.bounce += active.len() as u64;
             }
+            // Wave 2: shading, which queues shadow rays and draws the next directions.
+            shadows.clear();
+            for (&i, hit) in active.iter().zip(hits.iter()) {
+                let p = &mut paths[i as usize];
+                let Some(hit) = hit else {
+                    p.l += p.beta * scene.background;
+                    p.alive = false;
+                    continue;
+                };
+                let sc = ctx.scatter(&p.ray, hit, p.beta, bounce, &mut p.rng);
+                if let Some((ray, contribution)) = sc.shadow {
+                    shadows.push((i, ray, contribution));
+                }
+                match sc.next {
+                    Some((ray, beta)) => (p.ray, p.beta) = (ray, beta),
+                    None => p.alive = false,
+                }
+            }
+            // Wave 3: shadow rays toward the sun, eight at a time (`Accel::occluded_packet`:
+            // they share the sun's direction and start at neighbouring hits).
+            counts.shadow += shadows.len() as u64;
+            for chunk in shadows.chunks(PACKET) {
+                let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, tmax: 0.0 }; PACKET];
+                for ((_, ray, _), r) in chunk.iter().zip(rays.iter_mut()) {
+                    log.shadow(ray);
+                    *r = *ray;
+                }
+                let blocked = ctx.occluded_packet(&rays[..chunk.len()]);
+                for (k, (i, _, contribution)) in chunk.iter().enumerate() {
+                    if blocked & (1 << k) == 0 {
+                        paths[*i as usize].l += contribution;
+                    }
+                }
+            }
+            active.retain(|&i| paths[i as usize].alive);
         }
-        samples
     }
+}
+
+/// A tile's per-wave buffers (from [`Scratch`]) and its rasterised primary hits, if any.
+struct Waves<'a> {
+    active: &'a mut Vec<u32>,
+    hits: &'a mut Vec<Option<Hit>>,
+    shadows: &'a mut Vec<(u32, Ray, f32)>,
+    primary: Option<&'a [Option<Hit>]>,
 }
