@@ -140,6 +140,28 @@ fn lambert_white_furnace_every_weight_is_rho() {
 }
 
 #[test]
+fn cosine_weight_is_f_cos_over_the_cosine_pdf_for_every_model() {
+    // The integrator's shortcut (Lambert: exactly ρ) against the division it replaces.
+    let mut rng = Rng::from_state(4);
+    for (name, b) in all_models() {
+        for th in VIEW_ANGLES {
+            let wo = wo_at(th);
+            for _ in 0..2000 {
+                let wi = hilcam::sampling::cosine_hemisphere(rng.next_2d());
+                let pdf = hilcam::sampling::cosine_hemisphere_pdf(wi.z);
+                let want = if pdf > 0.0 { b.eval_cos(wo, wi) / pdf } else { 0.0 };
+                let got = b.cosine_weight(wo, wi);
+                assert!((got - want).abs() <= 1e-6 * want.abs().max(1.0), "{name} θo {th} wi {wi}: {got} vs {want}");
+            }
+            // Below the surface, nothing.
+            assert_eq!(b.cosine_weight(wo, Vec3::new(0.6, 0.0, -0.8)), 0.0, "{name}");
+        }
+    }
+    let lambert = Bsdf::Lambert(Lambert::new(0.522).unwrap());
+    assert_eq!(lambert.cosine_weight(wo_at(37.0), Vec3::new(0.0, 0.6, 0.8)), 0.522);
+}
+
+#[test]
 fn rho_d_is_an_albedo_not_a_brdf_value() {
     // Decision: the paper's ρd enters as ρd/π. With ρs = 0 the models reduce to Lambert ρd.
     let rd = 0.3717f32;

@@ -7,9 +7,7 @@
 //! the shading normal is flipped to face the incoming ray. Shading uses face normals.
 
 use crate::geometry::{Hit, Ray, SunShadow};
-use crate::sampling::{
-    Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, cosine_hemisphere_pdf, uniform_hemisphere,
-};
+use crate::sampling::{Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere};
 use crate::scene::Scene;
 use glam::Vec3;
 use serde::Deserialize;
@@ -272,8 +270,7 @@ impl<'a> PathContext<'a> {
             }
             SamplerKind::Cosine => {
                 let wi = cosine_hemisphere(u);
-                let pdf = cosine_hemisphere_pdf(wi.z);
-                (wi, if pdf > 0.0 { bsdf.eval_cos(wo_l, wi) / pdf } else { 0.0 })
+                (wi, bsdf.cosine_weight(wo_l, wi))
             }
             SamplerKind::Brdf => match bsdf.sample(wo_l, u, rng.next_1d()) {
                 Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
