@@ -1,8 +1,9 @@
 //! A band's camera samples traced pass by pass, each pass in tiles, each tile in waves.
 //!
-//! A pass is one camera sample (index `s`) in every pixel of the band. Its primary hits
-//! come from the rasteriser (`visibility`) when it applies, all at once; then its paths
-//! are cut into tiles of [`TILE_PATHS`] and a tile's paths advance one interaction at a
+//! A pass is one camera sample (index `s`) in every pixel of the band, cut into tiles of
+//! [`TILE_PATHS`] paths. Traced camera rays are set up tile by tile, just before the tile
+//! runs; the rasteriser (`visibility`), when it applies, needs the whole pass's rays at
+//! once and finds all its primary hits first. A tile's paths advance one interaction at a
 //! time: all closest-hit rays, then all shading, then all shadow rays (parallel, toward
 //! the one sun direction, from neighbouring points). Tracing one sample to the end before
 //! the next interleaves primary, shadow and bounce rays, each of which walks a different
@@ -46,7 +47,8 @@ struct Path<S> {
 
 /// Buffers reused from pass to pass (no allocation once warmed up).
 pub struct Scratch<S> {
-    /// Every path of the pass (one camera sample in each pixel that sees the bounds).
+    /// The paths in flight: one tile's when the camera rays are traced, the whole pass's
+    /// (one camera sample in each pixel that sees the bounds) when they are rasterised.
     paths: Vec<Path<S>>,
     /// Primary rays and their ideal image points, for the rasteriser.
     rays: Vec<Ray>,
