@@ -13,6 +13,12 @@ pub struct Lambert {
     pub rho: f32,
 }
 
+/// Where `f_r` is zero: `wo` or `wi` not strictly above the surface.
+#[inline]
+fn either_below(wo: Vec3, wi: Vec3) -> bool {
+    wo.z <= 0.0 || wi.z <= 0.0
+}
+
 impl Lambert {
     /// # Errors
     /// [`BsdfError::Invalid`] naming `rho` unless 0 ≤ ρ ≤ 1.
@@ -23,7 +29,14 @@ impl Lambert {
 
     /// `f_r = ρ/π` above the surface, 0 otherwise.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 { 0.0 } else { self.rho * FRAC_1_PI }
+        if either_below(wo, wi) { 0.0 } else { self.rho * FRAC_1_PI }
+    }
+
+    /// `f_r cosθi / pdf` for a `wi` from the cosine warp: ρ above the surface (the cosines
+    /// and π cancel, so no division and no rounding through them), 0 otherwise.
+    #[inline]
+    pub fn cosine_weight(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if either_below(wo, wi) { 0.0 } else { self.rho }
     }
 
     /// `ρ cosθi / π`.

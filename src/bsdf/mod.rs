@@ -88,19 +88,12 @@ impl Bsdf {
     }
 
     /// `f_r cosθi / pdf` for a `wi` drawn with the cosine warp (pdf `cosθi/π`): the path
-    /// throughput's factor under `--sampler cosine`. For Lambert it is ρ itself above the
-    /// surface (the cosines and π cancel, so no division and no rounding through them);
-    /// other models divide.
+    /// throughput's factor under `--sampler cosine`. Lambert's is ρ itself
+    /// ([`Lambert::cosine_weight`]); other models divide.
     #[inline]
     pub fn cosine_weight(&self, wo: Vec3, wi: Vec3) -> f32 {
         match self {
-            Bsdf::Lambert(b) => {
-                if wo.z <= 0.0 || wi.z <= 0.0 {
-                    0.0
-                } else {
-                    b.rho
-                }
-            }
+            Bsdf::Lambert(b) => b.cosine_weight(wo, wi),
             _ => {
                 let pdf = crate::sampling::cosine_hemisphere_pdf(wi.z);
                 if pdf > 0.0 { self.eval_cos(wo, wi) / pdf } else { 0.0 }

@@ -58,12 +58,18 @@ impl Distortion {
         self.k1 == 0.0 && self.k2 == 0.0 && self.k3 == 0.0 && self.p1 == 0.0 && self.p2 == 0.0
     }
 
+    /// The radial factor `1 + k1 r² + k2 r⁴ + k3 r⁶` at `r2` = r².
+    #[inline]
+    fn radial(&self, r2: f64) -> f64 {
+        1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+    }
+
     /// Ideal (pinhole) normalised point → where the real lens images it.
     #[inline]
     pub fn distort(&self, ideal: DVec2) -> DVec2 {
         let (x, y) = (ideal.x, ideal.y);
         let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let radial = self.radial(r2);
         DVec2::new(
             x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
             y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
@@ -74,7 +80,7 @@ impl Distortion {
     fn jacobian(&self, p: DVec2) -> (DVec2, DVec2) {
         let (x, y) = (p.x, p.y);
         let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let radial = self.radial(r2);
         // d(radial)/d(r²)
         let dr = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2);
         let dxdx = radial + 2.0 * x * x * dr + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
@@ -142,17 +148,15 @@ impl Distortion {
         }
         let rd = rd2.sqrt();
         let (k1, k2, k3) = (self.k1, self.k2, self.k3);
-        let radial = |r2: f64| 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-        let start = radial(rd2);
-        let mut r = if (0.5..=2.0).contains(&start) { rd / start } else { rd };
+        let mut r = rd / self.start_divisor(rd2);
         for _ in 0..MAX_ITER {
             let r2 = r * r;
-            let e = r * radial(r2) - rd;
+            let e = r * self.radial(r2) - rd;
             if e.abs() <= TOL * (1.0 + rd) {
                 return Some(distorted * (r / rd));
             }
             let slope = 1.0 + r2 * (3.0 * k1 + r2 * (5.0 * k2 + r2 * 7.0 * k3));
-            if slope.is_nan() || slope <= 0.0 || slope.is_infinite() {
+            if !slope.is_finite() || slope <= 0.0 {
                 return None;
             }
             r -= e / slope;
@@ -160,15 +164,19 @@ impl Distortion {
         None
     }
 
-    /// Where Newton starts: the distorted point divided by the radial factor there. For a
-    /// radial lens that is one fixed-point step, off by O(k1² r⁵) instead of O(k1 r³), and
-    /// saves one iteration of every ray's inversion; the distorted point itself when the
-    /// factor is not a plausible one (strong models far out).
+    /// Where Newton starts: the distorted point divided by [`Distortion::start_divisor`].
     #[inline]
     fn first_guess(&self, distorted: DVec2) -> DVec2 {
-        let r2 = distorted.length_squared();
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-        if (0.5..=2.0).contains(&radial) { distorted / radial } else { distorted }
+        distorted / self.start_divisor(distorted.length_squared())
+    }
+
+    /// The radial factor at the distorted radius² `rd2`, or 1 when it is not a plausible
+    /// one (strong models far out). Dividing by it is one fixed-point step: off by
+    /// O(k1² r⁵) instead of O(k1 r³), which saves one iteration of every ray's inversion.
+    #[inline]
+    fn start_divisor(&self, rd2: f64) -> f64 {
+        let radial = self.radial(rd2);
+        if (0.5..=2.0).contains(&radial) { radial } else { 1.0 }
     }
 
     /// Like [`Distortion::try_undistort`] but infallible for validated models: on

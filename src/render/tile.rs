@@ -45,6 +45,14 @@ struct Path<S> {
     alive: bool,
 }
 
+impl<S> Path<S> {
+    /// A path starting at camera sample `slot` of the pass with primary ray `ray`.
+    #[inline]
+    fn camera(rng: S, ray: Ray, slot: usize) -> Self {
+        Path { rng, ray, beta: 1.0, l: 0.0, slot: slot as u32, alive: true }
+    }
+}
+
 /// Buffers reused from pass to pass (no allocation once warmed up).
 pub struct Scratch<S> {
     /// The paths in flight: one tile's when the camera rays are traced, the whole pass's
@@ -134,7 +142,7 @@ impl TileJob<'_> {
                 if let Some((ray, at)) = self.view.primary_ray_ideal(x, y) {
                     rays.push(ray);
                     ideal.push(at);
-                    paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot: i as u32, alive: true });
+                    paths.push(Path::camera(rng, ray, i));
                 }
             }
             r.closest_hits(&scene.accel, rays, ideal, raster, primary);
@@ -160,7 +168,7 @@ impl TileJob<'_> {
                 let (x, y) = self.position(sample, &mut rng);
                 // A ray that misses the bounding sphere sees the background (already set).
                 if let Some(ray) = self.view.primary_ray(x, y) {
-                    paths.push(Path { rng, ray, beta: 1.0, l: 0.0, slot: next as u32, alive: true });
+                    paths.push(Path::camera(rng, ray, next));
                 }
                 next += 1;
             }

@@ -118,15 +118,10 @@ fn to_unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
-#[inline]
-fn hash32(a: u64, b: u64) -> u32 {
-    (mix64(a ^ mix64(b.wrapping_add(PAIR_SALT))) >> 32) as u32
-}
-
 const PAIR_SALT: u64 = 0x632b_e59b_d9b4_e019;
 
-/// `mix64(pair + PAIR_SALT)` for every pair the sequence serves: `hash32(key, pair)` is
-/// then one mix instead of two.
+/// `mix64(pair + PAIR_SALT)` for every pair the sequence serves: a pair's scramble key
+/// `mix64(pixel_key ^ mix64(pair + PAIR_SALT))` is then one mix instead of two.
 const PAIR_KEYS: [u64; MAX_PAIRS as usize] = {
     let mut t = [0u64; MAX_PAIRS as usize];
     let mut pair = 0;
@@ -160,9 +155,11 @@ impl SobolStream {
         SobolStream { pixel_key, index, index_reversed: index.reverse_bits(), pair: 0, rng: None }
     }
 
-    /// The pair's point is that of [`SobolStream::next_2d_reference`], with the reversals
-    /// that cancel left out (`owen_scramble(x, s)` is `laine_karras(x.reverse_bits(),
-    /// s).reverse_bits()`): three bit reversals instead of seven, and one mix per pair.
+    /// The pair's point: the pair's shuffled index `i`, then both Sobol coordinates of `i`
+    /// Owen-scrambled, each with its own seed (the definition: `next_2d_reference` in the
+    /// tests). The reversals that cancel are left out (`owen_scramble(x, s)` is
+    /// `laine_karras(x.reverse_bits(), s).reverse_bits()`): three bit reversals instead of
+    /// seven, and one mix per pair.
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         if self.pair >= MAX_PAIRS {
@@ -173,20 +170,6 @@ impl SobolStream {
         let i = laine_karras(self.index_reversed, k).reverse_bits();
         let x = laine_karras(i, k ^ 0xa511_e9b3).reverse_bits();
         let y = laine_karras(sobol_dim1_reversed(i), k ^ 0x63d8_3595).reverse_bits();
-        Vec2::new(to_unit(x), to_unit(y))
-    }
-
-    /// The definition [`SobolStream::next_2d`] computes: the pair's shuffled index `i`, then
-    /// both Sobol coordinates of `i` Owen-scrambled, each with its own seed.
-    pub fn next_2d_reference(&mut self) -> Vec2 {
-        if self.pair >= MAX_PAIRS {
-            return self.past_the_last_pair();
-        }
-        let k = hash32(self.pixel_key, u64::from(self.pair));
-        self.pair += 1;
-        let i = owen_scramble(self.index, k);
-        let x = owen_scramble(i.reverse_bits(), k ^ 0xa511_e9b3);
-        let y = owen_scramble(sobol_dim1(i), k ^ 0x63d8_3595);
         Vec2::new(to_unit(x), to_unit(y))
     }
 
@@ -271,6 +254,19 @@ mod tests {
         assert!(firsts.len() as f64 > 0.99 * f64::from(n), "{} distinct of {n}", firsts.len());
     }
 
+    /// The definition [`SobolStream::next_2d`] computes, written as it reads.
+    fn next_2d_reference(s: &mut SobolStream) -> Vec2 {
+        if s.pair >= MAX_PAIRS {
+            return s.past_the_last_pair();
+        }
+        let k = (mix64(s.pixel_key ^ mix64(u64::from(s.pair).wrapping_add(PAIR_SALT))) >> 32) as u32;
+        s.pair += 1;
+        let i = owen_scramble(s.index, k);
+        let x = owen_scramble(i.reverse_bits(), k ^ 0xa511_e9b3);
+        let y = owen_scramble(sobol_dim1(i), k ^ 0x63d8_3595);
+        Vec2::new(to_unit(x), to_unit(y))
+    }
+
     #[test]
     fn next_2d_is_the_reference_bit_for_bit() {
         let mut r = Rng::from_state(11);
@@ -279,7 +275,7 @@ mod tests {
             let (mut fast, mut reference) =
                 (SobolStream::new(5, 3, pixel, index), SobolStream::new(5, 3, pixel, index));
             for pair in 0..MAX_PAIRS + 2 {
-                let (a, b) = (fast.next_2d(), reference.next_2d_reference());
+                let (a, b) = (fast.next_2d(), next_2d_reference(&mut reference));
                 assert_eq!(
                     (a.x.to_bits(), a.y.to_bits()),
                     (b.x.to_bits(), b.y.to_bits()),
