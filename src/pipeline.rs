@@ -74,6 +74,14 @@ impl FramePipeline {
         &self.sensor
     }
 
+    /// Back to the state of a new pipeline: fresh buffers and auto-exposure. After a frame
+    /// that stopped half-way (a caught panic) the buffers' bookkeeping of what the last
+    /// frame wrote, and the exposure state, cannot be trusted.
+    pub fn reset(&mut self) {
+        self.buffers = FrameBuffers::default();
+        self.auto_exposure = self.sensor.auto_exposure();
+    }
+
     /// Seed of the sensor noise for frame `index`: derived from the render seed but in its
     /// own domain, so it never repeats the renderer's random streams.
     pub fn sensor_seed(settings: &RenderSettings, index: u64) -> u64 {

@@ -206,7 +206,8 @@ pub struct FrameFailedLine {
     pub error: String,
 }
 
-/// Written when the server stops cleanly.
+/// Written when the server stops: on a signal, at the end of its inputs, or after a fatal
+/// renderer failure (then `fatal` says why).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EndLine {
@@ -223,6 +224,12 @@ pub struct EndLine {
     /// Received poses replaced by a newer one before rendering.
     pub poses_superseded: u64,
     pub frames: u64,
+    /// Frames that failed (each has a `frame_failed` line).
+    #[serde(default)]
+    pub frames_failed: u64,
+    /// Why the server stopped on its own, when it did (the renderer kept failing).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fatal: Option<String>,
     /// Session lines the writer could not keep up with (not in this file).
     pub records_dropped: u64,
 }

@@ -8,11 +8,14 @@
 //! ```
 //!
 //! Columns may come in any order; `vx,vy,vz` and `wx,wy,wz` are optional, as
-//! complete triples. Time must strictly increase. Samples are returned exactly
-//! as written (no interpolation, no renormalisation; validation happens where
-//! the poses are consumed).
+//! complete triples. Time must strictly increase. [`Trajectory::load`] returns
+//! the samples exactly as written (what `hilcam send` puts on the wire, so a
+//! receiver's pose gate can be exercised); [`Trajectory::load_gated`] passes
+//! every row through the pose gate ([`crate::pose::validate`]), as offline
+//! replay does, and names the line of the first pose it refuses.
 
 use crate::pose::Pose;
+use crate::pose::validate::{PoseLimits, PoseValidator};
 use glam::{DQuat, DVec3};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -100,6 +103,39 @@ impl Trajectory {
     /// # Errors
     /// [`TrajectoryError::Parse`] with line and column.
     pub fn parse(text: &str, path: &Path) -> Result<Vec<TrajectorySample>, TrajectoryError> {
+        Ok(Self::parse_rows(text, path)?.into_iter().map(|(_, s)| s).collect())
+    }
+
+    /// Reads a trajectory and passes every row through the pose gate, as a live link's
+    /// poses are: the same reasons (non-finite, quaternion or sun norm, range, rates),
+    /// with the attitude and sun renormalised as the gate returns them.
+    ///
+    /// # Errors
+    /// Parse errors as [`Trajectory::load`]; a refused pose as
+    /// [`TrajectoryError::Parse`] naming its line and the reason.
+    pub fn load_gated(path: impl AsRef<Path>, limits: &PoseLimits) -> Result<Vec<TrajectorySample>, TrajectoryError> {
+        let path = path.as_ref();
+        let text =
+            std::fs::read_to_string(path).map_err(|source| TrajectoryError::Io { path: path.to_path_buf(), source })?;
+        let mut gate = PoseValidator::new(*limits);
+        Self::parse_rows(&text, path)?
+            .into_iter()
+            .enumerate()
+            .map(|(k, (line, s))| {
+                let pose = s.to_pose(k as u32);
+                let ok = gate.check(&pose).map_err(|r| TrajectoryError::Parse {
+                    path: path.to_path_buf(),
+                    line,
+                    column: 0,
+                    msg: format!("pose refused: {r} ({})", crate::pose::validate::describe(&pose, r, limits)),
+                })?;
+                Ok(TrajectorySample { attitude: ok.attitude, sun_dir: ok.sun_dir, ..s })
+            })
+            .collect()
+    }
+
+    /// The samples with their 1-based line numbers.
+    fn parse_rows(text: &str, path: &Path) -> Result<Vec<(usize, TrajectorySample)>, TrajectoryError> {
         let err = |line: usize, column: usize, msg: String| TrajectoryError::Parse {
             path: path.to_path_buf(),
             line,
@@ -141,7 +177,7 @@ impl Trajectory {
                 ));
             }
         }
-        let mut out: Vec<TrajectorySample> = Vec::new();
+        let mut out: Vec<(usize, TrajectorySample)> = Vec::new();
         for (line, text) in rows {
             let fields: Vec<&str> = text.split(',').map(str::trim).collect();
             if fields.len() != names.len() {
@@ -159,7 +195,7 @@ impl Trajectory {
                     .filter(|x| x.is_finite())
                     .ok_or_else(|| err(line, col[k] + 1, format!("`{}`: `{f}` is not a finite number", all[k])))?;
             }
-            if let Some(prev) = out.last().filter(|p| v[0] <= p.time_s) {
+            if let Some((_, prev)) = out.last().filter(|(_, p)| v[0] <= p.time_s) {
                 return Err(err(
                     line,
                     col[0] + 1,
@@ -170,14 +206,17 @@ impl Trajectory {
                 return Err(err(line, col[0] + 1, "time_s is negative".into()));
             }
             let tri = |k: usize| DVec3::new(v[k], v[k + 1], v[k + 2]);
-            out.push(TrajectorySample {
-                time_s: v[0],
-                position: tri(1),
-                attitude: DQuat::from_xyzw(v[5], v[6], v[7], v[4]),
-                sun_dir: tri(8),
-                velocity: has(11).then(|| tri(11)),
-                angular_rate: has(14).then(|| tri(14)),
-            });
+            out.push((
+                line,
+                TrajectorySample {
+                    time_s: v[0],
+                    position: tri(1),
+                    attitude: DQuat::from_xyzw(v[5], v[6], v[7], v[4]),
+                    sun_dir: tri(8),
+                    velocity: has(11).then(|| tri(11)),
+                    angular_rate: has(14).then(|| tri(14)),
+                },
+            ));
         }
         if out.is_empty() {
             return Err(err(hline, 0, "no samples after the header".into()));

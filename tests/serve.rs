@@ -331,3 +331,168 @@ async fn a_fractional_budget_reaches_the_frame_headers_and_the_metrics() {
     assert!(text.lines().any(|l| l == "hilcam_frame_spp_milli 1500"), "{text}");
     server.finish().await;
 }
+
+/// GET /metrics as text.
+async fn metrics_text(addr: std::net::SocketAddr) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).await.unwrap();
+    text
+}
+
+fn metric(text: &str, series: &str) -> Option<u64> {
+    text.lines().find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn trajectory_rows_the_pose_gate_refuses_are_counted_by_reason_and_later_rows_still_render() {
+    // The bench operator's reproducer: one row at pz = 1e200 used to kill the render thread.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let rows = [
+        "0.0,0,0,10,1,0,0,0,0,0,-1",
+        "0.1,0,0,1e200,1,0,0,0,0,0,-1", // too far
+        "0.2,0,0,10,2,0,0,0,0,0,-1",    // norm-2 quaternion: refused, not renormalised
+        "0.3,0,0,10,0,0,0,0,0,0,-1",    // zero quaternion
+        "0.4,0,0,10,1,0,0,0,0,0,0",     // zero sun
+        "0.5,0,0,11,1,0,0,0,0,0,-1",
+        "600,0,0,11,1,0,0,0,0,0,-1", // keeps the input open while the test reads /metrics
+    ];
+    std::fs::write(&csv, format!("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n{}\n", rows.join("\n"))).unwrap();
+    let input = InputConfig { kind: InputKind::Trajectory, file: Some(csv), speed: Some(5.0), ..Default::default() };
+    let mut cfg = config(sphere_scene(dir.path(), 32, 1), input, TriggerConfig::default(), GovernorConfig::default());
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
+    let server = start(cfg, None).await;
+    let metrics = server.info.metrics.unwrap();
+    let mut reader = Reader::connect(server.info.stream).await;
+    let mut seqs = BTreeSet::new();
+    while !seqs.contains(&5) {
+        let f = reader.next().await;
+        assert!(radiance(&f).iter().all(|v| v.is_finite() && *v >= 0.0));
+        seqs.insert(f.meta.pose_seq);
+    }
+    assert!(seqs.iter().all(|s| [0, 5].contains(s)), "only the good rows render: {seqs:?}");
+    tokio::time::sleep(Duration::from_millis(300)).await; // the counter mirror's period
+    let text = metrics_text(metrics).await;
+    for (reason, n) in [("too_far", 1), ("quaternion_norm", 2), ("sun_norm", 1), ("non_finite", 0)] {
+        assert_eq!(metric(&text, &format!("hilcam_input_rejected_total{{reason=\"{reason}\"}}")), Some(n), "{text}");
+    }
+    assert_eq!(metric(&text, "hilcam_input_accepted_total"), Some(2));
+    let report = server.finish().await;
+    assert_eq!((report.poses_accepted, report.poses_rejected), (2, 4));
+    assert_eq!(report.scheduler.failed, 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_counter_is_exported_from_the_start_at_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg =
+        config(sphere_scene(dir.path(), 16, 1), InputConfig::default(), TriggerConfig::default(), Default::default());
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
+    let (_tx, rx) = mpsc::channel(1);
+    let server = start(cfg, Some(rx)).await;
+    let text = metrics_text(server.info.metrics.unwrap()).await;
+    for series in [
+        "hilcam_input_accepted_total",
+        "hilcam_input_rejected_total{reason=\"non_finite\"}",
+        "hilcam_input_rejected_total{reason=\"time_backwards\"}",
+        "hilcam_input_crc_failures_total",
+        "hilcam_input_channel_full_total",
+        "hilcam_frames_rendered_total",
+        "hilcam_frames_failed_total{reason=\"panic\"}",
+        "hilcam_frames_failed_total{reason=\"sensor\"}",
+        "hilcam_frames_late_total",
+    ] {
+        assert_eq!(metric(&text, series), Some(0), "{series} missing or non-zero before any input:\n{text}");
+    }
+    server.finish().await;
+}
+
+/// A server whose render thread panics on the frames `fails` picks.
+async fn start_with_fault(
+    dir: &std::path::Path,
+    fails: impl Fn(u64) -> bool + Send + Sync + 'static,
+    session: Option<std::path::PathBuf>,
+) -> (mpsc::Sender<InputEvent>, Running, tokio::sync::mpsc::UnboundedReceiver<u64>) {
+    use hilcam::serve::{Embed, run};
+    let mut cfg =
+        config(sphere_scene(dir, 32, 1), InputConfig::default(), TriggerConfig::default(), Default::default());
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
+    if session.is_some() {
+        cfg.record = Some(RecordSection { dir: None, session, format: ImageFormat::Png });
+    }
+    let (tx, rx) = mpsc::channel(16);
+    let (faulted_tx, faulted) = tokio::sync::mpsc::unbounded_channel();
+    let fault: hilcam::serve::scheduler::FaultInjector = std::sync::Arc::new(move |index| {
+        if fails(index) {
+            let _ = faulted_tx.send(index);
+            panic!("injected render fault at frame {index}");
+        }
+    });
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
+    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let embed = Embed { inputs: Some(rx), ready: Some(ready_tx), render_fault: Some(fault), ..Embed::default() };
+    let task = tokio::spawn(run(cfg, embed, stop_rx));
+    let info = ready_rx.await.unwrap();
+    (tx, Running { info, stop, task }, faulted)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_render_panic_is_counted_and_the_next_pose_renders_the_same_bytes_as_a_fresh_pipeline() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tx, server, mut faulted) = start_with_fault(dir.path(), |i| i == 1, None).await;
+    let mut reader = Reader::connect(server.info.stream).await;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let send = |seq: u32, z: f64| {
+        let tx = tx.clone();
+        async move {
+            let p = pose(seq, DVec3::new(0.3, 0.0, z), DVec3::new(1.0, 0.0, -1.0));
+            tx.send(InputEvent::Pose { pose: p, arrival: Instant::now() }).await.unwrap();
+            p
+        }
+    };
+    send(1, 10.0).await;
+    assert_eq!(reader.next().await.meta.frame_seq, 0);
+    send(2, 11.0).await;
+    assert_eq!(tokio::time::timeout(PATIENCE, faulted.recv()).await.unwrap(), Some(1));
+    let p3 = send(3, 12.0).await;
+    let f = reader.next().await;
+    assert_eq!((f.meta.frame_seq, f.meta.pose_seq), (2, 3), "the frame after the fault renders the next pose");
+    // The pipeline was reset after the panic: the frame is what a fresh pipeline renders.
+    let scene = std::sync::Arc::new(hilcam::scene::load(&dir.path().join("scene.toml")).unwrap());
+    let mut fresh = hilcam::pipeline::FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
+    let want = fresh.frame(&p3, &scene.render, 2).unwrap();
+    match want.pixels {
+        hilcam::film::Pixels::Float32(w) => assert!(w == radiance(&f), "recovered frame differs from a fresh render"),
+        other => panic!("expected float pixels, got {:?}", other.format()),
+    }
+    let text = metrics_text(server.info.metrics.unwrap()).await;
+    assert_eq!(metric(&text, "hilcam_frames_failed_total{reason=\"panic\"}"), Some(1), "{text}");
+    let report = server.finish().await;
+    assert_eq!((report.scheduler.frames, report.scheduler.failed), (2, 1));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_renderer_that_keeps_failing_stops_the_server_non_zero_within_a_second_with_its_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("run.session.jsonl");
+    let (tx, server, mut faulted) = start_with_fault(dir.path(), |_| true, Some(session.clone())).await;
+    for seq in 1..=3u32 {
+        let p = pose(seq, DVec3::new(0.0, 0.0, 10.0), DVec3::NEG_Z);
+        tx.send(InputEvent::Pose { pose: p, arrival: Instant::now() }).await.unwrap();
+        tokio::time::timeout(PATIENCE, faulted.recv()).await.unwrap().unwrap();
+    }
+    let t = Instant::now();
+    let res =
+        tokio::time::timeout(Duration::from_secs(1), server.task).await.expect("server exits within 1 s").unwrap();
+    let err = res.expect_err("a broken renderer is an error").to_string();
+    assert!(err.contains("3 frames in a row failed") && err.contains("injected render fault"), "{err}");
+    assert!(t.elapsed() < Duration::from_secs(1));
+    let s = Session::load(&session).unwrap();
+    let end = s.end.expect("the session ends with its end line");
+    assert_eq!((end.frames, end.frames_failed), (0, 3));
+    assert!(end.fatal.unwrap().contains("injected render fault"));
+    drop(server.stop);
+}

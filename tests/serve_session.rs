@@ -91,7 +91,7 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
     // Serve FRAMES frames from poses sent every 5 ms; capture the stream.
     let (tx, rx) = mpsc::channel(64);
     let (ready_tx, ready_rx) = oneshot::channel();
-    let embed = Embed { inputs: Some(rx), ready: Some(ready_tx), max_frames: Some(FRAMES as u64) };
+    let embed = Embed { inputs: Some(rx), ready: Some(ready_tx), max_frames: Some(FRAMES as u64), ..Embed::default() };
     let server = tokio::spawn(run(cfg.clone(), embed, std::future::pending::<()>()));
     let info = tokio::time::timeout(PATIENCE, ready_rx).await.unwrap().unwrap();
     let mut reader = Reader::connect(info.stream).await;

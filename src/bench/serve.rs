@@ -48,7 +48,7 @@ pub async fn measure(scene: &Path, width: u32, spp: Spp, frames: u64, label: &st
     let (tx, rx) = mpsc::channel(4);
     let (ready_tx, ready_rx) = oneshot::channel();
     let (stop_tx, stop_rx) = oneshot::channel::<()>();
-    let server = tokio::spawn(run(cfg, Embed { inputs: Some(rx), ready: Some(ready_tx), max_frames: None }, stop_rx));
+    let server = tokio::spawn(run(cfg, Embed { inputs: Some(rx), ready: Some(ready_tx), ..Embed::default() }, stop_rx));
     let info = ready_rx.await?;
     let opts = RecvOptions { out_dir: None, count: Some(frames), format: ImageFormat::Png, progress: None };
     let client = tokio::spawn(receive(info.stream, opts));

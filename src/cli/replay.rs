@@ -5,6 +5,7 @@ use crate::cli::render::scaled_camera;
 use crate::frame::FrameFlags;
 use crate::integrator::SamplerKind;
 use crate::pipeline::FramePipeline;
+use crate::pose::validate::{PoseLimits, check_pose, describe};
 use crate::replay::{
     FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs, trajectory_jobs,
 };
@@ -97,7 +98,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
         bail!("--trajectory and --scene are required")
     };
-    let samples = Trajectory::load(traj)?;
+    let samples = Trajectory::load_gated(traj, &PoseLimits::default())?;
     let mut scene = crate::scene::load(scene_path)?;
     if let Some(t) = a.integration_s {
         pin_integration_time(&mut scene, t)?;
@@ -182,6 +183,20 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
         scene: identity(&scene_path, true)?,
     };
     let jobs = frame_jobs(&session, !a.no_verify);
+    // The recorded poses passed the gate when they arrived; a file edited since must pass
+    // it again (rendered as recorded, so the streamed CRCs still check).
+    let limits = PoseLimits::default();
+    for j in &jobs {
+        if let Err(r) = check_pose(&j.pose, &limits) {
+            bail!(
+                "{}: frame {} (pose seq {}): pose refused: {r} ({})",
+                path.display(),
+                j.index,
+                j.pose.seq,
+                describe(&j.pose, r, &limits)
+            );
+        }
+    }
     let flagged = |bit| jobs.iter().filter(|j| j.flags.contains(bit)).count();
     println!(
         "{}: {} frames ({} degraded, {} extrapolated, {} late) of {} poses → {} ({}x{}, best spp {} depth {} {:?}, \

@@ -125,6 +125,39 @@ pub fn check_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, Rejection> {
     Ok(Pose { attitude: q / qn, sun_dir: p.sun_dir / sn, ..*p })
 }
 
+/// The offending value behind `r`, for an error message: "range 2e8 m, above the 1e7 m limit".
+pub fn describe(p: &Pose, r: Rejection, lim: &PoseLimits) -> String {
+    match r {
+        Rejection::NonFinite => {
+            let fields = [
+                ("position", p.position.is_finite()),
+                ("attitude", p.attitude.is_finite()),
+                ("sun", p.sun_dir.is_finite()),
+                ("velocity", p.velocity.is_none_or(|v| v.is_finite())),
+                ("angular rate", p.angular_rate.is_none_or(|v| v.is_finite())),
+            ];
+            let bad: Vec<&str> = fields.iter().filter(|(_, ok)| !ok).map(|(n, _)| *n).collect();
+            format!("NaN or infinity in {}", bad.join(", "))
+        }
+        Rejection::QuaternionNorm => {
+            format!("attitude norm {:e}, must be within {:e} of 1", p.attitude.length(), lim.norm_tolerance)
+        }
+        Rejection::SunNorm => {
+            format!("sun norm {:e}, must be within {:e} of 1", p.sun_dir.length(), lim.norm_tolerance)
+        }
+        Rejection::TooClose => format!("range {:e} m, below the {:e} m limit", p.position.length(), lim.min_range_m),
+        Rejection::TooFar => format!("range {:e} m, above the {:e} m limit", p.position.length(), lim.max_range_m),
+        Rejection::RateLimit => format!(
+            "speed {:e} m/s (limit {:e}), angular rate {:e} rad/s (limit {:e})",
+            p.velocity.map_or(0.0, |v| v.length()),
+            lim.max_speed_mps,
+            p.angular_rate.map_or(0.0, |w| w.length()),
+            lim.max_angular_rate_rps
+        ),
+        Rejection::TimeBackwards => format!("t_ns {} is earlier than the last accepted pose", p.t_ns),
+    }
+}
+
 /// Stateful validator for one pose stream: [`check_pose`] plus monotonic time.
 #[derive(Clone, Debug)]
 pub struct PoseValidator {

@@ -16,13 +16,15 @@ pub mod session;
 use crate::cli::render::scaled_camera;
 use crate::metrics::{Registry, serve_http, spawn_summary_logger};
 use crate::pipeline::FramePipeline;
+use crate::pose::Message;
 use crate::pose::can::CanIds;
+use crate::pose::validate::PoseLimits;
 use crate::session::{EndLine, SessionHeader};
 use crate::sink::{Recorder, RecorderConfig, Sink, StreamConfig, StreamServer, WriteHook};
 use crate::transport::serial::SerialConfig;
 use crate::transport::slcan::SlcanConfig;
 use crate::transport::socketcan::SocketCanConfig;
-use crate::transport::{InputCounters, InputEvent};
+use crate::transport::{EventSink, InputCounters, InputEvent};
 use anyhow::Context;
 use config::{InputKind, ServeConfig};
 use scheduler::{SchedulerConfig, SchedulerSummary, run_scheduler};
@@ -63,6 +65,8 @@ pub struct Embed {
     pub ready: Option<oneshot::Sender<ServeInfo>>,
     /// Stop after this many frames.
     pub max_frames: Option<u64>,
+    /// Render-fault injection for tests ([`scheduler::SchedulerConfig::fault`]).
+    pub render_fault: Option<scheduler::FaultInjector>,
 }
 
 async fn stopped(mut rx: watch::Receiver<bool>) {
@@ -73,13 +77,16 @@ async fn stopped(mut rx: watch::Receiver<bool>) {
     }
 }
 
-/// Copy the transports' atomic counters into the registry (as deltas, so they stay counters).
+/// Copy the transports' atomic counters into the registry (as deltas, so they stay
+/// counters). The first call registers every counter, zeros included, so `/metrics`
+/// lists them all from the start (the Prometheus convention).
 fn mirror_input_counters(registry: &Registry, counters: &InputCounters, seen: &Mutex<HashMap<String, u64>>) {
     let mut seen = seen.lock().expect("counter mirror lock");
     counters.for_each(|name, labels, v| {
         let key = format!("{name}{{{labels}}}");
+        let first = !seen.contains_key(&key);
         let last = seen.entry(key).or_insert(0);
-        if v > *last {
+        if v > *last || first {
             let label_pairs: Vec<(&str, String)> = labels
                 .split(',')
                 .filter_map(|kv| kv.split_once('=').map(|(k, v)| (k, v.trim_matches('"').to_string())))
@@ -91,29 +98,26 @@ fn mirror_input_counters(registry: &Registry, counters: &InputCounters, seen: &M
     });
 }
 
-/// Feed a trajectory's poses at their recorded timing (× `speed`) into the input channel,
-/// as a live link would (counted as accepted; a full channel is counted, as for devices).
+/// Feed a trajectory's poses at their recorded timing (× `speed`) into the input channel
+/// through the same pose gate, counters and warnings as a live link: a row the gate
+/// refuses is counted under its reason and logged, and the rows after it still render.
 async fn replay_trajectory(
     samples: Vec<crate::trajectory::TrajectorySample>,
     speed: f64,
-    tx: mpsc::Sender<InputEvent>,
-    counters: Arc<InputCounters>,
+    mut gate: EventSink,
     stop: impl std::future::Future,
 ) {
     tokio::pin!(stop);
     let t0 = tokio::time::Instant::now();
     let first = samples.first().map_or(0.0, |s| s.time_s);
     for (k, s) in samples.iter().enumerate() {
-        let due = t0 + Duration::from_secs_f64(((s.time_s - first) / speed).max(0.0));
+        // Capped (at ~30 years) so that absurd times and speeds wait rather than overflow.
+        let due = t0 + Duration::from_secs_f64(((s.time_s - first) / speed).clamp(0.0, 1e9));
         tokio::select! {
             _ = tokio::time::sleep_until(due) => {}
             _ = &mut stop => return,
         }
-        let ev = InputEvent::Pose { pose: s.to_pose(k as u32), arrival: std::time::Instant::now() };
-        InputCounters::inc(&counters.accepted);
-        if tx.try_send(ev).is_err() {
-            InputCounters::inc(&counters.channel_full);
-        }
+        gate.message(Message::Pose(s.to_pose(k as u32)), std::time::Instant::now());
     }
 }
 
@@ -168,7 +172,8 @@ pub async fn run(
                     let path = i.file.clone().unwrap_or_default();
                     let samples = crate::trajectory::Trajectory::load(&path)?;
                     let speed = i.speed.unwrap_or(1.0);
-                    tasks.push(tokio::spawn(replay_trajectory(samples, speed, tx, c, stop)));
+                    let gate = EventSink::new(tx, c, PoseLimits::default(), format!("trajectory {}", path.display()));
+                    tasks.push(tokio::spawn(replay_trajectory(samples, speed, gate, stop)));
                 }
                 InputKind::None => drop(tx),
             }
@@ -223,6 +228,7 @@ pub async fn run(
         tasks.push(tokio::spawn(serve_http(listener, registry.clone(), stopped(stop_rx.clone()))));
     }
     let seen = Arc::new(Mutex::new(HashMap::new()));
+    mirror_input_counters(&registry, &counters, &seen);
     {
         let (registry, counters, seen, mut stop) = (registry.clone(), counters.clone(), seen.clone(), stop_rx.clone());
         tasks.push(tokio::spawn(async move {
@@ -261,6 +267,7 @@ pub async fn run(
         settings,
         max_frames: embed.max_frames,
         session: session_writer.as_ref().map(SessionWriter::tap),
+        fault: embed.render_fault.take(),
     };
     let summary = run_scheduler(sched_cfg, pipeline, inputs, sinks.clone(), registry.clone(), shutdown).await;
 
@@ -291,6 +298,10 @@ pub async fn run(
         }
         None => None,
     };
+    if let Some(cause) = &summary.fatal {
+        tracing::error!(frames = summary.frames, failed = summary.failed, "stopping: {cause}");
+        anyhow::bail!("the renderer failed: {cause} (frames delivered {}, failed {})", summary.frames, summary.failed);
+    }
     let snap = latency.snapshot();
     let q = |p| snap.quantile(p).map(|ns| ns as f64 / 1e6).unwrap_or(0.0);
     Ok(ServeReport {
@@ -345,6 +356,8 @@ fn session_end(counters: &InputCounters, s: &SchedulerSummary) -> EndLine {
         poses_received: s.poses,
         poses_superseded: s.superseded,
         frames: s.frames,
+        frames_failed: s.failed,
+        fatal: s.fatal.clone(),
         ..EndLine::default()
     }
 }

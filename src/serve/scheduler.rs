@@ -37,7 +37,7 @@ pub enum TriggerMode {
     External,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct SchedulerConfig {
     pub trigger: TriggerMode,
     /// Frames per second in `Rate` mode.
@@ -53,12 +53,47 @@ pub struct SchedulerConfig {
     pub max_frames: Option<u64>,
     /// Record every received pose and rendered frame (session file).
     pub session: Option<SessionTap>,
+    /// Called on the render thread with each frame's index just before it renders: a
+    /// panic here is a render fault (tests inject one to show what the server does).
+    pub fault: Option<FaultInjector>,
+}
+
+/// See [`SchedulerConfig::fault`].
+pub type FaultInjector = Arc<dyn Fn(u64) + Send + Sync>;
+
+/// After this many failed frames in a row the renderer is taken to be broken: the
+/// scheduler stops and `serve` exits non-zero with the cause, rather than stay up as a
+/// camera that never delivers a frame.
+pub const MAX_CONSECUTIVE_FAILURES: u32 = 3;
+
+/// Why a frame was not delivered (the `reason` label of `hilcam_frames_failed_total`).
+#[derive(Clone, Debug)]
+pub struct FrameFailure {
+    /// `sensor`, `encode` or `panic`.
+    pub reason: &'static str,
+    pub message: String,
+}
+
+impl FrameFailure {
+    /// Every reason, for exporting zero-valued counters.
+    pub const REASONS: [&'static str; 3] = ["sensor", "encode", "panic"];
+}
+
+impl std::fmt::Display for FrameFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.reason, self.message)
+    }
 }
 
 /// What a run did (also in the metrics registry).
 #[derive(Clone, Debug, Default)]
 pub struct SchedulerSummary {
     pub frames: u64,
+    /// Frames that failed (sensor, encode or a render panic), counted and logged.
+    pub failed: u64,
+    /// Set when the scheduler stopped because the renderer is broken (see
+    /// [`MAX_CONSECUTIVE_FAILURES`]) or its thread died; `serve` then exits non-zero.
+    pub fatal: Option<String>,
     pub late: u64,
     pub degraded: u64,
     pub superseded: u64,
@@ -89,7 +124,7 @@ struct Job {
 
 struct Done {
     job: Job,
-    frame: Result<Arc<EncodedFrame>, String>,
+    frame: Result<Arc<EncodedFrame>, FrameFailure>,
     render_time: Duration,
     quality: Quality,
     late: bool,
@@ -102,7 +137,7 @@ struct Metrics {
     degraded: Counter,
     superseded: Counter,
     skipped: Counter,
-    failed: Counter,
+    failed: Vec<(&'static str, Counter)>,
     triggers: Counter,
     render: Arc<Histogram>,
     spp: Gauge,
@@ -126,7 +161,19 @@ impl Metrics {
                 "Frame slots not rendered",
                 &[("reason", "renderer_busy")],
             ),
-            failed: r.counter("hilcam_frames_failed_total", "Frames whose sensor stage failed", &[]),
+            failed: FrameFailure::REASONS
+                .iter()
+                .map(|&reason| {
+                    (
+                        reason,
+                        r.counter(
+                            "hilcam_frames_failed_total",
+                            "Frames not delivered, by cause",
+                            &[("reason", reason)],
+                        ),
+                    )
+                })
+                .collect(),
             triggers: r.counter("hilcam_triggers_total", "External trigger messages received", &[]),
             render: r.histogram("hilcam_render_seconds", "Render + sensor + encode time per frame", &[]),
             spp: r.gauge(
@@ -180,61 +227,137 @@ fn record(tap: Option<&SessionTap>, d: &Done) {
             index: j.index,
             mono_ns: tap.mono_ns(j.started),
             source_seq: j.pose.seq,
-            error: e.clone(),
+            error: e.to_string(),
         })),
     }
 }
 
 /// The render thread: owns the pipeline (and its auto-exposure state).
+///
+/// A panic while rendering one frame (a bug, or an input no check caught) is caught
+/// here: the frame is reported failed with reason `panic`, the pipeline's buffers and
+/// auto-exposure state are reset (a frame that stopped half-way may have left them
+/// inconsistent), and the next job renders normally.
 fn spawn_renderer(
     mut pipeline: FramePipeline,
     budget: Duration,
+    fault: Option<FaultInjector>,
     jobs: std::sync::mpsc::Receiver<Job>,
     done: mpsc::Sender<Done>,
-) -> std::thread::JoinHandle<()> {
-    std::thread::Builder::new()
-        .name("hilcam-render".into())
-        .spawn(move || {
-            while let Ok(job) = jobs.recv() {
-                let t0 = Instant::now();
-                let quality = Quality { spp: job.settings.spp, depth: job.settings.depth };
-                let result = pipeline.frame(&job.pose, &job.settings, job.index);
-                let (frame, integration_s) = match result {
-                    Ok(f) => {
-                        let late = job.reference.elapsed() > budget;
-                        let flags = if late { job.flags.with(FrameFlags::LATE) } else { job.flags };
-                        let meta = FrameMeta {
-                            frame_seq: job.index,
-                            pose_seq: job.pose.seq,
-                            pose_t_ns: job.pose.t_ns,
-                            pose_arrival_unix_ns: job.arrival_unix_ns,
-                            emit_unix_ns: 0,
-                            width: f.width,
-                            height: f.height,
-                            format: f.pixels.format(),
-                            bit_depth: 0,
-                            spp: job.settings.spp,
-                            depth: job.settings.depth.min(u32::from(u16::MAX)) as u16,
-                            integration_s: f.integration_s.unwrap_or(0.0) as f32,
-                            flags,
-                        };
-                        let integration = f.integration_s;
-                        let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
-                            fr.meta.emit_unix_ns = unix_ns_now();
-                            Arc::new(fr.encode())
-                        });
-                        (encoded.map_err(|e| e.to_string()), integration)
-                    }
-                    Err(e) => (Err(e.to_string()), None),
-                };
-                let late = frame.as_ref().map(|f| f.meta.flags.contains(FrameFlags::LATE)).unwrap_or(false);
-                let d = Done { job, frame, render_time: t0.elapsed(), quality, late, integration_s };
-                if done.blocking_send(d).is_err() {
-                    break;
+) -> std::io::Result<std::thread::JoinHandle<()>> {
+    std::thread::Builder::new().name("hilcam-render".into()).spawn(move || {
+        while let Ok(job) = jobs.recv() {
+            let t0 = Instant::now();
+            let quality = Quality { spp: job.settings.spp, depth: job.settings.depth };
+            let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                if let Some(f) = &fault {
+                    f(job.index);
                 }
+                render_job(&mut pipeline, &job, budget)
+            }));
+            let (frame, integration_s) = attempt.unwrap_or_else(|payload| {
+                pipeline.reset();
+                let message = panic_message(payload.as_ref());
+                (Err(FrameFailure { reason: "panic", message }), None)
+            });
+            let late = frame.as_ref().map(|f| f.meta.flags.contains(FrameFlags::LATE)).unwrap_or(false);
+            let d = Done { job, frame, render_time: t0.elapsed(), quality, late, integration_s };
+            if done.blocking_send(d).is_err() {
+                break;
             }
-        })
-        .expect("spawn render thread")
+        }
+    })
+}
+
+/// Render, convert and encode one job.
+fn render_job(
+    pipeline: &mut FramePipeline,
+    job: &Job,
+    budget: Duration,
+) -> (Result<Arc<EncodedFrame>, FrameFailure>, Option<f64>) {
+    let f = match pipeline.frame(&job.pose, &job.settings, job.index) {
+        Ok(f) => f,
+        Err(e) => return (Err(FrameFailure { reason: "sensor", message: e.to_string() }), None),
+    };
+    let late = job.reference.elapsed() > budget;
+    let flags = if late { job.flags.with(FrameFlags::LATE) } else { job.flags };
+    let meta = FrameMeta {
+        frame_seq: job.index,
+        pose_seq: job.pose.seq,
+        pose_t_ns: job.pose.t_ns,
+        pose_arrival_unix_ns: job.arrival_unix_ns,
+        emit_unix_ns: 0,
+        width: f.width,
+        height: f.height,
+        format: f.pixels.format(),
+        bit_depth: 0,
+        spp: job.settings.spp,
+        depth: job.settings.depth.min(u32::from(u16::MAX)) as u16,
+        integration_s: f.integration_s.unwrap_or(0.0) as f32,
+        flags,
+    };
+    let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
+        fr.meta.emit_unix_ns = unix_ns_now();
+        Arc::new(fr.encode())
+    });
+    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), f.integration_s)
+}
+
+/// The text of a panic payload (`panic!` with a literal or a formatted message).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "panic with a non-text payload".into())
+}
+
+/// Publish a finished frame to every sink and count it (late, degraded, its quality),
+/// or count and log its failure; `failures_in_row` tracks consecutive failures.
+fn deliver(
+    d: &Done,
+    sinks: &[Sink],
+    m: &Metrics,
+    s: &mut SchedulerSummary,
+    failures_in_row: &mut u32,
+    tap: Option<&SessionTap>,
+) {
+    m.render.record_duration(d.render_time);
+    record(tap, d);
+    match &d.frame {
+        Ok(frame) => {
+            *failures_in_row = 0;
+            for sink in sinks {
+                sink.publish(frame);
+            }
+            s.frames += 1;
+            m.frames.inc();
+            m.spp.set(i64::from(d.quality.spp.floor()));
+            m.spp_milli.set(i64::from(d.quality.spp.milli()));
+            m.depth.set(i64::from(d.quality.depth));
+            if d.late {
+                s.late += 1;
+                m.late.inc();
+            }
+            if frame.meta.flags.contains(FrameFlags::DEGRADED) {
+                s.degraded += 1;
+                m.degraded.inc();
+            }
+        }
+        Err(e) => {
+            *failures_in_row += 1;
+            s.failed += 1;
+            if let Some((_, c)) = m.failed.iter().find(|(r, _)| *r == e.reason) {
+                c.inc();
+            }
+            tracing::error!(
+                frame = d.job.index,
+                pose_seq = d.job.pose.seq,
+                in_a_row = *failures_in_row,
+                "frame failed, not delivered: {e}"
+            );
+        }
+    }
 }
 
 /// Run until `shutdown` resolves, the inputs close (in `Pose`/`External` mode), or
@@ -248,9 +371,16 @@ pub async fn run_scheduler(
     shutdown: impl std::future::Future,
 ) -> SchedulerSummary {
     let m = Metrics::new(&registry);
+    let mut s = SchedulerSummary::default();
     let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
     let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
-    let renderer = spawn_renderer(pipeline, cfg.budget, job_rx, done_tx);
+    let renderer = match spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx) {
+        Ok(r) => r,
+        Err(e) => {
+            s.fatal = Some(format!("cannot start the render thread: {e}"));
+            return s;
+        }
+    };
     let best = Quality { spp: cfg.settings.spp, depth: cfg.settings.depth };
     let mut governor = Governor::new(cfg.policy, cfg.budget, best);
     let mut ticker = match (cfg.trigger, cfg.rate_hz) {
@@ -263,7 +393,6 @@ pub async fn run_scheduler(
     };
     tokio::pin!(shutdown);
 
-    let mut s = SchedulerSummary::default();
     let mut latest: Option<(Pose, Instant)> = None;
     let mut pending = 0u64; // poses accepted since the last render started
     let mut want: Option<Instant> = None; // a frame is due; its reference instant
@@ -272,6 +401,7 @@ pub async fn run_scheduler(
     let mut index = 0u64;
     let mut last_integration = 0.0f64;
     let mut render_times: Vec<f64> = Vec::new();
+    let mut failures_in_row = 0u32;
 
     loop {
         let done_all = cfg.max_frames.is_some_and(|n| index >= n);
@@ -317,39 +447,22 @@ pub async fn run_scheduler(
                     want = Some(tick.into_std());
                 }
             }
-            Some(d) = done_rx.recv(), if busy => {
+            d = done_rx.recv(), if busy => {
                 busy = false;
-                let t = d.render_time;
-                render_times.push(t.as_secs_f64());
-                m.render.record_duration(t);
-                governor.observe(d.quality, t);
+                let Some(d) = d else {
+                    s.fatal = Some("the render thread stopped unexpectedly".into());
+                    break;
+                };
+                render_times.push(d.render_time.as_secs_f64());
+                governor.observe(d.quality, d.render_time);
                 if let Some(i) = d.integration_s {
                     last_integration = i;
                 }
-                record(cfg.session.as_ref(), &d);
-                match d.frame {
-                    Ok(frame) => {
-                        for sink in sinks.iter() {
-                            sink.publish(&frame);
-                        }
-                        s.frames += 1;
-                        m.frames.inc();
-                        m.spp.set(i64::from(d.quality.spp.floor()));
-                        m.spp_milli.set(i64::from(d.quality.spp.milli()));
-                        m.depth.set(i64::from(d.quality.depth));
-                        if d.late {
-                            s.late += 1;
-                            m.late.inc();
-                        }
-                        if frame.meta.flags.contains(FrameFlags::DEGRADED) {
-                            s.degraded += 1;
-                            m.degraded.inc();
-                        }
-                    }
-                    Err(e) => {
-                        m.failed.inc();
-                        tracing::error!("frame failed: {e}");
-                    }
+                deliver(&d, &sinks, &m, &mut s, &mut failures_in_row, cfg.session.as_ref());
+                if failures_in_row >= MAX_CONSECUTIVE_FAILURES {
+                    let e = d.frame.as_ref().err().map(ToString::to_string).unwrap_or_default();
+                    s.fatal = Some(format!("{failures_in_row} frames in a row failed; the last: {e}"));
+                    break;
                 }
             }
         }
@@ -403,18 +516,16 @@ pub async fn run_scheduler(
         }
     }
 
-    // Finish the frame in flight, then stop the render thread.
-    if busy && let Some(d) = done_rx.recv().await {
-        record(cfg.session.as_ref(), &d);
-        if let Ok(frame) = d.frame {
-            for sink in sinks.iter() {
-                sink.publish(&frame);
+    // Finish the frame in flight (unless the renderer is what failed), then stop the
+    // render thread.
+    if busy && s.fatal.is_none() {
+        match done_rx.recv().await {
+            Some(d) => {
+                render_times.push(d.render_time.as_secs_f64());
+                deliver(&d, &sinks, &m, &mut s, &mut failures_in_row, cfg.session.as_ref());
             }
-            s.frames += 1;
-            m.frames.inc();
-            s.late += u64::from(d.late);
+            None => s.fatal = Some("the render thread stopped unexpectedly".into()),
         }
-        render_times.push(d.render_time.as_secs_f64());
     }
     // Poses still waiting at shutdown were replaced by the newest one, which was not
     // rendered either; count them so that accepted = rendered-from + superseded + 1.

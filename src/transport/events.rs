@@ -100,7 +100,8 @@ impl EventSink {
                 }
                 Err(r) => {
                     c.reject(r);
-                    self.warn(format_args!("pose seq {} t_ns {} rejected: {r}", p.seq, p.t_ns));
+                    let why = crate::pose::validate::describe(&p, r, self.validator.limits());
+                    self.warn(format_args!("pose seq {} t_ns {} rejected: {r} ({why})", p.seq, p.t_ns));
                     return;
                 }
             },

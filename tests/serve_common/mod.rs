@@ -64,7 +64,7 @@ pub struct Running {
 pub async fn start(cfg: ServeConfig, inputs: Option<mpsc::Receiver<InputEvent>>) -> Running {
     let (ready_tx, ready_rx) = oneshot::channel();
     let (stop, stop_rx) = oneshot::channel::<()>();
-    let task = tokio::spawn(run(cfg, Embed { inputs, ready: Some(ready_tx), max_frames: None }, stop_rx));
+    let task = tokio::spawn(run(cfg, Embed { inputs, ready: Some(ready_tx), ..Embed::default() }, stop_rx));
     let info = tokio::time::timeout(PATIENCE, ready_rx).await.expect("server start").expect("server ready");
     Running { info, stop, task }
 }
