@@ -330,3 +330,54 @@ fn jobs_carry_their_own_settings_flags_and_expected_crc() {
     assert!(!other.path().join("frame_0000000002.pfm").exists());
     assert_eq!(records(&other.path().join("frames.jsonl")).len(), 2);
 }
+
+/// `hilcam replay …` as a user runs it: (exit success, stderr).
+fn hilcam(args: &[&std::ffi::OsStr]) -> (bool, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam")).args(args).output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn replay_refuses_a_trajectory_row_the_pose_gate_refuses_naming_file_line_and_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let out = dir.path().join("out");
+    for (row, reason) in [
+        ("1,0,0,5,2,0,0,0,0,0,-1", "quaternion norm outside tolerance (attitude norm 2e0, must be within 1e-3 of 1)"),
+        ("1,0,0,5,0,0,0,0,0,0,-1", "quaternion norm outside tolerance (attitude norm 0e0"),
+        ("1,0,0,5,1,0,0,0,0,0,0", "sun direction not a unit vector (sun norm 0e0"),
+        ("1,0,0,1e200,1,0,0,0,0,0,-1", "range above maximum (range 1e200 m, above the 1e7 m limit)"),
+        ("1,0,0,1e-310,1,0,0,0,0,0,-1", "range below minimum"),
+    ] {
+        std::fs::write(&csv, format!("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n0,0,0,5,1,0,0,0,0,0,-1\n{row}\n")).unwrap();
+        let (ok, err) = hilcam(&[
+            "replay".as_ref(),
+            "--trajectory".as_ref(),
+            csv.as_os_str(),
+            "--scene".as_ref(),
+            "scenes/plate.toml".as_ref(),
+            "--width".as_ref(),
+            "8".as_ref(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ]);
+        assert!(!ok && !err.contains("panicked"), "{row}: {err}");
+        let want = format!("{}:3:0: pose refused: {reason}", csv.display());
+        assert!(err.contains(&want), "{row}: want `{want}` in:\n{err}");
+        assert!(!out.exists(), "nothing is rendered before the trajectory passes the gate");
+    }
+}
+
+#[test]
+fn session_replay_refuses_an_edited_pose_the_gate_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.jsonl");
+    let header = r#"{"kind":"header","version":1,"hilcam":"0.1.0","start_unix_ns":0,"scene":"scenes/plate.toml","width_setting":8,"width":8,"height":8,"settings":{"spp":1,"depth":1,"sampler":"cosine","sequence":"sobol","roulette":true,"seed":0},"trigger":"pose","extrapolate":false,"policy":"fixed-quality","input":"embedded"}"#;
+    let frame = r#"{"kind":"frame","index":0,"mono_ns":0,"source_seq":4,"source_mono_ns":0,"poses_received":1,"extrapolated_s":0.0,"pose":{"seq":4,"t_ns":0,"position":[0.0,0.0,5.0],"attitude":[0.0,0.0,0.0,0.0],"sun_dir":[0.0,0.0,-1.0]},"settings":{"spp":1,"depth":1,"sampler":"cosine","sequence":"sobol","roulette":true,"seed":0},"flags":0,"late":false,"extrapolated":false,"degraded":false,"integration_s":null,"payload_crc32":0}"#;
+    std::fs::write(&session, format!("{header}\n{frame}\n")).unwrap();
+    let out = dir.path().join("out");
+    let (ok, err) =
+        hilcam(&["replay".as_ref(), "--session".as_ref(), session.as_os_str(), "--out".as_ref(), out.as_os_str()]);
+    assert!(!ok && !err.contains("panicked"), "{err}");
+    assert!(err.contains("frame 0 (pose seq 4): pose refused: quaternion norm outside tolerance"), "{err}");
+}

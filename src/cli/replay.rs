@@ -137,6 +137,21 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
 fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyhow::Result<()> {
     let session = Session::load(path)?;
     let h = &session.header;
+    let jobs = frame_jobs(&session, !a.no_verify);
+    // The recorded poses passed the gate when they arrived; a file edited since must pass
+    // it again (rendered as recorded, so the streamed CRCs still check).
+    let limits = PoseLimits::default();
+    for j in &jobs {
+        if let Err(r) = check_pose(&j.pose, &limits) {
+            bail!(
+                "{}: frame {} (pose seq {}): pose refused: {r} ({})",
+                path.display(),
+                j.index,
+                j.pose.seq,
+                describe(&j.pose, r, &limits)
+            );
+        }
+    }
     match &session.end {
         None => tracing::warn!("{}: no end line (the server did not stop cleanly)", path.display()),
         Some(e) if e.records_dropped > 0 => tracing::warn!(
@@ -182,21 +197,6 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
         source: identity(path, false)?,
         scene: identity(&scene_path, true)?,
     };
-    let jobs = frame_jobs(&session, !a.no_verify);
-    // The recorded poses passed the gate when they arrived; a file edited since must pass
-    // it again (rendered as recorded, so the streamed CRCs still check).
-    let limits = PoseLimits::default();
-    for j in &jobs {
-        if let Err(r) = check_pose(&j.pose, &limits) {
-            bail!(
-                "{}: frame {} (pose seq {}): pose refused: {r} ({})",
-                path.display(),
-                j.index,
-                j.pose.seq,
-                describe(&j.pose, r, &limits)
-            );
-        }
-    }
     let flagged = |bit| jobs.iter().filter(|j| j.flags.contains(bit)).count();
     println!(
         "{}: {} frames ({} degraded, {} extrapolated, {} late) of {} poses → {} ({}x{}, best spp {} depth {} {:?}, \

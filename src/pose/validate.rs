@@ -88,6 +88,21 @@ impl Rejection {
     }
 }
 
+/// Euclidean norm without overflow or underflow: 1e200 and 1e-200 components give their
+/// true norm, not infinity or zero (finite inputs; the checks test finiteness first).
+/// Ordinary values take the plain formula, so renormalised poses keep their bits.
+fn norm<const N: usize>(v: [f64; N]) -> f64 {
+    let plain = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if plain.is_finite() && plain > 1e-150 {
+        return plain;
+    }
+    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 || !m.is_finite() {
+        return m;
+    }
+    m * v.iter().map(|x| (x / m) * (x / m)).sum::<f64>().sqrt()
+}
+
 /// Stateless checks of one pose; returns it with unit quaternion and sun.
 ///
 /// # Errors
@@ -102,23 +117,23 @@ pub fn check_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, Rejection> {
     if !finite {
         return Err(Rejection::NonFinite);
     }
-    let qn = q.length();
+    let qn = norm(glam::DVec4::from(q).to_array());
     if (qn - 1.0).abs() > lim.norm_tolerance {
         return Err(Rejection::QuaternionNorm);
     }
-    let sn = p.sun_dir.length();
+    let sn = norm(p.sun_dir.to_array());
     if (sn - 1.0).abs() > lim.norm_tolerance {
         return Err(Rejection::SunNorm);
     }
-    let range = p.position.length();
+    let range = norm(p.position.to_array());
     if range < lim.min_range_m {
         return Err(Rejection::TooClose);
     }
     if range > lim.max_range_m {
         return Err(Rejection::TooFar);
     }
-    if p.velocity.is_some_and(|v| v.length() > lim.max_speed_mps)
-        || p.angular_rate.is_some_and(|w| w.length() > lim.max_angular_rate_rps)
+    if p.velocity.is_some_and(|v| norm(v.to_array()) > lim.max_speed_mps)
+        || p.angular_rate.is_some_and(|w| norm(w.to_array()) > lim.max_angular_rate_rps)
     {
         return Err(Rejection::RateLimit);
     }
@@ -140,18 +155,26 @@ pub fn describe(p: &Pose, r: Rejection, lim: &PoseLimits) -> String {
             format!("NaN or infinity in {}", bad.join(", "))
         }
         Rejection::QuaternionNorm => {
-            format!("attitude norm {:e}, must be within {:e} of 1", p.attitude.length(), lim.norm_tolerance)
+            format!(
+                "attitude norm {:e}, must be within {:e} of 1",
+                norm(glam::DVec4::from(p.attitude).to_array()),
+                lim.norm_tolerance
+            )
         }
         Rejection::SunNorm => {
-            format!("sun norm {:e}, must be within {:e} of 1", p.sun_dir.length(), lim.norm_tolerance)
+            format!("sun norm {:e}, must be within {:e} of 1", norm(p.sun_dir.to_array()), lim.norm_tolerance)
         }
-        Rejection::TooClose => format!("range {:e} m, below the {:e} m limit", p.position.length(), lim.min_range_m),
-        Rejection::TooFar => format!("range {:e} m, above the {:e} m limit", p.position.length(), lim.max_range_m),
+        Rejection::TooClose => {
+            format!("range {:e} m, below the {:e} m limit", norm(p.position.to_array()), lim.min_range_m)
+        }
+        Rejection::TooFar => {
+            format!("range {:e} m, above the {:e} m limit", norm(p.position.to_array()), lim.max_range_m)
+        }
         Rejection::RateLimit => format!(
             "speed {:e} m/s (limit {:e}), angular rate {:e} rad/s (limit {:e})",
-            p.velocity.map_or(0.0, |v| v.length()),
+            p.velocity.map_or(0.0, |v| norm(v.to_array())),
             lim.max_speed_mps,
-            p.angular_rate.map_or(0.0, |w| w.length()),
+            p.angular_rate.map_or(0.0, |w| norm(w.to_array())),
             lim.max_angular_rate_rps
         ),
         Rejection::TimeBackwards => format!("t_ns {} is earlier than the last accepted pose", p.t_ns),
