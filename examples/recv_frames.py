@@ -19,7 +19,7 @@ MAGIC = b"HLCF"
 HEADER_LEN = 88
 # magic, version, header_len, frame_seq, pose_seq, flags, pose_t_ns,
 # pose_arrival_unix_ns, emit_unix_ns, width, height, pixel_format, bit_depth, spp,
-# depth, spp_milli (thousandths beyond spp), integration_s, payload_crc32, payload_len, reserved, header_crc32
+# depth, spp_frac_milli (thousandths beyond spp), integration_s, payload_crc32, payload_len, reserved, header_crc32
 HEADER = struct.Struct("<4sHHQIIQQQIIBBHHHfIQII")
 assert HEADER.size == HEADER_LEN
 FORMATS = {1: ("Mono8", 1), 2: ("Mono16", 2), 3: ("Float32", 4)}
@@ -42,7 +42,7 @@ def read_exact(sock, n):
 def parse_header(raw):
     f = HEADER.unpack(raw)
     (magic, version, header_len, frame_seq, pose_seq, flags, pose_t_ns, arrival_ns,
-     emit_ns, width, height, fmt, bits, spp_whole, depth, spp_milli, integration_s, payload_crc,
+     emit_ns, width, height, fmt, bits, spp_whole, depth, spp_frac_milli, integration_s, payload_crc,
      payload_len, _r2, header_crc) = f
     if magic != MAGIC:
         raise ValueError("bad magic %r" % magic)
@@ -53,7 +53,7 @@ def parse_header(raw):
     if fmt not in FORMATS:
         raise ValueError("unknown pixel format %d" % fmt)
     name, bpp = FORMATS[fmt]
-    spp = spp_whole + spp_milli / 1000 if spp_milli else spp_whole  # 1.25 spp: whole 1, milli 250
+    spp = spp_whole + spp_frac_milli / 1000 if spp_frac_milli else spp_whole  # 1.25 spp: whole 1, milli 250
     if payload_len != width * height * bpp:
         raise ValueError("payload_len %d does not match %dx%d %s" % (payload_len, width, height, name))
     return dict(frame_seq=frame_seq, pose_seq=pose_seq, flags=flags, pose_t_ns=pose_t_ns,

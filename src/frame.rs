@@ -238,7 +238,7 @@ pub enum Malformed {
     PayloadLen { found: u64, expected: u64, width: u32, height: u32, format: PixelFormat },
     #[error("frame {seq}: payload CRC {found:#010x}, computed {computed:#010x}")]
     PayloadCrc { seq: u64, found: u32, computed: u32 },
-    #[error("spp {whole} and spp_milli {milli}: a budget is at least 1 and its thousandths at most 999")]
+    #[error("spp {whole} and spp_frac_milli {milli}: a budget is at least 1 and its thousandths at most 999")]
     Spp { whole: u16, milli: u16 },
 }
 

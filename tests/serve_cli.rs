@@ -1,15 +1,22 @@
 //! The serve configuration files and `hilcam demo` from the command line.
 
 use hilcam::serve::config::ServeConfig;
-use std::path::Path;
 use std::process::Command;
 
 #[test]
 fn shipped_serve_configs_load() {
-    for f in ["config/serve-serial.toml", "config/serve-can.toml"] {
-        let c = ServeConfig::load(Path::new(f)).unwrap_or_else(|e| panic!("{e}"));
+    let mut kinds = std::collections::BTreeSet::new();
+    for entry in std::fs::read_dir("config").unwrap() {
+        let f = entry.unwrap().path();
+        if !f.file_name().unwrap().to_string_lossy().starts_with("serve-") {
+            continue;
+        }
+        let c = ServeConfig::load(&f).unwrap_or_else(|e| panic!("{e}"));
+        kinds.insert(c.input.kind.as_str());
         assert!(c.scene.ends_with("scenes/satellite.toml") && c.scene.exists(), "{}", c.scene.display());
     }
+    // docs/serve-config.md promises a shipped example for each input kind.
+    assert_eq!(kinds.into_iter().collect::<Vec<_>>(), ["serial", "slcan", "socketcan", "trajectory"]);
 }
 
 #[test]
@@ -26,6 +33,8 @@ fn config_errors_name_the_file_and_field() {
     assert!(e.contains("input.device"), "{e}");
     let e = write("scene = \"s.toml\"\n[stream]\nlisten = \"nowhere\"\n");
     assert!(e.contains("line 3"), "{e}");
+    let e = write("scene = \"s.toml\"\n[input]\nkind = \"slcan\"\ndevice = \"/dev/x\"\nbitrate = 1000\n");
+    assert!(e.contains("input.bitrate") && e.contains("1000 bit/s is not an slcan rate"), "{e}");
     let e = write("scene = \"s.toml\"\n[record]\nformat = \"png\"\n");
     assert!(e.contains("serve.toml") && e.contains("record: needs `dir`"), "{e}");
     let e = write("scene = \"s.toml\"\n[record]\nsesion = \"x.jsonl\"\n");

@@ -1,5 +1,6 @@
-//! The `hilcam serve` configuration file (TOML). Errors name the file and field; toml's
-//! own errors add the line and column.
+//! The `hilcam serve` configuration file (TOML), documented key by key in
+//! `docs/serve-config.md`. Errors name the file and field; toml's own errors add the line
+//! and column.
 //!
 //! ```toml
 //! scene = "../scenes/satellite.toml"   # relative to this file
@@ -11,7 +12,7 @@
 //! baud = 921600
 //! # iface = "can0"                     # socketcan
 //! # can_base = 0x300                   # CAN base id
-//! # bitrate = 1000000                  # slcan: configure the adapter
+//! # bitrate = 1000000                  # slcan: the adapter's CAN bit rate, bit/s
 //! # file = "../scenes/trajectories/flyaround.csv"   # trajectory: real-time replay
 //! # speed = 1.0                        # trajectory: time scale
 //!
@@ -254,6 +255,16 @@ impl ServeConfig {
             && !(1..=4_000_000).contains(&b)
         {
             return Err(("input.baud", format!("must be 1..=4000000, got {b}")));
+        }
+        if let Some(b) = i.bitrate
+            && crate::pose::slcan::bitrate_code(b).is_none()
+        {
+            return Err((
+                "input.bitrate",
+                format!(
+                    "{b} bit/s is not an slcan rate (10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000, 1000000)"
+                ),
+            ));
         }
         match (self.trigger.mode, self.trigger.rate_hz) {
             (TriggerMode::Rate, None) => return Err(("trigger.rate_hz", "rate mode needs rate_hz".into())),

@@ -1,0 +1,117 @@
+//! Every worked example in docs/protocol.md, read from the page itself and checked byte
+//! for byte against hilcam's encoders: the documentation cannot drift from the program.
+
+use hilcam::film::Pixels;
+use hilcam::frame::{Frame, FrameFlags, FrameMeta, PixelFormat};
+use hilcam::integrator::Spp;
+use hilcam::pose::can::{self, CanIds};
+use hilcam::pose::{Message, Pose, serial, slcan};
+
+fn page() -> String {
+    std::fs::read_to_string("docs/protocol.md").expect("docs/protocol.md")
+}
+
+/// The lines of the first fenced code block after the first line containing `marker`.
+fn block_after(page: &str, marker: &str) -> Vec<String> {
+    let start = page.find(marker).unwrap_or_else(|| panic!("docs/protocol.md has no `{marker}`"));
+    let mut lines = page[start..].lines().skip_while(|l| !l.starts_with("```")).skip(1);
+    lines.by_ref().take_while(|l| !l.starts_with("```")).map(str::to_string).collect()
+}
+
+/// Hex pairs of a documented dump line: the bytes before the comment (three spaces).
+fn hex_bytes(text: &str) -> Vec<u8> {
+    let data = text.split("   ").next().unwrap();
+    data.split_whitespace()
+        .map(|t| u8::from_str_radix(t, 16).unwrap_or_else(|_| panic!("`{t}` in `{text}` is not a hex byte")))
+        .collect()
+}
+
+/// The backtick-quoted text on the line after `marker`.
+fn quoted_after(page: &str, marker: &str) -> String {
+    let start = page.find(marker).unwrap_or_else(|| panic!("docs/protocol.md has no `{marker}`"));
+    let line = page[start..].lines().nth(1).unwrap();
+    line.trim().trim_matches('`').to_string()
+}
+
+/// The page's example pose: seq 1, t = 123 456 789 ns, (0, 0, 10), identity, sun (0, 0, −1).
+fn example_pose() -> Pose {
+    Pose { seq: 1, t_ns: 123_456_789, ..Pose::ahead(10.0) }
+}
+
+#[test]
+fn serial_pose_example_is_the_encoders_bytes_and_its_stated_length() {
+    let p = page();
+    let lines = block_after(&p, "no options — 106 bytes");
+    let doc: Vec<u8> = lines.iter().flat_map(|l| hex_bytes(l)).collect();
+    let enc = serial::encode_frame(&Message::Pose(example_pose()));
+    assert_eq!(doc.len(), 106, "the example says 106 bytes");
+    assert_eq!(doc, enc);
+}
+
+#[test]
+fn serial_heartbeat_and_trigger_examples_are_the_encoders_bytes() {
+    let p = page();
+    let hb = hex_bytes(&quoted_after(&p, "Heartbeat, seq 7, t = 1 s, status 42:"));
+    assert_eq!(hb, serial::encode_frame(&Message::Heartbeat { seq: 7, t_ns: 1_000_000_000, status: 42 }));
+    let tr = hex_bytes(&quoted_after(&p, "Trigger, seq 8, t = 2.5 s:"));
+    assert_eq!(tr, serial::encode_frame(&Message::Trigger { seq: 8, t_ns: 2_500_000_000 }));
+}
+
+#[test]
+fn can_group_fd_and_slcan_examples_are_the_encoders_frames() {
+    let p = page();
+    let group = can::encode_group(CanIds::default(), &example_pose());
+    let lines = block_after(&p, "as a group on base 0x300");
+    assert_eq!(lines.len(), group.len());
+    for (line, f) in lines.iter().zip(&group) {
+        let frame = line.split_whitespace().next().unwrap();
+        let (id, data) = frame.split_once('#').unwrap();
+        assert_eq!(u32::from_str_radix(id, 16).unwrap(), f.id, "{line}");
+        let bytes: Vec<u8> =
+            (0..data.len()).step_by(2).map(|i| u8::from_str_radix(&data[i..i + 2], 16).unwrap()).collect();
+        assert_eq!(bytes, f.data(), "{line}");
+    }
+    // CAN FD: `310##1 <hex groups> + 8×00`.
+    let fd = can::encode_fd(CanIds::default(), &example_pose(), true);
+    let line = block_after(&p, "The same pose as CAN FD").into_iter().next().unwrap();
+    let (id, rest) = line.split_once("##").unwrap();
+    assert_eq!(u32::from_str_radix(id, 16).unwrap(), fd.id);
+    let (hex, pad) = rest[1..].split_once('+').unwrap();
+    let mut bytes: Vec<u8> = Vec::new();
+    let digits: String = hex.split_whitespace().collect();
+    for i in (0..digits.len()).step_by(2) {
+        bytes.push(u8::from_str_radix(&digits[i..i + 2], 16).unwrap());
+    }
+    let zeros: usize = pad.trim().split('×').next().unwrap().parse().unwrap();
+    bytes.extend(std::iter::repeat_n(0, zeros));
+    assert_eq!(bytes, fd.data());
+    // slcan: frame 0 of the group as a line.
+    let start = p.find("the line `t").expect("slcan example");
+    let quoted = p[start + "the line `".len()..].split('`').next().unwrap().replace("\\r", "\r");
+    assert_eq!(quoted, slcan::encode_frame(&group[0]));
+}
+
+#[test]
+fn frame_stream_example_is_the_encoders_bytes() {
+    let p = page();
+    let lines = block_after(&p, "`worked_example_encodes_to_documented_bytes`");
+    let doc: Vec<u8> = lines.iter().flat_map(|l| hex_bytes(l.split_once(": ").unwrap().1)).collect();
+    let arrival = 1_700_000_000_000_000_000;
+    let meta = FrameMeta {
+        frame_seq: 42,
+        pose_seq: 7,
+        pose_t_ns: 1_000_000_000,
+        pose_arrival_unix_ns: arrival,
+        emit_unix_ns: arrival + 25_000_000,
+        width: 2,
+        height: 2,
+        format: PixelFormat::Mono16,
+        bit_depth: 0,
+        spp: Spp::whole(4),
+        depth: 3,
+        integration_s: 0.001,
+        flags: FrameFlags(FrameFlags::LATE | FrameFlags::EXTRAPOLATED),
+    };
+    let frame = Frame::new(meta, Pixels::Mono16 { data: vec![0, 1, 4095, 2048], bits: 12 }).unwrap();
+    assert_eq!(doc, frame.encode().bytes);
+}
