@@ -187,7 +187,8 @@ pub fn convolve(img: &[f32], width: usize, height: usize, k: &Kernel) -> Vec<f32
     out.par_chunks_mut(width).enumerate().for_each(|(oy, orow)| {
         for &(iy, my) in ly.of(oy) {
             let src = &img[iy * width..(iy + 1) * width];
-            for mx in -(k.rx as i64)..=k.rx as i64 {
+            // An image no wider than the kernel has no interior: every column gathers.
+            for mx in (-(k.rx as i64)..=k.rx as i64).filter(|_| hi > lo) {
                 let w = k.at(mx, my);
                 // out[ox] += w · src[ox − mx] over the interior, as one slice axpy.
                 let s0 = (lo as i64 - mx) as usize;
@@ -243,5 +244,10 @@ mod tests {
         let right = Kernel { rx: 1, ry: 0, weights: vec![0., 0., 1.] };
         let out = convolve(&img, 5, 4, &right);
         assert_eq!(&out[0..5], &[0., 0., 1., 2., 3. + 4.]);
+        // An image narrower than the kernel (a preview of a big camera): all reflected,
+        // the signal kept.
+        let wide = Kernel { rx: 3, ry: 0, weights: vec![0., 0., 0., 0., 0., 0., 1.] };
+        let out = convolve(&img[..4], 2, 2, &wide);
+        assert_eq!(out.iter().sum::<f32>(), img[..4].iter().sum::<f32>());
     }
 }
