@@ -16,15 +16,15 @@ struct Fixture {
 const OBJ: &str = "v -0.5 -0.5 0\nv 0.5 -0.5 0\nv 0 0.5 0\nf 1 2 3\n";
 const CAMERA: &str = "[camera]\nwidth = 16\nheight = 16\npitch_um = 10.0\nfocal_mm = 20.0\n";
 
-/// Line 1-3 mesh, 5-7 material, 9-10 sun, 12-13 background, 15 camera file,
-/// 17-20 pose, 22-24 render; extra text is appended.
+/// Line 1 camera file, 3-5 mesh, 7-9 material, 11-12 sun, 14-15 background, 17-20 pose,
+/// 22-24 render; `extra` from line 25 on.
 fn scene_text(extra: &str) -> String {
     format!(
-        "[[mesh]]\nobj = \"t.obj\"\nscale = 1.0\n\n\
+        "camera_file = \"cam.toml\"\n\n\
+         [[mesh]]\nobj = \"t.obj\"\nscale = 1.0\n\n\
          [materials.default]\nmodel = \"lambert\"\nrho = 0.5\n\n\
          [sun]\nirradiance = 593.1\n\n\
          [background]\nradiance = 0.0\n\n\
-         camera_file = \"cam.toml\"\n\n\
          [pose]\nposition = [0.0, 0.0, 5.0]\nattitude = [1.0, 0.0, 0.0, 0.0]\nsun = [0.0, 0.0, -1.0]\n\n\
          [render]\nspp = 1\ndepth = 1\n{extra}"
     )
@@ -108,7 +108,7 @@ fn width_flags_out_of_range_are_refused_naming_the_flag_and_limit() {
 fn camera_file_sizes_out_of_range_are_refused() {
     let f = Fixture::new();
     f.write("cam.toml", &CAMERA.replace("height = 16", "height = 65536"));
-    has_all(&refused(&f.render(&[])), &["s.toml:15:", "camera_file", "cam.toml", "camera.height", "1..=16384"]);
+    has_all(&refused(&f.render(&[])), &["s.toml:1:", "camera_file", "cam.toml", "camera.height", "1..=16384"]);
     f.write("cam.toml", &CAMERA.replace("width = 16", "width = 0"));
     has_all(&refused(&f.render(&[])), &["cam.toml", "camera.width", "1..=16384", "got 0"]);
 }
@@ -117,7 +117,8 @@ fn camera_file_sizes_out_of_range_are_refused() {
 fn inline_camera_size_out_of_range_is_refused() {
     let f = Fixture::new();
     let inline = "[camera]\nwidth = 65536\nheight = 16\npitch_um = 10.0\nfocal_mm = 20.0\n";
-    f.write("s.toml", &scene_text("").replace("camera_file = \"cam.toml\"\n", "") + inline);
+    // The camera_file line left blank, so that the line numbers stay.
+    f.write("s.toml", &(scene_text("").replace("camera_file = \"cam.toml\"\n", "\n") + inline));
     has_all(&refused(&f.render(&[])), &["s.toml:25:", "camera.width", "1..=16384", "65536"]);
 }
 
@@ -133,7 +134,7 @@ fn serve_config_width_out_of_range_refuses_to_start() {
 fn a_wrap_edge_that_would_explode_the_mesh_is_refused() {
     let f = Fixture::new();
     f.write("s.toml", &scene_text("\n[[wrap]]\nmaterial = \"default\"\nlevel = \"medium\"\nedge_m = 1e-5\n"));
-    has_all(&refused(&f.render(&[])), &["s.toml:30:", "wrap[0].edge_m", "triangles", "limit 10000000"]);
+    has_all(&refused(&f.render(&[])), &["s.toml:29:", "wrap[0].edge_m", "triangles", "limit 10000000"]);
 }
 
 #[test]
@@ -141,7 +142,7 @@ fn non_finite_or_negative_background_is_refused() {
     let f = Fixture::new();
     for bad in ["nan", "inf", "-5.0"] {
         let e = f.render_edited("radiance = 0.0", &format!("radiance = {bad}"));
-        has_all(&e, &["s.toml:13:", "background.radiance", "[0, 1000000]"]);
+        has_all(&e, &["s.toml:15:", "background.radiance", "[0, 1000000]"]);
     }
 }
 
@@ -151,7 +152,7 @@ fn bad_obj_vertices_are_named_by_obj_file_and_line() {
     for bad in ["nan", "inf", "1e39"] {
         f.write("t.obj", &OBJ.replace("v 0.5 -0.5 0", &format!("v {bad} -0.5 0")));
         let e = refused(&f.render(&[]));
-        has_all(&e, &["s.toml:2:", "mesh[0].obj", "t.obj:2:", "vertex x", bad]);
+        has_all(&e, &["s.toml:4:", "mesh[0].obj", "t.obj:2:", "vertex x", bad]);
     }
 }
 
@@ -159,18 +160,18 @@ fn bad_obj_vertices_are_named_by_obj_file_and_line() {
 fn non_finite_transforms_are_refused() {
     let f = Fixture::new();
     let e = f.render_edited("scale = 1.0", "scale = 1.0\ntranslate = [nan, 0.0, 0.0]");
-    has_all(&e, &["s.toml:4:", "mesh[0].translate", "finite"]);
+    has_all(&e, &["s.toml:6:", "mesh[0].translate", "finite"]);
     let e = f.render_edited("scale = 1.0", "scale = 1.0\nrotate_deg = [0.0, inf, 0.0]");
-    has_all(&e, &["s.toml:4:", "mesh[0].rotate_deg", "[-360, 360]"]);
+    has_all(&e, &["s.toml:6:", "mesh[0].rotate_deg", "[-360, 360]"]);
     let e = f.render_edited("scale = 1.0", "scale = inf");
-    has_all(&e, &["s.toml:3:", "mesh[0].scale"]);
+    has_all(&e, &["s.toml:5:", "mesh[0].scale"]);
 }
 
 #[test]
 fn sun_irradiance_beyond_the_range_is_refused() {
     let f = Fixture::new();
     let e = f.render_edited("irradiance = 593.1", "irradiance = 1e308");
-    has_all(&e, &["s.toml:10:", "sun.irradiance", "1000000", "1e308"]);
+    has_all(&e, &["s.toml:12:", "sun.irradiance", "1000000", "1e308"]);
 }
 
 #[test]

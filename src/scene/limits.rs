@@ -33,7 +33,7 @@ pub fn in_range(v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<(), String> 
     if v.is_finite() && (lo..=hi).contains(&v) {
         Ok(())
     } else {
-        Err(format!("must be a finite number in [{lo}, {hi}]{unit}, got {v}"))
+        Err(format!("must be a finite number in [{lo}, {hi}]{unit}, got {v:?}"))
     }
 }
 
