@@ -241,8 +241,8 @@ pub enum Malformed {
     PayloadCrc { seq: u64, found: u32, computed: u32 },
     #[error("spp {whole} and spp_milli {milli}: a budget is at least 1 and its thousandths at most 999")]
     Spp { whole: u16, milli: u16 },
-    /// A width or height outside `1..=MAX_SIDE_PX`: refused before anything is allocated.
-    #[error("{field} {value} outside 1..={limit} pixels")]
+    /// A width or height above `MAX_SIDE_PX`: refused before anything is allocated.
+    #[error("{field} {value} above the limit of {limit} pixels")]
     Dimension { field: &'static str, value: u32, limit: u32 },
 }
 
@@ -287,7 +287,7 @@ fn u64_at(b: &[u8], i: usize) -> u64 {
 /// Decode and validate a header from the start of `buf` (extra bytes are ignored).
 ///
 /// Checks, in order: length, magic, version, header_len, header CRC, pixel format,
-/// bit depth, spp, width and height in `1..=MAX_SIDE_PX` (`crate::camera::MAX_SIDE_PX`),
+/// bit depth, spp, width and height at most `crate::camera::MAX_SIDE_PX`,
 /// and that payload_len equals width·height·bytes-per-pixel. Reserved bytes
 /// are ignored (senders write zeros).
 pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
@@ -317,8 +317,9 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
     if !format.valid_bits(bit_depth) {
         return Err(Malformed::BitDepth { bits: bit_depth, format }.into());
     }
+    // Bounded before anything is sized from them (an empty frame, 0 × n, allocates nothing).
     for (field, value) in [("width", u32_at(b, 48)), ("height", u32_at(b, 52))] {
-        if crate::camera::check_side(value).is_err() {
+        if value > crate::camera::MAX_SIDE_PX {
             return Err(Malformed::Dimension { field, value, limit: crate::camera::MAX_SIDE_PX }.into());
         }
     }

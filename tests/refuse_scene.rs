@@ -237,10 +237,10 @@ fn recv_refuses_hostile_frame_headers_without_allocating() {
         b
     };
     assert!(decode_header(&header(16, 16)).is_ok(), "the hand-built header is valid");
-    for (w, h, field) in [(65536, 16, "width"), (16, 65536, "height"), (1 << 31, 1 << 31, "width"), (0, 16, "width")] {
+    for (w, h, field) in [(65536, 16, "width"), (16, 65536, "height"), (1 << 31, 1 << 31, "width"), (16, 16385, "height")] {
         match decode_header(&header(w, h)) {
             Err(DecodeError::Malformed(m @ Malformed::Dimension { .. })) => {
-                has_all(&m.to_string(), &[field, "1..=16384"]);
+                has_all(&m.to_string(), &[field, "limit of 16384"]);
             }
             other => panic!("{w}x{h}: {other:?}"),
         }
@@ -264,7 +264,7 @@ fn recv_refuses_hostile_frame_headers_without_allocating() {
         .output()
         .unwrap();
     server.join().unwrap();
-    has_all(&refused(&o), &["width 2147483648 outside 1..=16384"]);
+    has_all(&refused(&o), &["width 2147483648 above the limit of 16384 pixels"]);
 }
 
 /// The path of a shipped scene, from the crate root.
