@@ -237,7 +237,9 @@ fn recv_refuses_hostile_frame_headers_without_allocating() {
         b
     };
     assert!(decode_header(&header(16, 16)).is_ok(), "the hand-built header is valid");
-    for (w, h, field) in [(65536, 16, "width"), (16, 65536, "height"), (1 << 31, 1 << 31, "width"), (16, 16385, "height")] {
+    for (w, h, field) in
+        [(65536, 16, "width"), (16, 65536, "height"), (1 << 31, 1 << 31, "width"), (16, 16385, "height")]
+    {
         match decode_header(&header(w, h)) {
             Err(DecodeError::Malformed(m @ Malformed::Dimension { .. })) => {
                 has_all(&m.to_string(), &[field, "limit of 16384"]);

@@ -39,11 +39,7 @@ pub const MAX_SIDE_PX: u32 = 16384;
 
 /// `Err` (the limit and the value; the caller names the field) unless `1 ≤ v ≤ MAX_SIDE_PX`.
 pub fn check_side(v: u32) -> Result<(), String> {
-    if (1..=MAX_SIDE_PX).contains(&v) {
-        Ok(())
-    } else {
-        Err(format!("must be in 1..={MAX_SIDE_PX} pixels, got {v}"))
-    }
+    if (1..=MAX_SIDE_PX).contains(&v) { Ok(()) } else { Err(format!("must be in 1..={MAX_SIDE_PX} pixels, got {v}")) }
 }
 
 impl CameraModel {

@@ -71,8 +71,7 @@ impl View {
         let cam_to_body = body_to_cam.transpose();
         // Camera centre: x_c = R x_b + p = 0  ⇒  x_b = −Rᵀ p. A blind view's origin is NaN,
         // which `ray_along` and `pixel_rect` treat as "sees nothing".
-        let origin =
-            if usable { -(cam_to_body * pose.position) - frame_origin_body } else { DVec3::splat(f64::NAN) };
+        let origin = if usable { -(cam_to_body * pose.position) - frame_origin_body } else { DVec3::splat(f64::NAN) };
         let sun = (cam_to_body * sun_body.unwrap_or(DVec3::NEG_Z)).as_vec3();
         View {
             width: cam.width,
@@ -234,11 +233,11 @@ impl View {
         let (a, b) = (d1.length_squared(), oc1.dot(d1));
         let c = oc1.length_squared() - r1 * r1;
         let disc = b * b - a * c;
-        if !(disc >= 0.0) {
+        if disc.is_nan() || disc < 0.0 {
             return None;
         }
         let q = -b + disc.sqrt();
-        if !(q > 0.0) {
+        if q.is_nan() || q <= 0.0 {
             return None;
         }
         // Entry at `s₁·so` along `d1`.
@@ -341,6 +340,7 @@ pub fn unit_or_none(v: DVec3) -> Option<DVec3> {
         return None;
     }
     let l2 = v.length_squared();
-    let u = if l2.is_finite() && l2 > f64::MIN_POSITIVE { v.normalize() } else { (v / v.abs().max_element()).normalize() };
+    let u =
+        if l2.is_finite() && l2 > f64::MIN_POSITIVE { v.normalize() } else { (v / v.abs().max_element()).normalize() };
     u.is_finite().then_some(u)
 }

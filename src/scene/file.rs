@@ -36,11 +36,11 @@
 //! bvh = "bvh8"                 # the default; or "bvh4", "bvh2", "cwbvh"
 //! ```
 
+use super::limits;
 use super::obj::load_obj;
 use super::{Material, Scene, SceneParts};
 use crate::bsdf::BsdfSpec;
 use crate::camera::CameraModel;
-use super::limits;
 use crate::fold::{
     FoldLevel, FoldTarget, MAX_WRAP_TRIANGLES, fit_for_edge, fit_panel_triangle_estimate, wrap_faces_report,
     wrap_triangle_estimate,
@@ -292,10 +292,10 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
-        let loaded =
-            load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
+        let loaded = load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
         let scale = *entry.scale.get_ref();
-        limits::in_range(scale, limits::SCALE, "").map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
+        limits::in_range(scale, limits::SCALE, "")
+            .map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
         let translate = *entry.translate.get_ref();
         for v in translate {
             limits::in_range(v, (-limits::TRANSLATE_M, limits::TRANSLATE_M), " m")
