@@ -17,8 +17,12 @@ pub struct RadianceImage {
 }
 
 impl RadianceImage {
+    /// # Panics
+    /// When `width × height` overflows `usize` (only on a 32-bit target; callers bound
+    /// both sides by `camera::MAX_SIDE_PX`).
     pub fn new(width: u32, height: u32, fill: f32) -> Self {
-        RadianceImage { width, height, data: vec![fill; width as usize * height as usize] }
+        let n = (width as usize).checked_mul(height as usize).expect("image size overflows usize");
+        RadianceImage { width, height, data: vec![fill; n] }
     }
 
     pub fn get(&self, col: u32, row: u32) -> f32 {
@@ -204,9 +208,13 @@ pub fn read_pfm(path: &Path) -> std::io::Result<RadianceImage> {
     }
     let w: u32 = fields[1].parse().map_err(|_| bad("bad width"))?;
     let h: u32 = fields[2].parse().map_err(|_| bad("bad height"))?;
+    for (field, v) in [("width", w), ("height", h)] {
+        crate::camera::check_side(v).map_err(|m| bad(&format!("{field} {m}")))?;
+    }
     let little = fields[3].parse::<f32>().map_err(|_| bad("bad scale"))? < 0.0;
-    let n = w as usize * h as usize;
-    if bytes.len() < pos + 4 * n {
+    let n = (w as usize).checked_mul(h as usize).ok_or_else(|| bad("size overflows"))?;
+    let end = n.checked_mul(4).and_then(|b| b.checked_add(pos)).ok_or_else(|| bad("size overflows"))?;
+    if bytes.len() < end {
         return Err(bad("truncated pixel data"));
     }
     let mut img = RadianceImage::new(w, h, 0.0);

@@ -111,7 +111,8 @@ pub struct FrameMeta {
 impl FrameMeta {
     /// Payload size in bytes implied by the dimensions and format.
     pub fn payload_len(&self) -> u64 {
-        self.width as u64 * self.height as u64 * self.format.bytes_per_pixel() as u64
+        // Saturating: u32 × u32 × 4 can exceed u64, and a saturated length matches no payload.
+        (self.width as u64).saturating_mul(self.height as u64).saturating_mul(self.format.bytes_per_pixel() as u64)
     }
 }
 
@@ -240,6 +241,9 @@ pub enum Malformed {
     PayloadCrc { seq: u64, found: u32, computed: u32 },
     #[error("spp {whole} and spp_frac_milli {milli}: a budget is at least 1 and its thousandths at most 999")]
     Spp { whole: u16, milli: u16 },
+    /// A width or height above `MAX_SIDE_PX`: refused before anything is allocated.
+    #[error("{field} {value} above the limit of {limit} pixels")]
+    Dimension { field: &'static str, value: u32, limit: u32 },
 }
 
 /// Encode the header for `meta` and `payload` (the payload's length and CRC go in it).
@@ -283,7 +287,8 @@ fn u64_at(b: &[u8], i: usize) -> u64 {
 /// Decode and validate a header from the start of `buf` (extra bytes are ignored).
 ///
 /// Checks, in order: length, magic, version, header_len, header CRC, pixel format,
-/// bit depth, and that payload_len equals width·height·bytes-per-pixel. Reserved bytes
+/// bit depth, spp, width and height at most `crate::camera::MAX_SIDE_PX`,
+/// and that payload_len equals width·height·bytes-per-pixel. Reserved bytes
 /// are ignored (senders write zeros).
 pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
     if buf.len() < HEADER_LEN {
@@ -311,6 +316,12 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
     let bit_depth = b[57];
     if !format.valid_bits(bit_depth) {
         return Err(Malformed::BitDepth { bits: bit_depth, format }.into());
+    }
+    // Bounded before anything is sized from them (an empty frame, 0 × n, allocates nothing).
+    for (field, value) in [("width", u32_at(b, 48)), ("height", u32_at(b, 52))] {
+        if value > crate::camera::MAX_SIDE_PX {
+            return Err(Malformed::Dimension { field, value, limit: crate::camera::MAX_SIDE_PX }.into());
+        }
     }
     let (whole, milli) = (u16_at(b, 58), u16_at(b, 62));
     if whole == 0 || milli > 999 {

@@ -221,3 +221,60 @@ fn scene_file_selects_bvh8() {
     assert!(hit.is_some());
     assert_eq!(hit, brute_force::intersect(&s.mesh, &ray));
 }
+
+/// Trees with unused slots (a few triangles, so nodes have fewer than W children) against
+/// brute force, single rays and packets; and rays with a NaN coordinate, which pass every
+/// slab test (empty slots included): they must find nothing and end, not restart at the
+/// root (an empty slot once read as inner node 0 and the walk overflowed its stack).
+#[test]
+fn empty_slots_are_never_walked_into() {
+    let nan_rays = [
+        Ray { origin: Vec3::new(f32::NAN, 0.0, 0.0), dir: Vec3::X, tmax: f32::INFINITY },
+        Ray { origin: Vec3::ZERO, dir: Vec3::new(f32::NAN, f32::NAN, f32::NAN), tmax: f32::INFINITY },
+        Ray { origin: Vec3::splat(f32::NAN), dir: Vec3::splat(f32::NAN), tmax: f32::NAN },
+        Ray { origin: Vec3::new(0.0, f32::INFINITY, 0.0), dir: Vec3::Z, tmax: f32::INFINITY },
+    ];
+    for layout in [BvhLayout::Bvh4, BvhLayout::Bvh8] {
+        for (n, seed) in [(2, 21), (3, 22), (5, 23), (9, 24), (13, 25), (37, 26)] {
+            let mesh = soup(n, 1.0, seed);
+            let accel = Accel::build(&mesh, layout);
+            let label = format!("{layout:?} with {n} triangles");
+            let rays: Vec<Ray> = rays(&mesh, 1.0, 800, seed + 50).into_iter().map(|(_, r)| r).collect();
+            let mut hits = 0;
+            for ray in &rays {
+                let want = brute_force::intersect(&mesh, ray);
+                hits += want.is_some() as u32;
+                assert_eq!(accel.intersect(ray).map(|h| h.t.to_bits()), want.map(|h| h.t.to_bits()), "{label} {ray:?}");
+                assert_eq!(accel.occluded(ray), brute_force::occluded(&mesh, ray), "{label} {ray:?}");
+            }
+            assert!(hits > 20, "{label}: {hits} hits");
+            // Packets of eight: closest hits of mixed rays, NaN lanes among them.
+            for chunk in rays.chunks(8) {
+                let mut mixed = chunk.to_vec();
+                mixed[0] = nan_rays[chunk.len() % nan_rays.len()];
+                let mut out = [None; 8];
+                accel.intersect_packet(&mixed, &mut out);
+                assert_eq!(out[0], None, "{label}: NaN lane hit");
+                for (r, o) in mixed.iter().zip(&out).skip(1) {
+                    let want = brute_force::intersect(&mesh, r).map(|h| h.t.to_bits());
+                    assert_eq!(o.map(|h| h.t.to_bits()), want, "{label} packet {r:?}");
+                }
+            }
+            // Shadow packets share a direction: finite ones toward the sun, and NaN ones.
+            let sun = Vec3::new(0.3, -0.5, 0.81).normalize();
+            let shadow: Vec<Ray> = rays.iter().map(|r| Ray { dir: sun, ..*r }).collect();
+            for chunk in shadow.chunks(8) {
+                let got = accel.occluded_packet(chunk);
+                for (i, r) in chunk.iter().enumerate() {
+                    assert_eq!(got >> i & 1 == 1, brute_force::occluded(&mesh, r), "{label} shadow {r:?}");
+                }
+                let nan: Vec<Ray> = chunk.iter().map(|r| Ray { dir: Vec3::splat(f32::NAN), ..*r }).collect();
+                assert_eq!(accel.occluded_packet(&nan), 0, "{label}: NaN shadow rays occluded");
+            }
+            for ray in &nan_rays {
+                assert_eq!(accel.intersect(ray), None, "{label} {ray:?}");
+                assert!(!accel.occluded(ray), "{label} {ray:?}");
+            }
+        }
+    }
+}

@@ -95,6 +95,19 @@ fn pick(
     explicit.or(preset).ok_or(BsdfError::Missing { model, field })
 }
 
+/// Upper ends of the lobe parameters (the constructors check the lower ends and
+/// finiteness): a Blinn–Phong `rho_s` or `alpha` of 1e6 is already a mirror far beyond any
+/// fitted surface (the gold-polyimide fits have ~280 and ~4000), and larger values only
+/// overflow f32 in the lobe's normalisation.
+const MAX_RHO_S: f32 = 1.0e6;
+const MAX_ALPHA: f32 = 1.0e6;
+/// Improved Blinn–Phong's Fresnel-like `b` and Cook–Torrance's `k_s` scale the lobe.
+const MAX_SCALE: f32 = 1.0e3;
+
+fn at_most(model: &'static str, field: &'static str, v: f32, max: f32, reason: &'static str) -> Result<f32, BsdfError> {
+    if v <= max { Ok(v) } else { Err(BsdfError::Invalid { model, field, value: v, reason }) }
+}
+
 fn wrong_preset(model: &'static str) -> BsdfError {
     BsdfError::Invalid { model, field: "preset", value: f32::NAN, reason: "is not defined for this model" }
 }
@@ -124,8 +137,8 @@ impl BsdfSpec {
                 };
                 let b = BlinnPhong::new(
                     pick(M, "rho_d", rho_d, p.map(|p| p[0]))?,
-                    pick(M, "rho_s", rho_s, p.map(|p| p[1]))?,
-                    pick(M, "alpha", alpha, p.map(|p| p[2]))?,
+                    at_most(M, "rho_s", pick(M, "rho_s", rho_s, p.map(|p| p[1]))?, MAX_RHO_S, "must be ≤ 1e6")?,
+                    at_most(M, "alpha", pick(M, "alpha", alpha, p.map(|p| p[2]))?, MAX_ALPHA, "must be ≤ 1e6")?,
                 )?;
                 Ok(Bsdf::BlinnPhong(if normalized { b.normalized() } else { b }))
             }
@@ -138,10 +151,10 @@ impl BsdfSpec {
                 };
                 let m = ImprovedBlinnPhong::new(
                     pick(M, "rho_d", rho_d, p.map(|p| p[0]))?,
-                    pick(M, "rho_s", rho_s, p.map(|p| p[1]))?,
-                    pick(M, "alpha", alpha, p.map(|p| p[2]))?,
+                    at_most(M, "rho_s", pick(M, "rho_s", rho_s, p.map(|p| p[1]))?, MAX_RHO_S, "must be ≤ 1e6")?,
+                    at_most(M, "alpha", pick(M, "alpha", alpha, p.map(|p| p[2]))?, MAX_ALPHA, "must be ≤ 1e6")?,
                     pick(M, "a", a, p.map(|p| p[3]))?,
-                    pick(M, "b", b, p.map(|p| p[4]))?,
+                    at_most(M, "b", pick(M, "b", b, p.map(|p| p[4]))?, MAX_SCALE, "must be ≤ 1000")?,
                 )?;
                 Ok(Bsdf::ImprovedBlinnPhong(if normalized { m.normalized() } else { m }))
             }
@@ -156,7 +169,7 @@ impl BsdfSpec {
                     pick(M, "rho_d", rho_d, p.map(|p| p[0]))?,
                     pick(M, "roughness", roughness, p.map(|p| p[1]))?,
                     pick(M, "f0", f0, p.map(|p| p[2]))?,
-                    k_s.or(p.map(|p| p[3])).unwrap_or(1.0),
+                    at_most(M, "k_s", k_s.or(p.map(|p| p[3])).unwrap_or(1.0), MAX_SCALE, "must be ≤ 1000")?,
                 )?;
                 Ok(Bsdf::CookTorrance(if normalized { c.normalized() } else { c }))
             }
@@ -202,6 +215,25 @@ mod tests {
             r#"{ model = "lambert", preset = "white_paint" }"#,
         ] {
             parse(s).unwrap().build().unwrap();
+        }
+    }
+
+    #[test]
+    fn lobe_parameters_have_upper_ends() {
+        for (text, field) in [
+            ("{ model = \"blinn_phong\", rho_d = 0.1, rho_s = 1e7, alpha = 10 }", "rho_s"),
+            ("{ model = \"blinn_phong\", rho_d = 0.1, rho_s = 1, alpha = 3e38 }", "alpha"),
+            ("{ model = \"improved_blinn_phong\", rho_d = 0.1, rho_s = 1, alpha = 10, a = 0.5, b = 1e4 }", "b"),
+            ("{ model = \"cook_torrance\", rho_d = 0.1, roughness = 0.1, f0 = 0.5, k_s = 1e30 }", "k_s"),
+            ("{ model = \"blinn_phong\", rho_d = 0.1, rho_s = 1e39, alpha = 10 }", "rho_s"),
+            ("{ model = \"lambert\", rho = nan }", "rho"),
+        ] {
+            // An f32 overflow may already fail to parse; either way the value is refused.
+            let e = match parse(text) {
+                Ok(spec) => spec.build().unwrap_err().to_string(),
+                Err(e) => e.to_string(),
+            };
+            assert!(e.contains(field), "{text}: {e}");
         }
     }
 

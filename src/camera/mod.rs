@@ -32,7 +32,23 @@ pub struct CameraModel {
     pub principal_point_px: [f64; 2],
 }
 
+/// Largest image side, pixels: 16384² float radiance is 1 GiB, the most one frame may
+/// take. Every width and height (scene `[camera]`, camera files, `--width`/`--height`,
+/// the serve config, a received frame header) is checked against it up front.
+pub const MAX_SIDE_PX: u32 = 16384;
+
+/// `Err` (the limit and the value; the caller names the field) unless `1 ≤ v ≤ MAX_SIDE_PX`.
+pub fn check_side(v: u32) -> Result<(), String> {
+    if (1..=MAX_SIDE_PX).contains(&v) { Ok(()) } else { Err(format!("must be in 1..={MAX_SIDE_PX} pixels, got {v}")) }
+}
+
 impl CameraModel {
+    /// Both sides within `1..=MAX_SIDE_PX`; the error names the field and the limit.
+    pub fn check_size(&self) -> Result<(), (&'static str, String)> {
+        check_side(self.width).map_err(|m| ("width", m))?;
+        check_side(self.height).map_err(|m| ("height", m))
+    }
+
     /// Focal length expressed in pixels.
     pub fn focal_px(&self) -> f64 {
         self.focal_mm * 1e-3 / (self.pitch_um * 1e-6)

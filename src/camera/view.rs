@@ -57,12 +57,22 @@ pub struct View {
 
 impl View {
     /// `frame_origin_body` is where the render frame's origin sits in the body frame.
+    ///
+    /// Poses reach here through the pose gate (`pose::validate::check_pose`); a caller that
+    /// bypasses it still gets a view that cannot fail: a position, attitude or sun that
+    /// cannot be used gives a blind view (every ray misses: the background), and a sun
+    /// direction too large to square is scaled before it is normalised.
     pub fn new(cam: &CameraModel, pose: &Pose, frame_origin_body: DVec3, bounds: TargetBounds) -> View {
-        let body_to_cam = DMat3::from_quat(pose.attitude.normalize());
+        let q = pose.attitude;
+        let q_usable = q.is_finite() && q.length_squared().is_finite() && q.length_squared() > 0.0;
+        let sun_body = unit_or_none(pose.sun_dir);
+        let usable = q_usable && pose.position.is_finite() && sun_body.is_some();
+        let body_to_cam = if usable { DMat3::from_quat(q.normalize()) } else { DMat3::IDENTITY };
         let cam_to_body = body_to_cam.transpose();
-        // Camera centre: x_c = R x_b + p = 0  ⇒  x_b = −Rᵀ p.
-        let origin = -(cam_to_body * pose.position) - frame_origin_body;
-        let sun = (cam_to_body * pose.sun_dir.normalize()).as_vec3();
+        // Camera centre: x_c = R x_b + p = 0  ⇒  x_b = −Rᵀ p. A blind view's origin is NaN,
+        // which `ray_along` and `pixel_rect` treat as "sees nothing".
+        let origin = if usable { -(cam_to_body * pose.position) - frame_origin_body } else { DVec3::splat(f64::NAN) };
+        let sun = (cam_to_body * sun_body.unwrap_or(DVec3::NEG_Z)).as_vec3();
         View {
             width: cam.width,
             height: cam.height,
@@ -175,6 +185,12 @@ impl View {
 
     /// Always inlined: in the camera-ray loop the view's constants (`oc`, `c`) are then
     /// computed once, not per ray (a 1-spp goal frame ~3 % faster, same bytes).
+    ///
+    /// Every ray it returns is finite (origin and unit direction): a NaN or infinite
+    /// input, or a line whose entry point does not fit an f32, is a miss. When the squares
+    /// overflow (a camera beyond ~1e154 m, a pixel coordinate near f64::MAX) the
+    /// intersection is redone on scaled vectors ([`View::ray_along_scaled`]); the common
+    /// path's arithmetic is unchanged.
     #[inline(always)]
     fn ray_along(&self, dir_cam: DVec3) -> Option<Ray> {
         let d = self.cam_to_render * dir_cam;
@@ -183,6 +199,11 @@ impl View {
         let b = oc.dot(d);
         let c = oc.length_squared() - self.bounds.radius * self.bounds.radius;
         let disc = b * b - a * c;
+        // Finite `disc` means `a`, `b²` and `a·c` are finite (any inf or NaN among them
+        // makes it inf or NaN).
+        if !disc.is_finite() {
+            return self.ray_along_scaled(d, oc);
+        }
         if disc < 0.0 {
             return None;
         }
@@ -191,7 +212,37 @@ impl View {
             return None; // the sphere is behind the camera
         }
         let start = if c > 0.0 { c / q } else { 0.0 }; // camera inside the sphere: start there
-        Some(Ray { origin: (self.origin + d * start).as_vec3(), dir: d.as_vec3().normalize(), tmax: f32::INFINITY })
+        finite_ray(self.origin + d * start, d)
+    }
+
+    /// [`View::ray_along`] for lines whose squares overflow: `oc` and the radius scaled by
+    /// the largest of their magnitudes, `d` by its own (the entry parameter scales back),
+    /// so nothing squared exceeds 3. A non-finite input is a miss.
+    #[cold]
+    #[inline(never)]
+    fn ray_along_scaled(&self, d: DVec3, oc: DVec3) -> Option<Ray> {
+        let r = self.bounds.radius;
+        if !(d.is_finite() && oc.is_finite() && r.is_finite()) {
+            return None;
+        }
+        let (sd, so) = (d.abs().max_element(), oc.abs().max_element().max(r));
+        if !(sd > 0.0 && so > 0.0) {
+            return None;
+        }
+        let (d1, oc1, r1) = (d / sd, oc / so, r / so);
+        let (a, b) = (d1.length_squared(), oc1.dot(d1));
+        let c = oc1.length_squared() - r1 * r1;
+        let disc = b * b - a * c;
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        let q = -b + disc.sqrt();
+        if q.is_nan() || q <= 0.0 {
+            return None;
+        }
+        // Entry at `s₁·so` along `d1`.
+        let start = if c > 0.0 { c / q * so } else { 0.0 };
+        finite_ray(self.origin + d1 * start, d1)
     }
 
     /// The target box's eight corners on the ideal image plane, `(x/z, y/z)` in the camera
@@ -218,6 +269,9 @@ impl View {
     /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
     /// the bounds are entirely outside the image or behind the camera.
     pub fn pixel_rect(&self) -> Option<PixelRect> {
+        if !self.origin.is_finite() {
+            return None; // a blind view (see `View::new`)
+        }
         let full = PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height };
         if self.distortion.is_some() {
             return Some(full); // the pinhole bound does not hold through a distorting lens
@@ -268,4 +322,25 @@ impl View {
         };
         (rect.col0 < rect.col1 && rect.row0 < rect.row1).then_some(rect)
     }
+}
+
+/// The f32 ray from `origin` along `d`, or `None` unless both fit an f32 and the direction
+/// normalises.
+#[inline(always)]
+fn finite_ray(origin: DVec3, d: DVec3) -> Option<Ray> {
+    let ray = Ray { origin: origin.as_vec3(), dir: d.as_vec3().normalize(), tmax: f32::INFINITY };
+    (ray.origin.is_finite() && ray.dir.is_finite()).then_some(ray)
+}
+
+/// `v` as a unit vector, scaled by its largest component first when its square would
+/// overflow or underflow; `None` for a zero or non-finite `v`. The common case is
+/// `v.normalize()` exactly.
+pub fn unit_or_none(v: DVec3) -> Option<DVec3> {
+    if !v.is_finite() {
+        return None;
+    }
+    let l2 = v.length_squared();
+    let u =
+        if l2.is_finite() && l2 > f64::MIN_POSITIVE { v.normalize() } else { (v / v.abs().max_element()).normalize() };
+    u.is_finite().then_some(u)
 }

@@ -3,7 +3,7 @@
 use crate::bench::trade::{
     TradeGrid, best_for_error, best_for_fps, chart, measure, pareto_front, sampler_name, to_csv,
 };
-use crate::cli::render::scaled_camera;
+use crate::cli::render::checked_scaled_camera;
 use crate::pipeline::FramePipeline;
 use anyhow::Context;
 use std::path::PathBuf;
@@ -45,7 +45,7 @@ pub fn run(a: TradeArgs) -> anyhow::Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let scene = crate::scene::load(&a.scene)?;
-    let camera = scaled_camera(&scene.camera, a.width, None);
+    let camera = checked_scaled_camera(&scene.camera, a.width, None)?;
     let pose = scene.pose;
     let mut grid = TradeGrid::standard(a.max_spp, scene.render);
     grid.rounds = a.rounds.max(1);

@@ -100,7 +100,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if a.no_adaptive {
         settings.adaptive = false;
     }
-    let camera = scaled_camera(&scene.camera, a.width, a.height);
+    let camera = checked_scaled_camera(&scene.camera, a.width, a.height)?;
     let pose = match &a.pose {
         Some(s) => parse_pose(s, &scene.pose).context("--pose")?,
         None => scene.pose,
@@ -197,6 +197,21 @@ fn write_samples_map(path: &std::path::Path, width: u32, height: u32, counts: &[
     Ok(most)
 }
 
+/// [`scaled_camera`] for sizes given on the command line: `--width`/`--height` and the
+/// size they imply must lie in `1..=MAX_SIDE_PX`; the error names the flag and the limit.
+pub fn checked_scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -> anyhow::Result<CameraModel> {
+    for (flag, v) in [("--width", width), ("--height", height)] {
+        if let Some(v) = v {
+            crate::camera::check_side(v).map_err(|m| anyhow::anyhow!("{flag}: {m}"))?;
+        }
+    }
+    let scaled = scaled_camera(c, width, height);
+    scaled.check_size().map_err(|(field, m)| anyhow::anyhow!("--width/--height: the scaled camera's {field} {m}"))?;
+    crate::scene::file::validate_camera(&scaled)
+        .map_err(|(field, m)| anyhow::anyhow!("--width/--height: the scaled camera's {field} {m}"))?;
+    Ok(scaled)
+}
+
 /// The same camera at another resolution, with the same field of view.
 pub fn scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -> CameraModel {
     let Some(w) = width.or(height.map(|h| (f64::from(h) * f64::from(c.width) / f64::from(c.height)).round() as u32))
@@ -214,7 +229,8 @@ pub fn scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -
     }
 }
 
-/// `px,py,pz[,qw,qx,qy,qz[,sx,sy,sz]]`; missing parts come from `base`.
+/// `px,py,pz[,qw,qx,qy,qz[,sx,sy,sz]]`; missing parts come from `base`. The result goes
+/// through the pose gate ([`crate::scene::limits::gate_pose`]) as a scene's `[pose]` does.
 pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     let v: Vec<f64> = s
         .split(',')
@@ -226,18 +242,10 @@ pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     let mut p = *base;
     p.position = DVec3::new(v[0], v[1], v[2]);
     if v.len() >= 7 {
-        let q = DQuat::from_xyzw(v[4], v[5], v[6], v[3]);
-        if (q.length() - 1.0).abs() > 1e-3 {
-            bail!("quaternion norm is {}, expected 1", q.length());
-        }
-        p.attitude = q.normalize();
+        p.attitude = DQuat::from_xyzw(v[4], v[5], v[6], v[3]);
     }
     if v.len() == 10 {
-        let sun = DVec3::new(v[7], v[8], v[9]);
-        if sun.length() < 1e-9 {
-            bail!("sun direction is zero");
-        }
-        p.sun_dir = sun.normalize();
+        p.sun_dir = DVec3::new(v[7], v[8], v[9]);
     }
-    Ok(p)
+    crate::scene::limits::gate_pose(&p).map_err(|e| anyhow::anyhow!("{}: {}", e.field, e.message))
 }

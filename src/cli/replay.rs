@@ -1,7 +1,7 @@
 //! `hilcam replay`: render a trajectory offline to files (resumable, shardable), or
 //! re-render a recorded `serve` session frame for frame (`--session`).
 
-use crate::cli::render::scaled_camera;
+use crate::cli::render::{checked_scaled_camera, scaled_camera};
 use crate::frame::FrameFlags;
 use crate::integrator::SamplerKind;
 use crate::pipeline::FramePipeline;
@@ -104,7 +104,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         pin_integration_time(&mut scene, t)?;
     }
     let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
-    let camera = scaled_camera(&scene.camera, a.width, None);
+    let camera = checked_scaled_camera(&scene.camera, a.width, None)?;
     let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
     let cfg = ReplayConfig {
         out_dir: out.clone(),

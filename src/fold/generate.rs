@@ -48,6 +48,13 @@ pub fn generate_plane(target: FoldTarget, seed: u64) -> Result<FoldPlane, FoldEr
 /// Side of the square reference panel used by [`fit_for_edge`] (m).
 pub const PANEL_SIDE_M: f32 = 2.0;
 
+/// Triangles [`fit_for_edge`]'s test panel (two right triangles, `PANEL_SIDE_M` legs)
+/// becomes at `edge_m` (as [`super::wrap::wrap_triangle_estimate`]).
+pub fn fit_panel_triangle_estimate(edge_m: f32) -> f64 {
+    let n = (f64::from(PANEL_SIDE_M) * std::f64::consts::SQRT_2 / f64::from(edge_m)).ceil().max(1.0);
+    2.0 * n * n
+}
+
 /// Fit fold parameters for `target` at the resolution [`super::wrap_faces`] will use:
 /// on a flat `PANEL_SIDE_M` square in the YZ plane (two triangles), subdivided exactly as
 /// `wrap_faces` subdivides it at `edge_m`. The crease tents are only a few edges wide,
@@ -55,13 +62,21 @@ pub const PANEL_SIDE_M: f32 = 2.0;
 /// disk reads 0.9651 / 0.0090 at 1 cm, 0.9716 / 0.0056 at 3 cm); this removes the drift.
 ///
 /// # Errors
-/// See [`fit_params`]; `InvalidParam` for a non-positive `edge_m`.
+/// See [`fit_params`]; `InvalidParam` for a non-positive `edge_m`, or one so small that
+/// the panel would exceed [`super::wrap::MAX_WRAP_TRIANGLES`].
 pub fn fit_for_edge(target: FoldTarget, seed: u64, edge_m: f32) -> Result<FitReport, FoldError> {
     if !(edge_m.is_finite() && edge_m > 0.0) {
         return Err(FoldError::InvalidParam {
             field: "edge_m",
             value: f64::from(edge_m),
             why: "must be finite and > 0",
+        });
+    }
+    if fit_panel_triangle_estimate(edge_m) > super::wrap::MAX_WRAP_TRIANGLES as f64 {
+        return Err(FoldError::InvalidParam {
+            field: "edge_m",
+            value: f64::from(edge_m),
+            why: "would subdivide the fit panel into more triangles than MAX_WRAP_TRIANGLES",
         });
     }
     let h = 0.5 * PANEL_SIDE_M;

@@ -26,9 +26,9 @@ pub mod wrap;
 
 pub use field::{FoldField, FoldParams};
 pub use fit::{FitReport, fit_params};
-pub use generate::{FoldPlane, fit_for_edge, generate_plane};
+pub use generate::{FoldPlane, fit_for_edge, fit_panel_triangle_estimate, generate_plane};
 pub use measure::{FoldStats, measure};
-pub use wrap::{WrapReport, wrap_faces, wrap_faces_report};
+pub use wrap::{MAX_WRAP_TRIANGLES, WrapReport, wrap_faces, wrap_faces_report, wrap_triangle_estimate};
 
 use std::str::FromStr;
 

@@ -31,6 +31,31 @@ pub const TAPER_WIDTHS: f64 = 2.0;
 /// Groups with more pinned edges than this skip the taper (hard pin), to bound cost.
 const MAX_TAPER_EDGES: usize = 512;
 
+/// Most triangles one wrap may produce (~1 GB of mesh and tree). [`wrap_triangle_estimate`]
+/// is checked against it before anything is subdivided.
+pub const MAX_WRAP_TRIANGLES: u64 = 10_000_000;
+
+/// How many triangles wrapping the faces of `materials` at `edge_m` would give, without
+/// subdividing: each selected face becomes N² (N: its longest edge's segment count), the
+/// rest stay one. An upper bound (snapping drops a few); f64, so a tiny or zero `edge_m`
+/// gives a huge or infinite count rather than overflowing, and NaN for a NaN `edge_m`.
+pub fn wrap_triangle_estimate(mesh: &TriMesh, materials: &[u32], edge_m: f32) -> f64 {
+    let e = f64::from(edge_m);
+    mesh.indices
+        .iter()
+        .zip(&mesh.material)
+        .map(|(t, m)| {
+            if !materials.contains(m) {
+                return 1.0;
+            }
+            let p = t.map(|v| mesh.positions[v as usize].as_dvec3());
+            let longest = p[0].distance(p[1]).max(p[1].distance(p[2])).max(p[2].distance(p[0]));
+            let n = (longest / e).ceil().max(1.0);
+            n * n
+        })
+        .sum()
+}
+
 /// What `wrap_faces_report` did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct WrapReport {
@@ -76,6 +101,11 @@ pub fn wrap_faces_report(
     }
     if !(edge_m.is_finite() && edge_m > 0.0) {
         tracing::error!(edge_m, "wrap: edge_m must be > 0, mesh left unfolded");
+        return (mesh.clone(), report);
+    }
+    let would_make = wrap_triangle_estimate(mesh, materials, edge_m);
+    if would_make > MAX_WRAP_TRIANGLES as f64 {
+        tracing::error!(edge_m, would_make, limit = MAX_WRAP_TRIANGLES, "wrap: too many triangles, mesh left unfolded");
         return (mesh.clone(), report);
     }
     let selected: Vec<bool> = mesh.material.iter().map(|m| materials.contains(m)).collect();

@@ -158,6 +158,9 @@ impl Bvh4 {
                 while mask != 0 {
                     let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
+                    if node.is_empty_slot(slot) {
+                        continue; // entered only by a ray with a NaN coordinate
+                    }
                     let c = Entry { index: node.child[slot], count: node.count[slot], t: tnear[slot] };
                     if c.count > 0 {
                         if leaf(&c, &mut ray, &mut best) {
@@ -186,6 +189,9 @@ impl Bvh4 {
             while mask != 0 {
                 let slot = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
+                if node.is_empty_slot(slot) {
+                    continue;
+                }
                 let c = Entry { index: node.child[slot], count: node.count[slot], t: tnear[slot] };
                 let mut j = n;
                 while j > 0 && hit[j - 1].t < c.t {

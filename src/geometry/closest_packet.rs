@@ -153,7 +153,7 @@ mod avx {
                 }
                 let tf = _mm256_mul_ps(tf, slack);
                 let bits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, tf)) as u32 & mask;
-                if bits == 0 {
+                if bits == 0 || nd.is_empty_slot(slot) {
                     continue;
                 }
                 let c = Entry { index: nd.child[slot], count: nd.count[slot], lanes: bits, t: nearest(tn, bits) };

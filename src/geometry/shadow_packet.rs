@@ -135,7 +135,7 @@ mod avx {
                     }
                     let tf = _mm256_mul_ps(tf, slack);
                     let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, tf)) as u32 & live & !occluded;
-                    if hit == 0 {
+                    if hit == 0 || nd.is_empty_slot(slot) {
                         continue;
                     }
                     let count = nd.count[slot];

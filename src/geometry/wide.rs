@@ -5,7 +5,10 @@ use obvhs::bvh2::Bvh2;
 
 /// `W` children: boxes in SoA form (`bounds[axis][0]` = min, `[1]` = max, one lane per
 /// child) and per child either an inner node index (`count == 0`) or a leaf's primitive
-/// range `first..first + count`. Unused slots have an inverted (empty) box.
+/// range `first..first + count`. Unused slots have an inverted (empty) box and the child
+/// index [`EMPTY_SLOT`], which no node has: a ray with a NaN coordinate passes every slab
+/// test (the min/max drop NaN), so the walks skip such a slot by its index rather than
+/// trust the box (as node 0, the root, it would restart the walk without end).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct Node<const W: usize> {
@@ -14,10 +17,19 @@ pub(super) struct Node<const W: usize> {
     pub count: [u32; W],
 }
 
+/// Child index of an unused slot (with `count == 0`); never a node's index.
+pub(super) const EMPTY_SLOT: u32 = u32::MAX;
+
 impl<const W: usize> Node<W> {
-    /// Every slot empty: its box contains nothing, so no ray enters it.
+    /// Every slot empty: its box contains nothing, so no finite ray enters it.
     pub const EMPTY: Self =
-        Node { bounds: [[[f32::INFINITY; W], [f32::NEG_INFINITY; W]]; 3], child: [0; W], count: [0; W] };
+        Node { bounds: [[[f32::INFINITY; W], [f32::NEG_INFINITY; W]]; 3], child: [EMPTY_SLOT; W], count: [0; W] };
+
+    /// True for an unused slot.
+    #[inline(always)]
+    pub fn is_empty_slot(&self, slot: usize) -> bool {
+        self.child[slot] == EMPTY_SLOT && self.count[slot] == 0
+    }
 }
 
 /// A child: inner node (`count == 0`) or leaf range, and its entry distance.

@@ -36,11 +36,15 @@
 //! bvh = "bvh8"                 # the default; or "bvh4", "bvh2", "cwbvh"
 //! ```
 
+use super::limits;
 use super::obj::load_obj;
 use super::{Material, Scene, SceneParts};
 use crate::bsdf::BsdfSpec;
 use crate::camera::CameraModel;
-use crate::fold::{FoldLevel, FoldTarget, fit_for_edge, wrap_faces_report};
+use crate::fold::{
+    FoldLevel, FoldTarget, MAX_WRAP_TRIANGLES, fit_for_edge, fit_panel_triangle_estimate, wrap_faces_report,
+    wrap_triangle_estimate,
+};
 use crate::geometry::{BvhLayout, TriMesh};
 use crate::integrator::{RenderSettings, SamplerKind, Spp};
 use crate::pose::Pose;
@@ -99,27 +103,31 @@ struct WrapEntry {
     var: Option<f64>,
     /// Target edge length of the subdivided faces, metres.
     #[serde(default = "default_edge")]
-    edge_m: f32,
+    edge_m: Spanned<f32>,
     #[serde(default)]
     seed: u64,
 }
 
-fn default_edge() -> f32 {
-    0.02
+fn default_edge() -> Spanned<f32> {
+    Spanned::new(0..0, 0.02)
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MeshEntry {
     obj: Spanned<PathBuf>,
-    #[serde(default)]
-    translate: [f64; 3],
-    #[serde(default)]
-    rotate_deg: [f64; 3],
+    #[serde(default = "zero3")]
+    translate: Spanned<[f64; 3]>,
+    #[serde(default = "zero3")]
+    rotate_deg: Spanned<[f64; 3]>,
     #[serde(default = "one")]
     scale: Spanned<f64>,
     /// Use this scene material for every face, whatever the MTL says.
     material: Option<Spanned<String>>,
+}
+
+fn zero3() -> Spanned<[f64; 3]> {
+    Spanned::new(0..0, [0.0; 3])
 }
 
 fn one() -> Spanned<f64> {
@@ -143,11 +151,21 @@ fn default_irradiance() -> Spanned<f64> {
     Spanned::new(0..0, super::SOLAR_BAND_IRRADIANCE)
 }
 
-#[derive(Deserialize, Default)]
+#[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct BackgroundSection {
-    #[serde(default)]
-    radiance: f64,
+    #[serde(default = "zero")]
+    radiance: Spanned<f64>,
+}
+
+impl Default for BackgroundSection {
+    fn default() -> Self {
+        BackgroundSection { radiance: zero() }
+    }
+}
+
+fn zero() -> Spanned<f64> {
+    Spanned::new(0..0, 0.0)
 }
 
 #[derive(Deserialize)]
@@ -274,15 +292,19 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
-        let loaded =
-            load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, format!("{}: {m}", obj_path.display())))?;
+        let loaded = load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
         let scale = *entry.scale.get_ref();
-        if !(scale.is_finite() && scale > 0.0) {
-            return Err(field(
-                entry.scale.span(),
-                &format!("mesh[{k}].scale"),
-                format!("must be positive, got {scale}"),
-            ));
+        limits::in_range(scale, limits::SCALE, "")
+            .map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
+        let translate = *entry.translate.get_ref();
+        for v in translate {
+            limits::in_range(v, (-limits::TRANSLATE_M, limits::TRANSLATE_M), " m")
+                .map_err(|m| field(entry.translate.span(), &format!("mesh[{k}].translate"), m))?;
+        }
+        let rotate_deg = *entry.rotate_deg.get_ref();
+        for v in rotate_deg {
+            limits::in_range(v, (-limits::ROTATE_DEG, limits::ROTATE_DEG), "°")
+                .map_err(|m| field(entry.rotate_deg.span(), &format!("mesh[{k}].rotate_deg"), m))?;
         }
         // Map each MTL name to a scene material.
         let mut map = Vec::new();
@@ -308,9 +330,9 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 }
             }
         }
-        let [rx, ry, rz] = entry.rotate_deg.map(f64::to_radians);
+        let [rx, ry, rz] = rotate_deg.map(f64::to_radians);
         let rot = DQuat::from_euler(EulerRot::ZYX, rz, ry, rx);
-        let t = DVec3::from_array(entry.translate);
+        let t = DVec3::from_array(translate);
         let mut m = loaded.mesh;
         for p in &mut m.positions {
             *p = (rot * (p.as_dvec3() * scale) + t).as_vec3();
@@ -321,9 +343,11 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         mesh.append(&m);
     }
 
-    for w in &file.wrap {
+    for (k, w) in file.wrap.iter().enumerate() {
         let e = w.get_ref();
         let fail = |m: String| field(w.span(), "wrap", m);
+        let edge_m = *e.edge_m.get_ref();
+        let edge_span = if e.edge_m.span().is_empty() { w.span() } else { e.edge_m.span() };
         let Some(mat) = index_of(&e.material) else {
             return Err(fail(format!("material `{}` is not in [materials]", e.material)));
         };
@@ -332,8 +356,20 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             (None, Some(e_plane), Some(var)) => FoldTarget { e_plane, var },
             _ => return Err(fail("give either level or both e_plane and var".into())),
         };
-        let fit = fit_for_edge(target, e.seed, e.edge_m).map_err(|x| fail(x.to_string()))?;
-        let (wrapped, report) = wrap_faces_report(&mesh, &[mat], &fit.params, e.seed, e.edge_m);
+        // Bound the subdivision before doing it (the fit subdivides a test panel too).
+        let would_make = wrap_triangle_estimate(&mesh, &[mat], edge_m) + fit_panel_triangle_estimate(edge_m);
+        if !(edge_m.is_finite() && edge_m > 0.0 && would_make <= MAX_WRAP_TRIANGLES as f64) {
+            return Err(field(
+                edge_span,
+                &format!("wrap[{k}].edge_m"),
+                format!(
+                    "{edge_m} m would subdivide into {would_make:.3e} triangles (limit {MAX_WRAP_TRIANGLES}); \
+                     use a larger edge_m"
+                ),
+            ));
+        }
+        let fit = fit_for_edge(target, e.seed, edge_m).map_err(|x| fail(x.to_string()))?;
+        let (wrapped, report) = wrap_faces_report(&mesh, &[mat], &fit.params, e.seed, edge_m);
         tracing::info!(material = %e.material, e_plane = fit.e_plane, var = fit.var, triangles = wrapped.indices.len(), ?report, "folded");
         mesh = wrapped;
     }
@@ -372,9 +408,11 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
 
     let pose = pose_from(&file.pose).map_err(|(span, f, m)| field(span, &f, m))?;
     let irradiance = *file.sun.irradiance.get_ref();
-    if !(irradiance.is_finite() && irradiance >= 0.0) {
-        return Err(field(file.sun.irradiance.span(), "sun.irradiance", format!("must be ≥ 0 W/m², got {irradiance}")));
-    }
+    limits::in_range(irradiance, limits::IRRADIANCE_W_M2, " W/m²")
+        .map_err(|m| field(file.sun.irradiance.span(), "sun.irradiance", m))?;
+    let background = *file.background.radiance.get_ref();
+    limits::in_range(background, limits::BACKGROUND_W_SR_M2, " W·sr⁻¹·m⁻²")
+        .map_err(|m| field(file.background.radiance.span(), "background.radiance", m))?;
     let r = &file.render;
     let render = RenderSettings {
         spp: Spp::try_from(*r.spp.get_ref()).map_err(|e| field(r.spp.span(), "render.spp", e.to_string()))?,
@@ -385,14 +423,18 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         adaptive: r.adaptive,
         seed: r.seed,
     };
-    if render.depth == 0 {
-        return Err(field(r.depth.span(), "render.depth", "must be at least 1 (1 = direct sunlight only)".into()));
+    if !(1..=limits::MAX_DEPTH).contains(&render.depth) {
+        return Err(field(
+            r.depth.span(),
+            "render.depth",
+            format!("must be in 1..={} (1 = direct sunlight only), got {}", limits::MAX_DEPTH, render.depth),
+        ));
     }
     Ok(SceneParts {
         mesh,
         materials,
         sun_irradiance: irradiance,
-        background: file.background.radiance,
+        background,
         camera,
         sensor,
         pose,
@@ -408,18 +450,15 @@ pub fn load_camera_file(path: &Path) -> Result<CameraPreset, String> {
     Ok(preset)
 }
 
-fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
-    if c.width == 0 || c.height == 0 {
-        return Err(("width", format!("image must be at least 1×1, got {}×{}", c.width, c.height)));
-    }
-    if !(c.pitch_um.is_finite() && c.pitch_um > 0.0) {
-        return Err(("pitch_um", format!("must be positive, got {}", c.pitch_um)));
-    }
-    if !(c.focal_mm.is_finite() && c.focal_mm > 0.0) {
-        return Err(("focal_mm", format!("must be positive, got {}", c.focal_mm)));
-    }
-    if !c.principal_point_px.iter().all(|v| v.is_finite()) {
-        return Err(("principal_point_px", "must be finite".into()));
+/// Size within [`crate::camera::MAX_SIDE_PX`] per side, pitch and focal length finite and
+/// in their ranges, the principal point finite and within one image size of the centre.
+pub fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
+    c.check_size()?;
+    limits::in_range(c.pitch_um, limits::PITCH_UM, " µm").map_err(|m| ("pitch_um", m))?;
+    limits::in_range(c.focal_mm, limits::FOCAL_MM, " mm").map_err(|m| ("focal_mm", m))?;
+    let bound = f64::from(c.width.max(c.height));
+    for v in c.principal_point_px {
+        limits::in_range(v, (-bound, bound), " px (one image size)").map_err(|m| ("principal_point_px", m))?;
     }
     Ok(())
 }
@@ -427,22 +466,19 @@ fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
 type FieldErr = (std::ops::Range<usize>, String, String);
 
 fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
-    let pos = DVec3::from_array(*p.position.get_ref());
-    if !pos.is_finite() {
-        return Err((p.position.span(), "pose.position".into(), "must be finite".into()));
-    }
     let [w, x, y, z] = *p.attitude.get_ref();
-    let q = DQuat::from_xyzw(x, y, z, w);
-    if !q.is_finite() || (q.length() - 1.0).abs() > 1e-3 {
-        return Err((
-            p.attitude.span(),
-            "pose.attitude".into(),
-            format!("must be a unit quaternion [w, x, y, z], norm is {}", q.length()),
-        ));
-    }
-    let sun = DVec3::from_array(*p.sun.get_ref());
-    if !sun.is_finite() || sun.length() < 1e-9 {
-        return Err((p.sun.span(), "pose.sun".into(), "must be a non-zero direction toward the sun".into()));
-    }
-    Ok(Pose { position: pos, attitude: q.normalize(), sun_dir: sun.normalize(), ..Pose::ahead(0.0) })
+    let pose = Pose {
+        position: DVec3::from_array(*p.position.get_ref()),
+        attitude: DQuat::from_xyzw(x, y, z, w),
+        sun_dir: DVec3::from_array(*p.sun.get_ref()),
+        ..Pose::ahead(0.0)
+    };
+    limits::gate_pose(&pose).map_err(|e| {
+        let span = match e.field {
+            "pose.attitude" => p.attitude.span(),
+            "pose.sun" => p.sun.span(),
+            _ => p.position.span(),
+        };
+        (span, e.field.to_string(), e.message)
+    })
 }

@@ -2,6 +2,7 @@
 //! defaults (camera, pose, render settings) that let one file render on its own.
 
 pub mod file;
+pub mod limits;
 pub mod obj;
 
 use crate::bsdf::Bsdf;

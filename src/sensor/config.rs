@@ -214,6 +214,9 @@ impl CameraPreset {
     }
 }
 
+/// Largest `radiance_scale`: with radiance up to 1e6 the product stays far inside f32.
+const MAX_RADIANCE_SCALE: f64 = 1.0e12;
+
 fn invalid(field: &str, message: impl Into<String>) -> SensorError {
     SensorError::Invalid { field: field.to_string(), message: message.into() }
 }
@@ -253,6 +256,10 @@ impl SensorConfig {
     pub fn validate(&self, camera: &CameraModel) -> Result<(), SensorError> {
         if let Some(s) = self.radiance_scale {
             positive("sensor.radiance_scale", s)?;
+            // Radiance is ≲ 1e6 W·sr⁻¹·m⁻² (the scene's limits); keep the product in f32.
+            if s > MAX_RADIANCE_SCALE {
+                return Err(invalid("sensor.radiance_scale", format!("must be ≤ {MAX_RADIANCE_SCALE:e} (got {s})")));
+            }
         }
         if let Some(b) = &self.band {
             positive("sensor.band.min_um", b.min_um)?;
@@ -353,6 +360,9 @@ impl SensorConfig {
             QeConfig::Curve(pts) => {
                 if pts.len() < 2 {
                     return Err(invalid("sensor.detector.qe", "a curve needs ≥ 2 points"));
+                }
+                if pts.iter().any(|p| !p[0].is_finite()) {
+                    return Err(invalid("sensor.detector.qe", "curve wavelengths must be finite"));
                 }
                 for w in pts.windows(2) {
                     if w[1][0] <= w[0][0] {

@@ -235,6 +235,9 @@ impl ServeConfig {
 
     /// Field-level checks that serde cannot express.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if let Some(w) = self.width {
+            crate::camera::check_side(w).map_err(|m| ("width", m))?;
+        }
         let i = &self.input;
         match i.kind {
             InputKind::Serial | InputKind::Slcan if i.device.is_none() => {
