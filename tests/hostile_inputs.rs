@@ -97,7 +97,8 @@ fn plate() -> &'static Arc<Scene> {
 fn render_checked(pose: &Pose) -> Result<(), TestCaseError> {
     let scene = plate();
     let mut pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
-    let settings = hilcam::integrator::RenderSettings { spp: hilcam::integrator::Spp::whole(2), depth: 2, ..scene.render };
+    let settings =
+        hilcam::integrator::RenderSettings { spp: hilcam::integrator::Spp::whole(2), depth: 2, ..scene.render };
     let f = pipeline.frame(pose, &settings, 0).map_err(|e| TestCaseError::fail(format!("sensor: {e}")))?;
     match &f.pixels {
         Pixels::Float32(v) => {
@@ -125,7 +126,7 @@ fn gate_then_render(p: &Pose) -> Result<(), TestCaseError> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 400, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 1000, failure_persistence: None, ..ProptestConfig::default() })]
 
     /// Serial link: any pose a sender can encode is decoded bit for bit, then gated.
     #[test]
@@ -209,6 +210,89 @@ proptest! {
                 prop_assert!(payload_len <= 16_384 * 16_384 * 4);
             }
             Ok((f, _)) => prop_assert_eq!(f.pixels.len(), 0),
+        }
+    }
+
+}
+
+/// `sane` most of the time, any value a hostile file could hold otherwise (so that a case
+/// usually has one or two hostile fields and the ones that pass still render).
+fn mostly(sane: f64) -> impl Strategy<Value = f64> {
+    prop_oneof![7 => Just(sane), 1 => any_f64()]
+}
+
+/// A TOML float literal for any f64 (TOML spells the special values `nan`, `inf`, `-inf`).
+fn toml_f64(v: f64) -> String {
+    if v.is_nan() {
+        "nan".into()
+    } else if v.is_infinite() {
+        if v > 0.0 { "inf".into() } else { "-inf".into() }
+    } else {
+        format!("{v:?}")
+    }
+}
+
+fn toml_vec(v: &[f64]) -> String {
+    format!("[{}]", v.iter().map(|x| toml_f64(*x)).collect::<Vec<_>>().join(", "))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Scene files: every numeric value a scene takes, hostile or not, is refused with the
+    /// file, line and field, or the scene renders finite, non-negative pixels.
+    #[test]
+    fn scene_values_are_refused_with_file_line_and_field_or_render_finite(
+        background in mostly(0.0),
+        irradiance in mostly(593.1),
+        rho in mostly(0.5),
+        translate in (mostly(0.0), mostly(0.0), mostly(0.0)),
+        rotate in (mostly(0.0), mostly(30.0), mostly(0.0)),
+        scale in mostly(1.0),
+        position in (mostly(0.1), mostly(0.0), mostly(10.0)),
+        attitude in (mostly(1.0), mostly(0.0), mostly(0.0), mostly(0.0)),
+        sun in (mostly(0.5), mostly(0.0), mostly(-0.866)),
+    ) {
+        let p = Pose {
+            position: DVec3::new(position.0, position.1, position.2),
+            attitude: DQuat::from_xyzw(attitude.1, attitude.2, attitude.3, attitude.0),
+            sun_dir: DVec3::new(sun.0, sun.1, sun.2),
+            ..Pose::ahead(10.0)
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = std::fs::canonicalize("scenes/meshes/plate.obj").unwrap();
+        let q = p.attitude;
+        let text = format!(
+            "[[mesh]]\nobj = \"{}\"\ntranslate = {}\nrotate_deg = {}\nscale = {}\n\
+             [materials.white_paint]\nmodel = \"lambert\"\nrho = {}\n\
+             [sun]\nirradiance = {}\n[background]\nradiance = {}\n\
+             [camera]\nwidth = 8\nheight = 8\npitch_um = 10.0\nfocal_mm = 50.0\n\
+             [pose]\nposition = {}\nattitude = {}\nsun = {}\n[render]\nspp = 2\ndepth = 2\n",
+            mesh.display(),
+            toml_vec(&[translate.0, translate.1, translate.2]),
+            toml_vec(&[rotate.0, rotate.1, rotate.2]),
+            toml_f64(scale),
+            toml_f64(rho),
+            toml_f64(irradiance),
+            toml_f64(background),
+            toml_vec(&p.position.to_array()),
+            toml_vec(&[q.w, q.x, q.y, q.z]),
+            toml_vec(&p.sun_dir.to_array()),
+        );
+        let path = dir.path().join("s.toml");
+        std::fs::write(&path, &text).unwrap();
+        match hilcam::scene::load(&path) {
+            Err(e) => {
+                let e = e.to_string();
+                prop_assert!(e.starts_with(&path.display().to_string()), "unnamed error: {e}");
+            }
+            Ok(scene) => {
+                let scene = Arc::new(scene);
+                let (img, _) = FramePipeline::new(scene.clone(), scene.camera.clone())
+                    .unwrap()
+                    .radiance(&scene.pose, &scene.render, 0);
+                prop_assert!(img.data.iter().all(|v| v.is_finite() && *v >= 0.0), "{text}");
+            }
         }
     }
 }
