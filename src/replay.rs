@@ -451,7 +451,8 @@ pub fn replay_jobs_until(
         })?;
         let mut meta = frame_meta(k, &job.pose, &f.pixels, w, h, &job.settings, f.integration_s);
         meta.flags = job.flags;
-        let line = serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");
+        let line =
+            serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");
         if let Err(e) = log.append(&line) {
             // The log must not miss a file that is present: take the image back out.
             let _ = std::fs::remove_file(&path);

@@ -148,23 +148,30 @@ async fn stalled_clients_are_evicted_and_a_reader_gets_the_slot() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_slow_reader_that_catches_up_now_and_then_is_not_evicted() {
     let dir = tempfile::tempdir().unwrap();
-    let (server, _poses) = big_frame_server(dir.path(), 30.0, 4, 1.0).await;
+    let (server, _poses) = big_frame_server(dir.path(), 30.0, 4, 3.0).await;
     let (stream, metrics) = (server.info.stream, server.info.metrics.unwrap());
     let mut reader = Reader::connect(stream).await;
     let t0 = Instant::now();
-    let mut frames = 0;
-    // One frame every 300 ms against 30 frames/s: far behind, but never stalled for 1 s.
-    while t0.elapsed() < Duration::from_secs(5) {
-        reader.next().await;
-        frames += 1;
-        tokio::time::sleep(Duration::from_millis(300)).await;
+    let (mut frames, mut last_seq, mut missing) = (0u64, None::<u64>, 0u64);
+    // Pauses of 2 s (more than the socket buffers hold), each followed by 150 ms of
+    // reading: far behind the stream (frames are lost), but the queue empties after
+    // every pause, so it is never full for evict_after_s (3 s).
+    while t0.elapsed() < Duration::from_secs(8) {
+        let burst = Instant::now();
+        while burst.elapsed() < Duration::from_millis(150) {
+            let seq = reader.next().await.meta.frame_seq;
+            missing += last_seq.map_or(0, |l| seq - l - 1);
+            last_seq = Some(seq);
+            frames += 1;
+        }
+        tokio::time::sleep(Duration::from_secs(2)).await;
     }
     let text = tokio::task::spawn_blocking(move || metrics_text(metrics)).await.unwrap();
     assert_eq!(metric(&text, EVICTED), 0, "a reading client was evicted");
     assert_eq!(metric(&text, CONNECTED), 1);
     let dropped = metric(&text, "hilcam_stream_frames_dropped_total{client=\"1\",reason=\"queue_full\"}");
-    assert!(dropped > 0, "the slow reader lost frames (drop-oldest), counted: {dropped}");
-    eprintln!("slow reader: {frames} frames read, {dropped} dropped, not evicted");
+    assert!(dropped > 0 && missing > 0, "the slow reader lost frames (drop-oldest, counted): {dropped}, {missing}");
+    eprintln!("slow reader: {frames} frames read, {missing} missing, {dropped} dropped at the server, not evicted");
     server.finish().await;
 }
 
@@ -248,11 +255,7 @@ fn serve_toml(dir: &Path, width: u32, rate_hz: f64, extra: &str) -> PathBuf {
 }
 
 fn session_lines(path: &Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(path)
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str(l).ok())
-        .collect()
+    std::fs::read_to_string(path).unwrap_or_default().lines().filter_map(|l| serde_json::from_str(l).ok()).collect()
 }
 
 fn serve_stops_cleanly_on(sig: libc::c_int) {
@@ -364,7 +367,8 @@ fn sigterm_stops_replay_after_the_frame_in_hand_and_it_resumes() {
     let traj = std::fs::canonicalize("scenes/trajectories/flyaround.csv").unwrap();
     let out = dir.path().join("out");
     let args = replay_args(&traj, &scene, &out, 10); // 121 frames
-    let mut child = hilcam().args(&args).args(["--threads", "1"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut child =
+        hilcam().args(&args).args(["--threads", "1"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     let stderr = collect_stderr(&mut child);
     wait_until("replay frames logged", Duration::from_secs(60), || logged_lines(&out) >= 3);
     send_signal(&child, libc::SIGTERM);
@@ -467,7 +471,12 @@ fn recording_onto_a_full_disk_leaves_no_partial_files_and_recovers() {
     wait_until("the first failure", Duration::from_secs(60), || count(&lines(), "cannot write frames") > 0);
     std::thread::sleep(Duration::from_millis(6000));
     let failing = lines();
-    assert_eq!(count(&failing, "cannot write frames (disk full)"), 1, "one first-failure line:\n{}", failing.join("\n"));
+    assert_eq!(
+        count(&failing, "cannot write frames (disk full)"),
+        1,
+        "one first-failure line:\n{}",
+        failing.join("\n")
+    );
     let still = count(&failing, "still failing (disk full)");
     assert!((1..=2).contains(&still), "a periodic reminder, not one per frame ({still}):\n{}", failing.join("\n"));
     // (Only the frame files here: temporary files come and go while the writer tries.)

@@ -258,8 +258,7 @@ impl Recorder {
         let thread = std::thread::Builder::new()
             .name("hilcam-recorder".into())
             .spawn(move || {
-                let mut failures =
-                    FailureLog::new(format!("recorder {}", cfg.dir.display()), cfg.failure_report_every);
+                let mut failures = FailureLog::new(format!("recorder {}", cfg.dir.display()), cfg.failure_report_every);
                 for frame in rx {
                     match record_one(&cfg, &frame, &mut log) {
                         Ok(()) => {
