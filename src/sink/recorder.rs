@@ -178,7 +178,8 @@ impl RecorderConfig {
 pub enum RecorderError {
     #[error("recorder: {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
-    #[error("recorder: {0}")]
+    /// The image file could not be written (the error names the file).
+    #[error("{0}")]
     Image(ImageWriteError),
     #[error("recorder thread panicked")]
     Panicked,
