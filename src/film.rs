@@ -136,35 +136,95 @@ pub fn write_radiance(
 }
 
 /// Write pixels in the format the extension names. Mono16 values are written as stored
-/// (a 12-bit sensor's DN stay 0..4095 in the 16-bit file).
+/// (a 12-bit sensor's DN stay 0..4095 in the 16-bit file). The file appears whole or not
+/// at all: see [`write_file_atomically`].
 pub fn write_pixels(path: &Path, width: u32, height: u32, px: &Pixels) -> Result<(), ImageWriteError> {
+    let bytes = encode_pixels(path, width, height, px)?;
+    write_file_atomically(path, &bytes).map_err(|source| ImageWriteError::Io { path: path.to_path_buf(), source })
+}
+
+/// The file bytes of `px` in the format `path`'s extension names (encoded in memory, so
+/// that every write error surfaces at [`write_file_atomically`]).
+fn encode_pixels(path: &Path, width: u32, height: u32, px: &Pixels) -> Result<Vec<u8>, ImageWriteError> {
     let p = || path.to_path_buf();
     let img_err = |source| ImageWriteError::Image { path: p(), source };
+    let mut out = std::io::Cursor::new(Vec::new());
+    use image::ImageFormat::{Png, Tiff};
     match (ext(path).as_str(), px) {
-        ("png", Pixels::Mono8(d)) => {
-            image::GrayImage::from_raw(width, height, d.clone()).expect("buffer size").save(path).map_err(img_err)
-        }
-        ("png" | "tif" | "tiff", Pixels::Mono16 { data, .. }) => {
+        ("png", Pixels::Mono8(d)) => image::GrayImage::from_raw(width, height, d.clone())
+            .expect("buffer size")
+            .write_to(&mut out, Png)
+            .map_err(img_err)?,
+        (e @ ("png" | "tif" | "tiff"), Pixels::Mono16 { data, .. }) => {
             image::ImageBuffer::<image::Luma<u16>, _>::from_raw(width, height, data.clone())
                 .expect("buffer size")
-                .save(path)
-                .map_err(img_err)
+                .write_to(&mut out, if e == "png" { Png } else { Tiff })
+                .map_err(img_err)?
         }
-        ("tif" | "tiff", Pixels::Mono8(d)) => {
-            image::GrayImage::from_raw(width, height, d.clone()).expect("buffer size").save(path).map_err(img_err)
-        }
-        ("pfm", Pixels::Float32(d)) => {
-            write_pfm(path, width, height, d).map_err(|source| ImageWriteError::Io { path: p(), source })
-        }
-        ("exr", Pixels::Float32(d)) => write_exr(path, width, height, d),
+        ("tif" | "tiff", Pixels::Mono8(d)) => image::GrayImage::from_raw(width, height, d.clone())
+            .expect("buffer size")
+            .write_to(&mut out, Tiff)
+            .map_err(img_err)?,
+        ("pfm", Pixels::Float32(d)) => return Ok(encode_pfm(width, height, d)),
+        ("exr", Pixels::Float32(d)) => encode_exr(path, width, height, d, &mut out)?,
         ("exr" | "pfm", other) => {
-            Err(ImageWriteError::FormatMismatch { path: p(), what: "a float image file", format: other.format() })
+            return Err(ImageWriteError::FormatMismatch {
+                path: p(),
+                what: "a float image file",
+                format: other.format(),
+            });
         }
         ("png" | "tif" | "tiff", other) => {
-            Err(ImageWriteError::FormatMismatch { path: p(), what: "an integer image file", format: other.format() })
+            return Err(ImageWriteError::FormatMismatch {
+                path: p(),
+                what: "an integer image file",
+                format: other.format(),
+            });
         }
-        _ => Err(ImageWriteError::UnsupportedExtension { path: p() }),
+        _ => return Err(ImageWriteError::UnsupportedExtension { path: p() }),
     }
+    Ok(out.into_inner())
+}
+
+/// Write `bytes` to `path` so that the file is either complete or absent: into a hidden
+/// temporary file in the same directory (same filesystem), renamed over `path` once
+/// every byte is written; on any error the temporary file is removed. A full disk thus
+/// leaves no empty or truncated file behind, and a reader never sees half a file. (No
+/// fsync: this guards against write errors and readers, not against power loss.)
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("file");
+    let n = NEXT.fetch_add(1, Ordering::Relaxed);
+    let tmp = path.with_file_name(format!(".{name}.{}-{n}{TEMP_SUFFIX}", std::process::id()));
+    let written = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .and_then(|mut f| f.write_all(bytes))
+        .and_then(|_| std::fs::rename(&tmp, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
+}
+
+/// How [`write_file_atomically`]'s temporary files end (`.<name>.<pid>-<n>.tmp`).
+pub const TEMP_SUFFIX: &str = ".tmp";
+
+impl ImageWriteError {
+    /// The write failed because the filesystem is full (ENOSPC) or over quota (EDQUOT).
+    pub fn is_disk_full(&self) -> bool {
+        match self {
+            ImageWriteError::Io { source, .. } => is_disk_full(source),
+            _ => false,
+        }
+    }
+}
+
+/// ENOSPC or EDQUOT: no room to write, until space is freed.
+pub fn is_disk_full(e: &std::io::Error) -> bool {
+    matches!(e.kind(), std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded)
 }
 
 fn ext(path: &Path) -> String {
@@ -172,18 +232,18 @@ fn ext(path: &Path) -> String {
 }
 
 /// Portable float map, greyscale (`Pf`), little-endian (negative scale), rows bottom-to-top.
-fn write_pfm(path: &Path, width: u32, height: u32, data: &[f32]) -> std::io::Result<()> {
-    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
-    write!(out, "Pf\n{width} {height}\n-1.0\n")?;
+fn encode_pfm(width: u32, height: u32, data: &[f32]) -> Vec<u8> {
+    let mut out = format!("Pf\n{width} {height}\n-1.0\n").into_bytes();
+    out.reserve(data.len() * 4);
     for row in (0..height as usize).rev() {
         for v in &data[row * width as usize..(row + 1) * width as usize] {
-            out.write_all(&v.to_le_bytes())?;
+            out.extend_from_slice(&v.to_le_bytes());
         }
     }
-    out.flush()
+    out
 }
 
-/// Read a greyscale PFM written by [`write_pfm`] (either endianness) back into a radiance image.
+/// Read a greyscale PFM written by [`write_pixels`] (either endianness) back into a radiance image.
 pub fn read_pfm(path: &Path) -> std::io::Result<RadianceImage> {
     let bytes = std::fs::read(path)?;
     let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, format!("{}: {m}", path.display()));
@@ -228,7 +288,13 @@ pub fn read_pfm(path: &Path) -> std::io::Result<RadianceImage> {
 }
 
 /// Single-channel ("Y") float32 EXR: the `image` crate only writes RGB(A) EXR.
-fn write_exr(path: &Path, width: u32, height: u32, data: &[f32]) -> Result<(), ImageWriteError> {
+fn encode_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    data: &[f32],
+    out: &mut std::io::Cursor<Vec<u8>>,
+) -> Result<(), ImageWriteError> {
     use exr::prelude::*;
     let w = width as usize;
     let channels =
@@ -241,7 +307,7 @@ fn write_exr(path: &Path, width: u32, height: u32, data: &[f32]) -> Result<(), I
     );
     Image::from_layer(layer)
         .write()
-        .to_file(path)
+        .to_buffered(out)
         .map_err(|e| ImageWriteError::Exr { path: path.to_path_buf(), message: e.to_string() })
 }
 

@@ -4,9 +4,14 @@
 //! - Frame index = pose seq = trajectory row index, so replayed frame k is exactly
 //!   `FramePipeline::frame(&samples[k].to_pose(k), settings, k)`: the same payload bytes
 //!   (and CRC) as the live frame from a fresh pipeline fed the same poses in order.
-//! - Resumable: each image is written under a temporary name and renamed, then its line
-//!   is appended and flushed; on start the done set is rebuilt from every `frames*.jsonl`
-//!   in the directory (a truncated last line is tolerated, and cut from our own log).
+//! - Resumable: each image is written under a temporary name and renamed
+//!   ([`crate::film::write_file_atomically`]), then its line is appended whole
+//!   ([`crate::sink::line_log`]); on start the done set is rebuilt from every
+//!   `frames*.jsonl` in the directory (a truncated last line is tolerated, and cut from
+//!   our own log). A full disk stops the run with [`ReplayError::DiskFull`] and leaves
+//!   no partial file; a stop request ([`replay_jobs_until`], the CLI's SIGINT/SIGTERM/
+//!   SIGHUP) ends it after the frame in hand with [`ReplayError::Interrupted`]. Either
+//!   way the same command resumes.
 //! - Sharding: shard K/N renders the selected frames whose position j has j mod N = K,
 //!   logging to `frames.shard-K-of-N.jsonl`; [`merge`] combines the logs.
 //! - Auto-exposure carries state from frame to frame, so a shard, a resumed run or
@@ -22,10 +27,10 @@ use crate::integrator::RenderSettings;
 use crate::pipeline::FramePipeline;
 use crate::scene::Scene;
 use crate::sensor::SensorError;
+use crate::sink::line_log::LineLog;
 use crate::sink::recorder::{FrameRecord, ImageFormat, frame_file_name, write_frame_image};
 use crate::trajectory::TrajectorySample;
 use std::collections::{BTreeMap, HashSet};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Name of an unsharded replay's metadata log (the recorder's name).
@@ -74,6 +79,17 @@ pub enum ReplayError {
     Sensor { frame: u64, source: SensorError },
     #[error("frame {frame}: {path}: {msg}")]
     Image { frame: u64, path: PathBuf, msg: String },
+    #[error(
+        "{dir}: disk full: frame {frame} ({file}) could not be written ({msg}); {done} of {selected} frames are \
+         complete there, none partial: free space and run the same command again to resume"
+    )]
+    DiskFull { dir: PathBuf, frame: u64, file: String, msg: String, done: u64, selected: u64 },
+    #[error(
+        "stopped by {signal}: {done} of {selected} frames are complete in {dir}{}; run the same command again to \
+         resume",
+        .last.map_or(String::new(), |k| format!(" (the last written: frame {k})"))
+    )]
+    Interrupted { signal: String, dir: PathBuf, done: u64, selected: u64, last: Option<u64> },
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReplayError + '_ {
@@ -347,7 +363,19 @@ pub fn replay_jobs(
     pipeline: &mut FramePipeline,
     jobs: &[FrameJob],
     cfg: &ReplayConfig,
+    progress: impl FnMut(&ReplayStats),
+) -> Result<ReplayStats, ReplayError> {
+    replay_jobs_until(pipeline, jobs, cfg, progress, || None)
+}
+
+/// [`replay_jobs`], asking `stop` before each frame: `Some(why)` ends the run there (the
+/// frames before it are complete and logged) with [`ReplayError::Interrupted`].
+pub fn replay_jobs_until(
+    pipeline: &mut FramePipeline,
+    jobs: &[FrameJob],
+    cfg: &ReplayConfig,
     mut progress: impl FnMut(&ReplayStats),
+    stop: impl Fn() -> Option<String>,
 ) -> Result<ReplayStats, ReplayError> {
     if cfg.every == 0 {
         return Err(ReplayError::BadEvery);
@@ -387,11 +415,15 @@ pub fn replay_jobs(
     if !has_manifest {
         manifest::write(dir, &manifest)?;
     }
-    let log = std::fs::OpenOptions::new().create(true).append(true).open(&log_path).map_err(io(&log_path))?;
-    let mut log = std::io::BufWriter::new(log);
+    let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
     progress(&stats);
+    let mut last = None;
     for job in todo {
         let k = job.index;
+        if let Some(signal) = stop() {
+            let done = stats.skipped + stats.rendered;
+            return Err(ReplayError::Interrupted { signal, dir: dir.clone(), done, selected: stats.selected, last });
+        }
         let f =
             pipeline.frame(&job.pose, &job.settings, k).map_err(|source| ReplayError::Sensor { frame: k, source })?;
         let payload = f.pixels.to_le_bytes();
@@ -403,18 +435,31 @@ pub fn replay_jobs(
         }
         let name = frame_file_name(k, cfg.format);
         let path = dir.join(&name);
-        // A temp name with the real extension: the image writer picks the codec by it.
-        let tmp = dir.join(format!(".tmp-{}-{name}", std::process::id()));
-        write_frame_image(&tmp, f.width, f.height, &f.pixels, cfg.format).map_err(|e| ReplayError::Image {
+        let done = stats.skipped + stats.rendered;
+        let disk_full = |msg: String| ReplayError::DiskFull {
+            dir: dir.clone(),
             frame: k,
-            path: tmp.clone(),
-            msg: e.to_string(),
+            file: name.clone(),
+            msg,
+            done,
+            selected: stats.selected,
+        };
+        // Whole or not at all: a failed write leaves no file behind.
+        write_frame_image(&path, f.width, f.height, &f.pixels, cfg.format).map_err(|e| match e.is_disk_full() {
+            true => disk_full(e.to_string()),
+            false => ReplayError::Image { frame: k, path: path.clone(), msg: e.to_string() },
         })?;
-        std::fs::rename(&tmp, &path).map_err(io(&path))?;
         let mut meta = frame_meta(k, &job.pose, &f.pixels, w, h, &job.settings, f.integration_s);
         meta.flags = job.flags;
-        let line = serde_json::to_string(&FrameRecord::new(&meta, &payload, name)).expect("FrameRecord serialises");
-        writeln!(log, "{line}").and_then(|_| log.flush()).map_err(io(&log_path))?;
+        let line =
+            serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");
+        if let Err(e) = log.append(&line) {
+            // The log must not miss a file that is present: take the image back out.
+            let _ = std::fs::remove_file(&path);
+            let msg = format!("{}: {e}", log_path.display());
+            return Err(if crate::film::is_disk_full(&e) { disk_full(msg) } else { io(&log_path)(e) });
+        }
+        last = Some(k);
         stats.rendered += 1;
         progress(&stats);
     }

@@ -48,6 +48,8 @@ pub fn run_cli(a: DemoArgs) -> anyhow::Result<()> {
 }
 
 async fn demo(a: DemoArgs) -> anyhow::Result<()> {
+    // SIGINT/SIGTERM/SIGHUP stop the demo cleanly (server first, then the pty's writer).
+    let signals = super::serve::StopSignals::install()?;
     let root = assets_root()?;
     std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
     // A pseudo-terminal pair stands in for the bench's serial cable.
@@ -97,16 +99,25 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         send_stop_rx,
     ));
 
-    let received = tokio::time::timeout(Duration::from_secs(50), client).await;
+    let client_abort = client.abort_handle();
+    let (received, interrupted) = tokio::select! {
+        r = tokio::time::timeout(Duration::from_secs(50), client) => (Some(r), None),
+        name = signals.recv() => (None, Some(name)),
+    };
+    client_abort.abort();
     // Stop the server before the pose source, so the pty is not pulled from under it.
     let _ = stop_tx.send(());
     let report = server.await??;
     let _ = send_stop_tx.send(());
     let sent = sender.await?.context("pose sender")?;
     drop(slave);
+    if let Some(name) = interrupted {
+        super::serve::print_report(&report);
+        bail!("stopped by {name} before {} frames were received; frames so far are in {}", a.frames, a.out.display());
+    }
     let summary = match received {
-        Ok(r) => r??,
-        Err(_) => bail!("no {} frames within 50 s", a.frames),
+        Some(Ok(r)) => r??,
+        _ => bail!("no {} frames within 50 s", a.frames),
     };
 
     println!("poses sent {} over the pty", sent.poses);

@@ -1,5 +1,10 @@
 //! `hilcam replay`: render a trajectory offline to files (resumable, shardable), or
 //! re-render a recorded `serve` session frame for frame (`--session`).
+//!
+//! SIGINT, SIGTERM (Slurm's `scancel`, `docker stop`) and SIGHUP let the frame in hand
+//! finish and be written, then stop with a non-zero exit and a message saying how many
+//! frames are complete; the same command resumes. A second signal exits at once (frames
+//! are written whole or not at all, so even that leaves no partial frame).
 
 use crate::cli::render::{checked_scaled_camera, scaled_camera};
 use crate::frame::FrameFlags;
@@ -7,7 +12,7 @@ use crate::integrator::SamplerKind;
 use crate::pipeline::FramePipeline;
 use crate::pose::validate::{PoseLimits, check_pose, describe};
 use crate::replay::{
-    FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs, trajectory_jobs,
+    FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs_until, trajectory_jobs,
 };
 use crate::serve::config::ServeConfig;
 use crate::session::{Session, frame_jobs};
@@ -246,8 +251,10 @@ fn identity(p: &Path, content: bool) -> anyhow::Result<String> {
 fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -> anyhow::Result<ReplayStats> {
     let bar = Progress::new();
     let t0 = Instant::now();
-    let stats = replay_jobs(pipeline, jobs, cfg, |s| bar.update(s)).context("replay")?;
+    stop_signal::install();
+    let stats = replay_jobs_until(pipeline, jobs, cfg, |s| bar.update(s), stop_signal::received);
     bar.finish();
+    let stats = stats.context("replay")?;
     let secs = t0.elapsed().as_secs_f64();
     println!(
         "{} frames: {} rendered in {:.1} s ({:.2} s/frame), {} already done{}; log {}",
@@ -316,5 +323,45 @@ impl Progress {
 
     fn finish(&self) {
         self.bar.finish_and_clear();
+    }
+}
+
+/// A stop request by signal, noted by the handler and acted on between frames.
+mod stop_signal {
+    use std::sync::atomic::{AtomicI32, Ordering};
+
+    static RECEIVED: AtomicI32 = AtomicI32::new(0);
+
+    extern "C" fn on_signal(sig: libc::c_int) {
+        // Only async-signal-safe work here: an atomic swap, and _exit on the second signal.
+        if RECEIVED.swap(sig, Ordering::SeqCst) != 0 {
+            // SAFETY: _exit is async-signal-safe.
+            unsafe { libc::_exit(128 + sig) }
+        }
+    }
+
+    /// Route SIGINT, SIGTERM and SIGHUP to the flag (instead of immediate death).
+    pub fn install() {
+        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+            // SAFETY: the handler only touches an atomic and calls _exit.
+            unsafe {
+                let mut action: libc::sigaction = std::mem::zeroed();
+                action.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+                action.sa_flags = libc::SA_RESTART;
+                libc::sigemptyset(&mut action.sa_mask);
+                libc::sigaction(sig, &action, std::ptr::null_mut());
+            }
+        }
+    }
+
+    /// The signal received so far, by name.
+    pub fn received() -> Option<String> {
+        match RECEIVED.load(Ordering::SeqCst) {
+            0 => None,
+            libc::SIGINT => Some("SIGINT".into()),
+            libc::SIGTERM => Some("SIGTERM".into()),
+            libc::SIGHUP => Some("SIGHUP".into()),
+            n => Some(format!("signal {n}")),
+        }
     }
 }

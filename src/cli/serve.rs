@@ -1,4 +1,6 @@
-//! `hilcam serve`: run the real-time server from a config file until Ctrl-C.
+//! `hilcam serve`: run the real-time server from a config file until Ctrl-C, SIGTERM or
+//! SIGHUP (all three stop it cleanly: current frame finished, clients closed on a frame
+//! boundary, session file ended, summary printed, exit 0).
 
 use crate::serve::config::{RecordSection, ServeConfig};
 use crate::serve::{Embed, ServeReport, run};
@@ -24,11 +26,12 @@ pub fn run_cli(a: ServeArgs) -> anyhow::Result<()> {
     }
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     let report = rt.block_on(async {
-        let ctrl_c = async {
-            let _ = tokio::signal::ctrl_c().await;
-            tracing::info!("Ctrl-C: finishing the current frame, closing clients");
+        let signals = StopSignals::install()?;
+        let stop = async move {
+            let name = signals.recv().await;
+            tracing::info!("{name}: finishing the current frame, closing clients");
         };
-        run(cfg, Embed::default(), ctrl_c).await
+        run(cfg, Embed::default(), stop).await
     })?;
     print_report(&report);
     if let Some(s) = &report.session {
@@ -46,5 +49,35 @@ pub fn print_report(r: &ServeReport) {
     println!("render time p50 {:.1} ms, p99 {:.1} ms", s.render_p50_ms, s.render_p99_ms);
     if let Some((p50, p95, p99)) = r.latency_ms {
         println!("latency pose arrival → last byte: p50 {p50:.1} ms, p95 {p95:.1} ms, p99 {p99:.1} ms");
+    }
+}
+
+/// SIGINT (Ctrl-C), SIGTERM (systemd, docker stop, Slurm's scancel) and SIGHUP (the
+/// terminal went away): the signals that ask a process to stop. Installed once, they
+/// replace the default action (immediate death) for the rest of the process.
+pub struct StopSignals {
+    int: tokio::signal::unix::Signal,
+    term: tokio::signal::unix::Signal,
+    hup: tokio::signal::unix::Signal,
+}
+
+impl StopSignals {
+    /// Install the handlers (inside a tokio runtime).
+    pub fn install() -> std::io::Result<StopSignals> {
+        use tokio::signal::unix::{SignalKind, signal};
+        Ok(StopSignals {
+            int: signal(SignalKind::interrupt())?,
+            term: signal(SignalKind::terminate())?,
+            hup: signal(SignalKind::hangup())?,
+        })
+    }
+
+    /// Wait for the first of them; its name.
+    pub async fn recv(mut self) -> &'static str {
+        tokio::select! {
+            _ = self.int.recv() => "SIGINT",
+            _ = self.term.recv() => "SIGTERM",
+            _ = self.hup.recv() => "SIGHUP",
+        }
     }
 }

@@ -102,6 +102,9 @@ pub fn write(dir: &Path, m: &ReplayManifest) -> Result<(), ReplayError> {
     let path = dir.join(MANIFEST_NAME);
     let tmp = dir.join(format!(".{MANIFEST_NAME}.{}", std::process::id()));
     let text = serde_json::to_string_pretty(m).expect("manifest serialises") + "\n";
-    std::fs::write(&tmp, text).map_err(|source| ReplayError::Io { path: tmp.clone(), source })?;
-    std::fs::rename(&tmp, &path).map_err(|source| ReplayError::Io { path, source })
+    let written = std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, &path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written.map_err(|source| ReplayError::Io { path, source })
 }

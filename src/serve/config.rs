@@ -32,6 +32,9 @@
 //! [stream]
 //! listen = "127.0.0.1:5600"
 //! queue_depth = 2
+//! max_clients = 32                     # more connections are refused
+//! evict_after_s = 5.0                  # disconnect a client whose queue stayed full this
+//!                                      # long (stopped reading); 0 = never; default 5
 //!
 //! [record]                             # optional
 //! dir = "frames"                       # recorder sink: every frame as an image file
@@ -163,12 +166,31 @@ pub struct StreamSection {
     pub queue_depth: usize,
     #[serde(default = "default_max_clients")]
     pub max_clients: usize,
+    /// Seconds a client's queue may stay full before it is disconnected; 0 = never.
+    #[serde(default = "default_evict_after_s")]
+    pub evict_after_s: f64,
 }
 
 impl Default for StreamSection {
     fn default() -> Self {
-        StreamSection { listen: default_listen(), queue_depth: default_queue(), max_clients: default_max_clients() }
+        StreamSection {
+            listen: default_listen(),
+            queue_depth: default_queue(),
+            max_clients: default_max_clients(),
+            evict_after_s: default_evict_after_s(),
+        }
     }
+}
+
+impl StreamSection {
+    /// `evict_after_s` for [`crate::sink::StreamConfig::evict_after`] (None: never).
+    pub fn evict_after(&self) -> Option<std::time::Duration> {
+        (self.evict_after_s > 0.0).then(|| std::time::Duration::from_secs_f64(self.evict_after_s))
+    }
+}
+
+fn default_evict_after_s() -> f64 {
+    crate::sink::tcp::DEFAULT_EVICT_AFTER.as_secs_f64()
 }
 
 fn default_listen() -> SocketAddr {
@@ -286,6 +308,10 @@ impl ServeConfig {
         }
         if self.stream.queue_depth == 0 {
             return Err(("stream.queue_depth", "must be at least 1".into()));
+        }
+        let e = self.stream.evict_after_s;
+        if !(e.is_finite() && (0.0..=86_400.0).contains(&e)) {
+            return Err(("stream.evict_after_s", format!("must be 0 (never) or up to 86400 seconds, got {e}")));
         }
         if let Some(r) = &self.record
             && r.dir.is_none()

@@ -199,6 +199,7 @@ pub async fn run(
         bind: cfg.stream.listen,
         queue_depth: cfg.stream.queue_depth,
         max_clients: cfg.stream.max_clients,
+        evict_after: cfg.stream.evict_after(),
         ..StreamConfig::default()
     };
     let stream = StreamServer::bind(stream_cfg, registry.clone(), Some(hook)).await?;

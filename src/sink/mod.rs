@@ -4,9 +4,13 @@
 //! - [`tcp`]: the TCP frame stream server (any number of clients, drop-oldest queues).
 //! - [`recorder`]: image files plus a JSON-lines metadata log, on its own thread.
 //! - [`null`]: counts and discards (benchmarks).
+//! - [`failure_log`]: one report per stretch of failed writes (a full disk), not one per frame.
+//! - [`line_log`]: append-only JSON lines, each written whole or not at all.
 //! - [`client`]: the reference stream client (`hilcam recv`, and the in-process demo).
 
 pub mod client;
+pub mod failure_log;
+pub mod line_log;
 pub mod null;
 pub mod recorder;
 pub mod tcp;

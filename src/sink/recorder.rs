@@ -2,15 +2,25 @@
 //! its own thread from a bounded queue. When the disk is slower than the frame rate the
 //! newest frame is refused and counted (`hilcam_recorder_frames_dropped_total`); the
 //! caller never waits for the disk.
+//!
+//! When writing fails (a full disk) the frame is not saved and counted
+//! (`hilcam_recorder_errors_total{reason="disk_full"|"io"|"encode"}`), reported once
+//! and then periodically ([`super::failure_log`]), and the recorder carries on: frames
+//! are saved again as soon as there is room. An image file appears whole or not at all
+//! ([`film::write_file_atomically`]), and a frame's line goes into `frames.jsonl` only
+//! after its image is in place (if the line cannot be written, the image is removed):
+//! the log lists exactly the image files present.
 
+use super::failure_log::{FailureLog, Reason};
+use super::line_log::LineLog;
 use crate::film::{self, ImageWriteError, Pixels, RadianceImage};
 use crate::frame::{EncodedFrame, FrameFlags, FrameMeta, PixelFormat};
 use crate::metrics::{Counter, Registry};
 use serde::{Deserialize, Serialize};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{self, SyncSender, TrySendError};
+use std::time::Duration;
 
 /// Image file format, by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
@@ -154,11 +164,13 @@ pub struct RecorderConfig {
     pub format: ImageFormat,
     /// Frames waiting for the disk before new ones are refused (default 8).
     pub queue_depth: usize,
+    /// While writes keep failing, report "still failing" at most this often (default 5 s).
+    pub failure_report_every: Duration,
 }
 
 impl RecorderConfig {
     pub fn new(dir: impl Into<PathBuf>, format: ImageFormat) -> Self {
-        RecorderConfig { dir: dir.into(), format, queue_depth: 8 }
+        RecorderConfig { dir: dir.into(), format, queue_depth: 8, failure_report_every: Duration::from_secs(5) }
     }
 }
 
@@ -166,6 +178,9 @@ impl RecorderConfig {
 pub enum RecorderError {
     #[error("recorder: {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
+    /// The image file could not be written (the error names the file).
+    #[error("{0}")]
+    Image(ImageWriteError),
     #[error("recorder thread panicked")]
     Panicked,
 }
@@ -176,8 +191,38 @@ pub struct RecorderStats {
     pub written: u64,
     /// Refused because the queue was full (disk slower than the frame rate).
     pub dropped: u64,
-    /// Image or log writes that failed (logged with the path).
+    /// Frames not saved because a write failed (all reasons).
     pub errors: u64,
+    /// Of those, because the disk was full.
+    pub disk_full: u64,
+}
+
+/// The error counters, one per [`Reason`] plus the recorder thread having stopped.
+#[derive(Clone)]
+struct ErrorCounters {
+    by_reason: Vec<(Reason, Counter)>,
+    stopped: Counter,
+}
+
+impl ErrorCounters {
+    fn new(registry: &Registry) -> ErrorCounters {
+        let c = |label| {
+            registry.counter(
+                "hilcam_recorder_errors_total",
+                "Frames the recorder could not save: disk_full, io, encode, or stopped (writer thread gone)",
+                &[("reason", label)],
+            )
+        };
+        ErrorCounters { by_reason: Reason::ALL.iter().map(|r| (*r, c(r.label()))).collect(), stopped: c("stopped") }
+    }
+
+    fn get(&self, r: Reason) -> &Counter {
+        &self.by_reason.iter().find(|(x, _)| *x == r).expect("a counter per reason").1
+    }
+
+    fn total(&self) -> u64 {
+        self.by_reason.iter().map(|(_, c)| c.get()).sum::<u64>() + self.stopped.get()
+    }
 }
 
 /// A running recorder; [`Recorder::publish`] never blocks.
@@ -186,7 +231,7 @@ pub struct Recorder {
     thread: std::thread::JoinHandle<Result<(), RecorderError>>,
     written: Counter,
     dropped: Counter,
-    errors: Counter,
+    errors: ErrorCounters,
 }
 
 /// Name of the metadata log inside the recorder directory.
@@ -201,30 +246,34 @@ impl Recorder {
         };
         std::fs::create_dir_all(&cfg.dir).map_err(io(&cfg.dir))?;
         let log_path = cfg.dir.join(LOG_NAME);
-        let log = std::fs::OpenOptions::new().create(true).append(true).open(&log_path).map_err(io(&log_path))?;
+        let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
         let written = registry.counter("hilcam_recorder_frames_written_total", "Frames saved by the recorder", &[]);
         let dropped = registry.counter(
             "hilcam_recorder_frames_dropped_total",
             "Frames the recorder refused because its queue was full (disk too slow)",
             &[],
         );
-        let errors = registry.counter("hilcam_recorder_errors_total", "Recorder image or log writes that failed", &[]);
+        let errors = ErrorCounters::new(registry);
         let (tx, rx) = mpsc::sync_channel::<Arc<EncodedFrame>>(cfg.queue_depth.max(1));
         let (w, e) = (written.clone(), errors.clone());
         let thread = std::thread::Builder::new()
             .name("hilcam-recorder".into())
             .spawn(move || {
-                let mut log = std::io::BufWriter::new(log);
+                let mut failures = FailureLog::new(format!("recorder {}", cfg.dir.display()), cfg.failure_report_every);
                 for frame in rx {
                     match record_one(&cfg, &frame, &mut log) {
-                        Ok(()) => w.inc(),
-                        Err(err) => {
-                            e.inc();
-                            tracing::error!(seq = frame.meta.frame_seq, "{err}");
+                        Ok(()) => {
+                            w.inc();
+                            failures.succeeded();
+                        }
+                        Err((reason, err)) => {
+                            e.get(reason).inc();
+                            failures.failed(reason, &err);
                         }
                     }
                 }
-                log.flush().map_err(|source| RecorderError::Io { path: log_path, source })
+                failures.finish();
+                Ok(())
             })
             .map_err(io(Path::new("<recorder thread>")))?;
         Ok(Recorder { tx, thread, written, dropped, errors })
@@ -240,7 +289,7 @@ impl Recorder {
                 false
             }
             Err(TrySendError::Disconnected(f)) => {
-                self.errors.inc();
+                self.errors.stopped.inc();
                 tracing::error!(seq = f.meta.frame_seq, "recorder thread has stopped");
                 false
             }
@@ -252,20 +301,37 @@ impl Recorder {
     pub fn finish(self) -> Result<RecorderStats, RecorderError> {
         drop(self.tx);
         self.thread.join().map_err(|_| RecorderError::Panicked)??;
-        Ok(RecorderStats { written: self.written.get(), dropped: self.dropped.get(), errors: self.errors.get() })
+        Ok(RecorderStats {
+            written: self.written.get(),
+            dropped: self.dropped.get(),
+            errors: self.errors.total(),
+            disk_full: self.errors.get(Reason::DiskFull).get(),
+        })
     }
 }
 
-fn record_one(cfg: &RecorderConfig, frame: &EncodedFrame, log: &mut impl Write) -> Result<(), RecorderError> {
+/// Save one frame: the image (whole or not at all), then its log line; if the line
+/// cannot be written the image is removed again, so the log never misses a file present
+/// nor claims one absent.
+fn record_one(cfg: &RecorderConfig, frame: &EncodedFrame, log: &mut LineLog) -> Result<(), (Reason, RecorderError)> {
     let m = &frame.meta;
     let name = frame_file_name(m.frame_seq, cfg.format);
     let path = cfg.dir.join(&name);
-    write_frame_image(&path, m.width, m.height, &frame.pixels(), cfg.format)
-        .map_err(|e| RecorderError::Io { path: path.clone(), source: std::io::Error::other(e.to_string()) })?;
+    write_frame_image(&path, m.width, m.height, &frame.pixels(), cfg.format).map_err(|e| {
+        let reason = match &e {
+            e if e.is_disk_full() => Reason::DiskFull,
+            ImageWriteError::Io { .. } => Reason::Io,
+            _ => Reason::Encode,
+        };
+        (reason, RecorderError::Image(e))
+    })?;
     let rec = FrameRecord::new(m, frame.payload(), name);
     let line = serde_json::to_string(&rec).expect("FrameRecord serialises");
-    let log_err = |source| RecorderError::Io { path: cfg.dir.join(LOG_NAME), source };
-    writeln!(log, "{line}").map_err(log_err)?;
-    // One line per frame reaches the file even if the process is killed later.
-    log.flush().map_err(log_err)
+    log.append(&line).map_err(|source| {
+        let reason = if film::is_disk_full(&source) { Reason::DiskFull } else { Reason::Io };
+        if let Err(e) = std::fs::remove_file(&path) {
+            tracing::error!(file = %path.display(), "cannot remove the image of a frame not logged: {e}");
+        }
+        (reason, RecorderError::Io { path: log.path().to_path_buf(), source })
+    })
 }

@@ -1,9 +1,19 @@
 //! The TCP frame stream: any number of clients, each fed from its own bounded queue.
 //!
-//! Overflow policy: **drop the oldest**. When a client's queue holds `queue_depth`
-//! frames and a new one is published, the oldest queued frame is discarded and counted
-//! (`hilcam_stream_frames_dropped_total{reason="queue_full"}`); a slow client therefore
-//! always gets the newest frame next, and sees the loss as a gap in `frame_seq`.
+//! Client policy, from mild to severe:
+//! - **Slow client → drop the oldest.** When a client's queue holds `queue_depth` frames
+//!   and a new one is published, the oldest queued frame is discarded and counted
+//!   (`hilcam_stream_frames_dropped_total{reason="queue_full"}`); a slow client therefore
+//!   always gets the newest frame next, and sees the loss as a gap in `frame_seq`.
+//! - **Stalled client → evicted.** A client whose queue has stayed full for longer than
+//!   `evict_after` (the frame in its socket never finished, so nothing was taken off the
+//!   queue) is disconnected, freeing its slot; counted
+//!   (`hilcam_stream_clients_evicted_total{reason="stalled"}`) and logged once with its
+//!   peer address and how long it was stalled. A client that reads at all, however
+//!   slowly, empties its queue now and then and is never evicted.
+//! - **Full server → refused.** A connection beyond `max_clients` is accepted and closed
+//!   at once (`hilcam_stream_clients_rejected_total`, logged).
+//!
 //! [`StreamServer::publish`] takes a short std mutex per client and never awaits, so a
 //! stalled client can neither delay the renderer nor another client. Frames are shared
 //! (`Arc<EncodedFrame>`), never copied per client.
@@ -32,7 +42,15 @@ pub struct StreamConfig {
     pub max_clients: usize,
     /// On shutdown, how long a client may take to finish the frame being written.
     pub shutdown_grace: Duration,
+    /// Disconnect a client whose queue has been full for this long without a break
+    /// (it stopped reading); None: never. Default [`DEFAULT_EVICT_AFTER`].
+    pub evict_after: Option<Duration>,
 }
+
+/// Long enough for a 1 Hz stream (whose queue of 2 fills in 2 s) to ride out a client's
+/// pause of a few seconds; short enough that stalled clients cannot hold every slot for
+/// long at 30 Hz.
+pub const DEFAULT_EVICT_AFTER: Duration = Duration::from_secs(5);
 
 impl Default for StreamConfig {
     fn default() -> Self {
@@ -41,6 +59,7 @@ impl Default for StreamConfig {
             queue_depth: 2,
             max_clients: 32,
             shutdown_grace: Duration::from_secs(2),
+            evict_after: Some(DEFAULT_EVICT_AFTER),
         }
     }
 }
@@ -92,10 +111,17 @@ pub enum StreamError {
     Bind { addr: SocketAddr, source: std::io::Error },
 }
 
+/// A client's queue and, while it is full, since when (reset whenever a frame is taken).
+#[derive(Default)]
+struct Queue {
+    frames: VecDeque<Arc<EncodedFrame>>,
+    full_since: Option<Instant>,
+}
+
 struct Client {
     id: u64,
     peer: SocketAddr,
-    queue: Mutex<VecDeque<Arc<EncodedFrame>>>,
+    queue: Mutex<Queue>,
     notify: Notify,
     sent: Counter,
     dropped: Counter,
@@ -114,6 +140,7 @@ struct Shared {
     published: Counter,
     bytes: Counter,
     write_errors: Counter,
+    evicted: Counter,
     latency: Arc<Histogram>,
 }
 
@@ -153,6 +180,11 @@ impl StreamServer {
                 "Stream clients dropped on a write error (disconnects)",
                 &[],
             ),
+            evicted: r.counter(
+                "hilcam_stream_clients_evicted_total",
+                "Stream clients disconnected because their queue stayed full for evict_after (stalled)",
+                &[("reason", "stalled")],
+            ),
             latency: r.histogram(
                 "hilcam_stream_latency_seconds",
                 "Pose arrival to last byte of the frame written to a client",
@@ -181,10 +213,11 @@ impl StreamServer {
         self.shared.published.inc();
         let clients = self.shared.clients.lock().expect("client list poisoned");
         let mut report = PublishReport { clients: clients.len(), dropped: 0 };
+        let depth = self.shared.cfg.queue_depth;
         for c in clients.iter() {
             let mut q = c.queue.lock().expect("client queue poisoned");
-            if q.len() >= self.shared.cfg.queue_depth
-                && let Some(old) = q.pop_front()
+            if q.frames.len() >= depth
+                && let Some(old) = q.frames.pop_front()
             {
                 c.dropped.inc();
                 report.dropped += 1;
@@ -194,7 +227,10 @@ impl StreamServer {
                     "slow stream client: dropped oldest queued frame"
                 );
             }
-            q.push_back(frame.clone());
+            q.frames.push_back(frame.clone());
+            if q.frames.len() >= depth {
+                q.full_since.get_or_insert_with(Instant::now);
+            }
             drop(q);
             c.notify.notify_one();
         }
@@ -211,7 +247,7 @@ impl StreamServer {
                 peer: c.peer,
                 sent: c.sent.get(),
                 dropped: c.dropped.get(),
-                queued: c.queue.lock().expect("client queue poisoned").len(),
+                queued: c.queue.lock().expect("client queue poisoned").frames.len(),
             })
             .collect()
     }
@@ -285,7 +321,7 @@ fn admit(shared: &Shared, peer: SocketAddr) -> Option<Arc<Client>> {
     let client = Arc::new(Client {
         id,
         peer,
-        queue: Mutex::new(VecDeque::with_capacity(shared.cfg.queue_depth)),
+        queue: Mutex::new(Queue { frames: VecDeque::with_capacity(shared.cfg.queue_depth), full_since: None }),
         notify: Notify::new(),
         sent: shared.registry.counter(
             "hilcam_stream_frames_sent_total",
@@ -308,6 +344,38 @@ enum End {
     Shutdown,
     WriteError(std::io::Error),
     GraceExpired,
+    /// The queue stayed full this long: the client stopped reading.
+    Stalled(Duration),
+}
+
+impl Client {
+    /// The next queued frame; taking one ends a "queue full" stretch.
+    fn take(&self) -> Option<Arc<EncodedFrame>> {
+        let mut q = self.queue.lock().expect("client queue poisoned");
+        let f = q.frames.pop_front()?;
+        q.full_since = None;
+        Some(f)
+    }
+
+    /// How long the queue has been full without a break, if longer than `limit`.
+    fn stalled_longer_than(&self, limit: Duration) -> Option<Duration> {
+        let since = self.queue.lock().expect("client queue poisoned").full_since?;
+        Some(since.elapsed()).filter(|d| *d > limit)
+    }
+}
+
+/// Resolves once `client` has been stalled longer than `limit` (never for None),
+/// checking a few times per `limit` so eviction comes at most ~25 % late.
+async fn stalled(client: &Client, limit: Option<Duration>) -> Duration {
+    let Some(limit) = limit else { return std::future::pending().await };
+    let mut tick = tokio::time::interval((limit / 4).clamp(Duration::from_millis(10), Duration::from_millis(500)));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        tick.tick().await;
+        if let Some(d) = client.stalled_longer_than(limit) {
+            return d;
+        }
+    }
 }
 
 async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream, mut stop: watch::Receiver<bool>) {
@@ -323,7 +391,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
             if *stop.borrow() {
                 break 'frames End::Shutdown;
             }
-            if let Some(f) = client.queue.lock().expect("client queue poisoned").pop_front() {
+            if let Some(f) = client.take() {
                 break f;
             }
             tokio::select! {
@@ -344,6 +412,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
             let _ = stop.wait_for(|s| *s).await;
             tokio::time::sleep(shared.cfg.shutdown_grace).await;
         };
+        // A client that stopped reading blocks here, with its queue filling behind it.
         tokio::select! {
             r = write => {
                 if let Err(e) = r {
@@ -351,6 +420,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
                 }
             }
             _ = grace => break 'frames End::GraceExpired,
+            d = stalled(&client, shared.cfg.evict_after) => break 'frames End::Stalled(d),
         }
         let ev = FrameWritten {
             client_id: client.id,
@@ -372,7 +442,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
     // Leave the list first so that publish stops queueing for us.
     shared.clients.lock().expect("client list poisoned").retain(|c| c.id != client.id);
     shared.connected.dec();
-    let left = client.queue.lock().expect("client queue poisoned").drain(..).count();
+    let left = client.queue.lock().expect("client queue poisoned").frames.drain(..).count();
     client.unsent.add(left as u64);
     match &end {
         End::Shutdown => {
@@ -384,6 +454,18 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
             tracing::warn!(client = client.id, peer = %client.peer, "stream write failed (client gone?): {e}");
         }
         End::GraceExpired => {}
+        End::Stalled(d) => {
+            shared.evicted.inc();
+            // Reset instead of FIN: the kernel drops the frames still in the socket buffer
+            // now rather than holding them for a peer that does not read.
+            let _ = wr.as_ref().set_zero_linger();
+            tracing::warn!(
+                client = client.id,
+                peer = %client.peer,
+                stalled_s = format!("{:.1}", d.as_secs_f64()),
+                "stream client evicted: its queue stayed full (not reading)"
+            );
+        }
     }
     tracing::info!(
         client = client.id,
