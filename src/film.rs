@@ -98,6 +98,8 @@ pub enum ImageWriteError {
     Image { path: PathBuf, source: image::ImageError },
     #[error("{path}: {message}")]
     Exr { path: PathBuf, message: String },
+    #[error("{path}: {len} pixel values do not make a {width}x{height} image")]
+    Size { path: PathBuf, width: u32, height: u32, len: usize },
 }
 
 /// What a write did: for an integer preview of float data, the radiance mapped to white.
@@ -149,20 +151,23 @@ fn encode_pixels(path: &Path, width: u32, height: u32, px: &Pixels) -> Result<Ve
     let p = || path.to_path_buf();
     let img_err = |source| ImageWriteError::Image { path: p(), source };
     let mut out = std::io::Cursor::new(Vec::new());
+    if u64::from(width) * u64::from(height) != px.len() as u64 {
+        return Err(ImageWriteError::Size { path: p(), width, height, len: px.len() });
+    }
     use image::ImageFormat::{Png, Tiff};
     match (ext(path).as_str(), px) {
         ("png", Pixels::Mono8(d)) => image::GrayImage::from_raw(width, height, d.clone())
-            .expect("buffer size")
+            .expect("size checked above")
             .write_to(&mut out, Png)
             .map_err(img_err)?,
         (e @ ("png" | "tif" | "tiff"), Pixels::Mono16 { data, .. }) => {
             image::ImageBuffer::<image::Luma<u16>, _>::from_raw(width, height, data.clone())
-                .expect("buffer size")
+                .expect("size checked above")
                 .write_to(&mut out, if e == "png" { Png } else { Tiff })
                 .map_err(img_err)?
         }
         ("tif" | "tiff", Pixels::Mono8(d)) => image::GrayImage::from_raw(width, height, d.clone())
-            .expect("buffer size")
+            .expect("size checked above")
             .write_to(&mut out, Tiff)
             .map_err(img_err)?,
         ("pfm", Pixels::Float32(d)) => return Ok(encode_pfm(width, height, d)),
@@ -314,6 +319,15 @@ fn encode_exr(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pixels_that_do_not_fill_the_size_are_an_error_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.png");
+        let e = write_pixels(&path, 4, 4, &Pixels::Mono8(vec![0; 3])).unwrap_err();
+        assert_eq!(e.to_string(), format!("{}: 3 pixel values do not make a 4x4 image", path.display()));
+        assert!(!path.exists());
+    }
 
     #[test]
     fn pfm_round_trips_exactly_and_rows_are_top_first() {

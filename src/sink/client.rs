@@ -163,7 +163,7 @@ pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary,
         }
         let seq = h.meta.frame_seq;
         if let Some(&prev) = s.seqs.last() {
-            if seq > prev + 1 {
+            if seq > prev.saturating_add(1) {
                 s.gaps += 1;
                 s.missing += seq - prev - 1;
             } else if seq <= prev {
