@@ -404,6 +404,8 @@ async fn every_counter_is_exported_from_the_start_at_zero() {
         "hilcam_frames_failed_total{reason=\"panic\"}",
         "hilcam_frames_failed_total{reason=\"sensor\"}",
         "hilcam_frames_late_total",
+        "hilcam_stream_clients_rejected_total",
+        "hilcam_stream_clients_evicted_total{reason=\"stalled\"}",
     ] {
         assert_eq!(metric(&text, series), Some(0), "{series} missing or non-zero before any input:\n{text}");
     }
