@@ -1,9 +1,7 @@
 //! Every worked example in docs/protocol.md, read from the page itself and checked byte
 //! for byte against hilcam's encoders: the documentation cannot drift from the program.
 
-use hilcam::film::Pixels;
-use hilcam::frame::{Frame, FrameFlags, FrameMeta, PixelFormat};
-use hilcam::integrator::Spp;
+mod common;
 use hilcam::pose::can::{self, CanIds};
 use hilcam::pose::{Message, Pose, serial, slcan};
 
@@ -96,22 +94,6 @@ fn frame_stream_example_is_the_encoders_bytes() {
     let p = page();
     let lines = block_after(&p, "`worked_example_encodes_to_documented_bytes`");
     let doc: Vec<u8> = lines.iter().flat_map(|l| hex_bytes(l.split_once(": ").unwrap().1)).collect();
-    let arrival = 1_700_000_000_000_000_000;
-    let meta = FrameMeta {
-        frame_seq: 42,
-        pose_seq: 7,
-        pose_t_ns: 1_000_000_000,
-        pose_arrival_unix_ns: arrival,
-        emit_unix_ns: arrival + 25_000_000,
-        width: 2,
-        height: 2,
-        format: PixelFormat::Mono16,
-        bit_depth: 0,
-        spp: Spp::whole(4),
-        depth: 3,
-        integration_s: 0.001,
-        flags: FrameFlags(FrameFlags::LATE | FrameFlags::EXTRAPOLATED),
-    };
-    let frame = Frame::new(meta, Pixels::Mono16 { data: vec![0, 1, 4095, 2048], bits: 12 }).unwrap();
+    let frame = common::frames::example_frame();
     assert_eq!(doc, frame.encode().bytes);
 }

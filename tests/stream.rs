@@ -1,6 +1,8 @@
 //! Frame header codec, TCP stream server, reference client, Python client, recorder.
 //! Network tests bind 127.0.0.1:0; nothing asserts on elapsed time.
 
+mod common;
+use common::frames::example_frame;
 use hilcam::film::Pixels;
 use hilcam::frame::*;
 use hilcam::integrator::Spp;
@@ -16,28 +18,6 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpSocket, TcpStream};
 
 // ---------------------------------------------------------------- codec
-
-/// The worked example of docs/protocol.md.
-fn example_frame() -> Frame {
-    let arrival = 1_700_000_000_000_000_000;
-    let meta = FrameMeta {
-        frame_seq: 42,
-        pose_seq: 7,
-        pose_t_ns: 1_000_000_000,
-        pose_arrival_unix_ns: arrival,
-        emit_unix_ns: arrival + 25_000_000,
-        width: 2,
-        height: 2,
-        format: PixelFormat::Mono8, // replaced from the pixels by Frame::new
-        bit_depth: 0,
-        spp: Spp::whole(4),
-        depth: 3,
-        integration_s: 0.001,
-        flags: FrameFlags(FrameFlags::LATE | FrameFlags::EXTRAPOLATED),
-    };
-    let px = Pixels::Mono16 { data: vec![0, 1, 4095, 2048], bits: 12 };
-    Frame::new(meta, px).unwrap()
-}
 
 /// Header and payload CRCs computed independently with Python's zlib.crc32.
 const EXAMPLE_BYTES: [u8; 96] = [

@@ -1,5 +1,6 @@
 //! Fixtures shared by the rendering tests.
 #![allow(dead_code)]
 
+pub mod frames;
 pub mod scenes;
 pub mod soup;
