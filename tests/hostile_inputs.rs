@@ -97,7 +97,8 @@ fn plate() -> &'static Arc<Scene> {
 fn render_checked(pose: &Pose) -> Result<(), TestCaseError> {
     let scene = plate();
     let mut pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
-    let settings = hilcam::integrator::RenderSettings { spp: hilcam::integrator::Spp::whole(2), depth: 2, ..scene.render };
+    let settings =
+        hilcam::integrator::RenderSettings { spp: hilcam::integrator::Spp::whole(2), depth: 2, ..scene.render };
     let (img, _) = pipeline.radiance(pose, &settings, 0);
     prop_assert!(img.data.iter().all(|x| x.is_finite() && *x >= 0.0), "pose {pose:?}: {:?}", img.data);
     let f = pipeline.frame(pose, &settings, 0).map_err(|e| TestCaseError::fail(format!("sensor: {e}")))?;

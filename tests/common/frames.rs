@@ -26,4 +26,3 @@ pub fn example_frame() -> Frame {
     let px = Pixels::Mono16 { data: vec![0, 1, 4095, 2048], bits: 12 };
     Frame::new(meta, px).unwrap()
 }
-
