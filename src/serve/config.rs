@@ -79,6 +79,16 @@ pub struct ServeConfig {
     pub record: Option<RecordSection>,
     #[serde(default)]
     pub metrics: MetricsSection,
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[output]`: frame outputs beside the TCP stream.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// `[output.gige]`: also be a GigE Vision camera (docs/gige.md).
+    pub gige: Option<crate::gige::GigeConfig>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]

@@ -24,6 +24,8 @@ pub enum Sink {
     Stream(StreamServer),
     Recorder(Recorder),
     Null(NullSink),
+    /// The GigE Vision camera's stream (docs/gige.md).
+    Gige(crate::gige::GigeDevice),
 }
 
 impl Sink {
@@ -37,6 +39,7 @@ impl Sink {
                 r.publish(frame.clone());
             }
             Sink::Null(n) => n.publish(frame),
+            Sink::Gige(g) => g.publish(frame),
         }
     }
 
@@ -45,6 +48,7 @@ impl Sink {
             Sink::Stream(_) => "stream",
             Sink::Recorder(_) => "recorder",
             Sink::Null(_) => "null",
+            Sink::Gige(_) => "gige",
         }
     }
 
@@ -59,6 +63,7 @@ impl Sink {
                 Err(e) => tracing::error!("recorder thread: {e}"),
             },
             Sink::Null(_) => {}
+            Sink::Gige(g) => g.shutdown().await,
         }
     }
 }
