@@ -416,3 +416,96 @@ async fn resend_requests_are_answered_and_packet_delay_is_honoured() {
     assert_eq!(rig.counter("hilcam_gige_packets_resent_total", &[]), 3);
     assert_eq!(rig.counter("hilcam_gige_resend_unavailable_total", &[]), 1);
 }
+
+/// A 96×96 camera (f = 200 px) looking at a unit sphere, with a 12-bit ADC: the
+/// sensor's DN is what the GigE stream carries.
+fn dn_sphere_scene(dir: &std::path::Path) -> std::path::PathBuf {
+    let mesh = std::fs::canonicalize("scenes/meshes/sphere.obj").unwrap();
+    let text = format!(
+        r#"
+[[mesh]]
+obj = "{}"
+[materials.white_paint]
+model = "lambert"
+rho = 0.5
+[camera]
+width = 96
+height = 96
+pitch_um = 10.0
+focal_mm = 2.0
+[render]
+spp = 16
+depth = 1
+[sensor]
+output = "dn"
+radiance_scale = 5.0
+[sensor.adc]
+bits = 12
+"#,
+        mesh.display()
+    );
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pinhole_puts_it() {
+    use glam::DVec3;
+    use hilcam::pose::{Message, Pose};
+    use hilcam::serve::config::ServeConfig;
+    use hilcam::serve::{Embed, run};
+    use hilcam::transport::send::{MessageWriter, SerialWriter};
+    use serialport::SerialPort;
+
+    let ip = Ipv4Addr::new(127, 0, 0, 28);
+    let dir = tempfile::tempdir().unwrap();
+    let (master, slave) = serialport::TTYPort::pair().unwrap();
+    let text = format!(
+        "scene = {:?}\n[input]\nkind = \"serial\"\ndevice = {:?}\nbaud = 921600\n[trigger]\nmode = \"external\"\n\
+         [stream]\nlisten = \"127.0.0.1:0\"\n[metrics]\nprint_interval_s = 60.0\n[output.gige]\naddress = \"{ip}\"\n",
+        dn_sphere_scene(dir.path()),
+        slave.name().unwrap()
+    );
+    let cfg: ServeConfig = toml::from_str(&text).unwrap();
+    cfg.validate().unwrap();
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(run(cfg, Embed { ready: Some(ready_tx), ..Default::default() }, stop_rx));
+    tokio::time::timeout(Duration::from_secs(60), ready_rx).await.expect("serve starts").expect("serve ready");
+    tokio::time::sleep(Duration::from_millis(200)).await;
+
+    let mut writer = SerialWriter::new(master, "test pty");
+    let pose = |seq: u32, p: DVec3| Pose {
+        seq,
+        t_ns: 5_000_000_000 + u64::from(seq) * 1_000_000,
+        position: p,
+        sun_dir: (-p).normalize(),
+        ..Pose::ahead(10.0)
+    };
+    for (seq, p) in [(1u32, DVec3::new(0.8, -0.5, 10.0)), (2, DVec3::new(-1.0, 0.6, 12.0))] {
+        writer.send(&Message::Pose(pose(seq, p))).unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        // Trigger mode: TriggerSoftware → the serve loop renders from the latest pose.
+        let v = python_client(ip, 1, &["--trigger"]).await;
+        assert_eq!(v["untriggered_buffer"], false, "{v}");
+        let b = &v["buffers"][0];
+        assert_eq!(b["status"], "success", "{v}");
+        assert_eq!(b["pixel_format"].as_u64(), Some(u64::from(GevPixelFormat::Mono16.pfnc())));
+        let m = &b["meta"];
+        assert_eq!(m["pose_seq"].as_u64(), Some(u64::from(seq)), "the frame of the pose just sent: {v}");
+        assert_eq!(m["pose_t_ns"].as_u64(), Some(pose(seq, p).t_ns));
+        assert_eq!(b["timestamp"].as_u64(), Some(pose(seq, p).t_ns), "leader timestamp = pose time");
+        assert_eq!(m["bit_depth"].as_u64(), Some(12));
+        // Pinhole: f = 2 mm / 10 µm = 200 px; centre (48 + f·x/z, 48 + f·y/z) in pixel-edge
+        // coordinates; the client's centroid counts pixel indices (centres at +0.5).
+        let (px, py) = (48.0 + 200.0 * p.x / p.z - 0.5, 48.0 + 200.0 * p.y / p.z - 0.5);
+        let c = b["centroid"].as_array().unwrap();
+        let (cx, cy) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
+        assert!((cx - px).abs() <= 1.0 && (cy - py).abs() <= 1.0, "centroid ({cx:.2}, {cy:.2}) vs pinhole ({px:.2}, {py:.2})");
+    }
+    let _ = stop_tx.send(());
+    let report = tokio::time::timeout(Duration::from_secs(60), server).await.unwrap().unwrap().unwrap();
+    assert_eq!(report.scheduler.triggers, 2, "one render per software trigger");
+    drop(slave);
+}
