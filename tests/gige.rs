@@ -123,7 +123,10 @@ impl Drop for Rig {
 
 fn require_tool(tool: &str) {
     let ok = Command::new("sh").arg("-c").arg(format!("command -v {tool}")).output().is_ok_and(|o| o.status.success());
-    assert!(ok, "{tool} not found: install Aravis with scripts/setup-aravis.sh (Debian: aravis-tools-cli, aravis-tools)");
+    assert!(
+        ok,
+        "{tool} not found: install Aravis with scripts/setup-aravis.sh (Debian: aravis-tools-cli, aravis-tools)"
+    );
 }
 
 async fn run(cmd: &'static str, args: Vec<String>) -> (bool, String) {
@@ -164,7 +167,8 @@ async fn arv_tool_lists_the_device_and_reads_and_writes_features() {
         v.extend(kv.iter().map(|s| s.to_string()));
         v
     };
-    let (ok, out) = run("arv-tool-0.8", args(&["Width=160", "Height=100", "PixelFormat=Mono8", "ExposureTime=250"])).await;
+    let (ok, out) =
+        run("arv-tool-0.8", args(&["Width=160", "Height=100", "PixelFormat=Mono8", "ExposureTime=250"])).await;
     assert!(ok, "{out}");
     assert!(out.contains("Width = 160") && out.contains("Height = 100"), "{out}");
     let s = *rig.device.settings().borrow();
@@ -185,7 +189,11 @@ async fn arv_tool_lists_the_device_and_reads_and_writes_features() {
 async fn arv_camera_test_streams_1024_mono16_with_no_missing_packets() {
     let ip = Ipv4Addr::new(127, 0, 0, 22);
     let rig = Rig::start(ip, 1024, 1024).await;
-    let args = ["-n", &ip.to_string(), "--no-packet-socket", "-a", "--duration=4"].map(String::from).to_vec();
+    // 20 µs between 1500-byte packets (75 MB/s, below a GigE link's 125 MB/s): a
+    // loopback burst of 1433 packets would overflow the receiver's socket buffer.
+    let args = ["-n", &ip.to_string(), "--no-packet-socket", "-a", "--duration=4", "--gv-packet-delay=20000"]
+        .map(String::from)
+        .to_vec();
     let (ok, out) = run("arv-camera-test-0.8", args).await;
     assert!(ok, "{out}");
     let stat = |name: &str| -> u64 {
@@ -198,6 +206,7 @@ async fn arv_camera_test_streams_1024_mono16_with_no_missing_packets() {
     assert_eq!(stat("n_failures"), 0, "{out}");
     assert_eq!(stat("n_size_mismatch_errors"), 0, "{out}");
     assert!(rig.counter("hilcam_gige_frames_sent_total", &[]) >= completed);
+    assert!(out.contains("gv packet delay        = 20000 ns"), "{out}");
     let s = *rig.device.settings().borrow();
     assert_eq!((s.width, s.height, s.pixel_format), (1024, 1024, GevPixelFormat::Mono16));
 }
@@ -502,7 +511,10 @@ async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pin
         let (px, py) = (48.0 + 200.0 * p.x / p.z - 0.5, 48.0 + 200.0 * p.y / p.z - 0.5);
         let c = b["centroid"].as_array().unwrap();
         let (cx, cy) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
-        assert!((cx - px).abs() <= 1.0 && (cy - py).abs() <= 1.0, "centroid ({cx:.2}, {cy:.2}) vs pinhole ({px:.2}, {py:.2})");
+        assert!(
+            (cx - px).abs() <= 1.0 && (cy - py).abs() <= 1.0,
+            "centroid ({cx:.2}, {cy:.2}) vs pinhole ({px:.2}, {py:.2})"
+        );
     }
     let _ = stop_tx.send(());
     let report = tokio::time::timeout(Duration::from_secs(60), server).await.unwrap().unwrap().unwrap();

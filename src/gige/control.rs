@@ -213,7 +213,11 @@ mod tests {
         assert_eq!(status(&c.handle(&writereg(reg::ACQUISITION_START, 1, 4), a, t0)), 0);
         assert!(c.regs.acquiring);
         // 3 s default timeout: a command at 2 s keeps control, silence until 5.1 s loses it.
-        c.handle(&encode_command(FLAG_ACK_REQUIRED, code::READREG_CMD, 5, &reg::CCP.to_be_bytes()), a, t0 + Duration::from_secs(2));
+        c.handle(
+            &encode_command(FLAG_ACK_REQUIRED, code::READREG_CMD, 5, &reg::CCP.to_be_bytes()),
+            a,
+            t0 + Duration::from_secs(2),
+        );
         assert!(!c.expire(t0 + Duration::from_millis(4900)));
         assert!(c.expire(t0 + Duration::from_millis(5100)));
         assert!(!c.regs.acquiring);
@@ -239,7 +243,11 @@ mod tests {
     #[test]
     fn discovery_carries_the_bootstrap_block() {
         let mut c = Control::new(registers());
-        let o = c.handle(&encode_command(0x10, code::DISCOVERY_CMD, 1, &[]), "127.0.0.1:1".parse().unwrap(), Instant::now());
+        let o = c.handle(
+            &encode_command(0x10, code::DISCOVERY_CMD, 1, &[]),
+            "127.0.0.1:1".parse().unwrap(),
+            Instant::now(),
+        );
         let ack = decode_ack(o.reply.as_ref().unwrap()).unwrap();
         assert_eq!(ack.answer, code::DISCOVERY_ACK);
         assert_eq!(ack.payload.len(), reg::DISCOVERY_LEN as usize);

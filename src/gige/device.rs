@@ -100,9 +100,11 @@ struct Metrics {
 impl Metrics {
     fn new(r: &Registry) -> Self {
         let dropped = |reason: &str| {
-            r.counter("hilcam_gige_frames_dropped_total", "Frames not sent on the GigE Vision stream", &[(
-                "reason", reason,
-            )])
+            r.counter(
+                "hilcam_gige_frames_dropped_total",
+                "Frames not sent on the GigE Vision stream",
+                &[("reason", reason)],
+            )
         };
         Metrics {
             commands: r.counter("hilcam_gige_commands_total", "GVCP commands handled", &[]),
@@ -193,13 +195,19 @@ impl GigeDevice {
         registry: Arc<Registry>,
     ) -> Result<GigeDevice, GigeError> {
         let gvcp_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.gvcp_port));
-        let gvcp = tokio::net::UdpSocket::bind(gvcp_bind)
-            .await
-            .map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
-        let gvcp_addr = gvcp.local_addr().map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
+        let gvcp = tokio::net::UdpSocket::bind(gvcp_bind).await.map_err(|source| GigeError::Bind {
+            what: "GVCP",
+            addr: gvcp_bind,
+            source,
+        })?;
+        let gvcp_addr =
+            gvcp.local_addr().map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
         let stream_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.stream_port));
-        let stream = UdpSocket::bind(stream_bind)
-            .map_err(|source| GigeError::Bind { what: "GVSP", addr: stream_bind, source })?;
+        let stream = UdpSocket::bind(stream_bind).map_err(|source| GigeError::Bind {
+            what: "GVSP",
+            addr: stream_bind,
+            source,
+        })?;
         let stream_addr =
             stream.local_addr().map_err(|source| GigeError::Bind { what: "GVSP", addr: stream_bind, source })?;
 
@@ -219,8 +227,7 @@ impl GigeDevice {
         } else {
             ("hilcam.xml", xml.as_bytes().to_vec())
         };
-        let mut regs =
-            Registers::new(identity, camera, cfg.packet_size, name, file).map_err(GigeError::Config)?;
+        let mut regs = Registers::new(identity, camera, cfg.packet_size, name, file).map_err(GigeError::Config)?;
         regs.stream.source_port = stream_addr.port();
         let settings = regs.settings;
         let (settings_tx, _) = watch::channel(settings);
@@ -304,10 +311,8 @@ impl GigeDevice {
             }
             let st = c.regs.settings;
             if st.trigger_on {
-                let taken = s
-                    .pending_triggers
-                    .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| n.checked_sub(1))
-                    .is_ok();
+                let taken =
+                    s.pending_triggers.fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| n.checked_sub(1)).is_ok();
                 if !taken {
                     m.dropped_untriggered.inc();
                     return;
@@ -433,7 +438,11 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
     if let Some(status) = outcome.error {
         let malformed = matches!(status, Status::InvalidHeader | Status::NotImplemented)
             || (status == Status::InvalidParameter && outcome.reason.as_deref().is_some_and(|r| r.contains("payload")));
-        if malformed { m.malformed.inc() } else { m.refused.inc() }
+        if malformed {
+            m.malformed.inc()
+        } else {
+            m.refused.inc()
+        }
         tracing::warn!(%peer, status = status.name(), reason = outcome.reason.as_deref().unwrap_or(""), "GVCP command rejected");
     }
     for e in &outcome.effects {
@@ -459,28 +468,31 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
     outcome.reply
 }
 
-/// Sends packets with the negotiated inter-packet delay (sleeps for long gaps, spins
-/// for the last few µs so short delays are honoured too).
+/// Paces packets by the negotiated inter-packet delay. The schedule is absolute (packet
+/// k leaves at start + k·delay), so the mean rate is exact; the thread sleeps only when
+/// it is more than 200 µs ahead, so delays below the OS sleep granularity are kept on
+/// average, in short bursts, without spinning.
 struct Pacer {
     next: Instant,
 }
 
 impl Pacer {
+    const SLEEP_AHEAD: Duration = Duration::from_micros(200);
+    /// Behind by more than this (a pause between frames): restart the schedule rather
+    /// than burst to catch up.
+    const MAX_BEHIND: Duration = Duration::from_millis(2);
+
     fn wait(&mut self, delay: Duration) {
         if delay.is_zero() {
             return;
         }
         let now = Instant::now();
-        if self.next > now {
-            let gap = self.next - now;
-            if gap > Duration::from_micros(200) {
-                std::thread::sleep(gap - Duration::from_micros(100));
-            }
-            while Instant::now() < self.next {
-                std::hint::spin_loop();
-            }
+        if self.next > now + Self::SLEEP_AHEAD {
+            std::thread::sleep(self.next - now);
+        } else if now > self.next + Self::MAX_BEHIND {
+            self.next = now;
         }
-        self.next = Instant::now().max(self.next) + delay;
+        self.next += delay;
     }
 }
 

@@ -82,10 +82,20 @@ pub enum Command {
     Discovery,
     ReadReg(Vec<u32>),
     WriteReg(Vec<(u32, u32)>),
-    ReadMem { address: u32, count: u16 },
-    WriteMem { address: u32, data: Vec<u8> },
+    ReadMem {
+        address: u32,
+        count: u16,
+    },
+    WriteMem {
+        address: u32,
+        data: Vec<u8>,
+    },
     /// Resend packets `first..=last` of block `block_id` (no acknowledge is sent).
-    PacketResend { block_id: u64, first: u32, last: u32 },
+    PacketResend {
+        block_id: u64,
+        first: u32,
+        last: u32,
+    },
 }
 
 /// A command with its header fields.
@@ -186,7 +196,10 @@ pub fn decode(buf: &[u8]) -> Result<Request, Rejected> {
             if p.len() < 8 || !n.is_multiple_of(4) || n as u32 > MAX_MEM_BLOCK {
                 return Err(reject(
                     Status::InvalidParameter,
-                    format!("WRITEMEM payload {} bytes: address + 4..={MAX_MEM_BLOCK} data bytes in steps of 4", p.len()),
+                    format!(
+                        "WRITEMEM payload {} bytes: address + 4..={MAX_MEM_BLOCK} data bytes in steps of 4",
+                        p.len()
+                    ),
                 ));
             }
             Command::WriteMem { address: be32(p, 0), data: p[4..].to_vec() }

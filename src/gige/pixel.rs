@@ -119,11 +119,11 @@ pub fn convert(frame: &EncodedFrame, roi: Roi, format: GevPixelFormat) -> Result
         match (src_bpp, format) {
             (1, GevPixelFormat::Mono8) => out.extend_from_slice(px),
             (1, f) => out.extend(px.iter().flat_map(|&b| rescale(u16::from(b), bits, f.bits()).to_le_bytes())),
-            (_, GevPixelFormat::Mono8) => out.extend(
-                px.chunks_exact(2).map(|c| rescale(u16::from_le_bytes([c[0], c[1]]), bits, 8).min(255) as u8),
-            ),
+            (_, GevPixelFormat::Mono8) => out
+                .extend(px.chunks_exact(2).map(|c| rescale(u16::from_le_bytes([c[0], c[1]]), bits, 8).min(255) as u8)),
             (_, f) => out.extend(
-                px.chunks_exact(2).flat_map(|c| rescale(u16::from_le_bytes([c[0], c[1]]), bits, f.bits()).to_le_bytes()),
+                px.chunks_exact(2)
+                    .flat_map(|c| rescale(u16::from_le_bytes([c[0], c[1]]), bits, f.bits()).to_le_bytes()),
             ),
         }
     }

@@ -451,7 +451,11 @@ impl Registers {
                 Effect::None
             }
             TIMESTAMP_CONTROL => {
-                if v & TIMESTAMP_LATCH != 0 { Effect::TimestampLatch } else { Effect::None }
+                if v & TIMESTAMP_LATCH != 0 {
+                    Effect::TimestampLatch
+                } else {
+                    Effect::None
+                }
             }
             GVCP_CONFIG => {
                 self.gvcp_config = v & GVCP_CONFIG_HEARTBEAT_DISABLE;
@@ -543,10 +547,18 @@ impl Registers {
                 Effect::Settings
             }
             ACQUISITION_START => {
-                if v == 0 { Effect::None } else { Effect::AcquisitionStart }
+                if v == 0 {
+                    Effect::None
+                } else {
+                    Effect::AcquisitionStart
+                }
             }
             ACQUISITION_STOP => {
-                if v == 0 { Effect::None } else { Effect::AcquisitionStop }
+                if v == 0 {
+                    Effect::None
+                } else {
+                    Effect::AcquisitionStop
+                }
             }
             TRIGGER_SELECTOR | TRIGGER_SOURCE => {
                 // One selector (FrameStart) and one source (Software).
@@ -564,7 +576,11 @@ impl Registers {
                 Effect::Settings
             }
             TRIGGER_SOFTWARE => {
-                if v == 0 { Effect::None } else { Effect::SoftwareTrigger }
+                if v == 0 {
+                    Effect::None
+                } else {
+                    Effect::SoftwareTrigger
+                }
             }
             EXPOSURE_TIME => {
                 let us = f32::from_bits(v);

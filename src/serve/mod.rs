@@ -208,7 +208,8 @@ pub async fn run(
         let desc = crate::gige::CameraDescription::from_scene(&camera, &scene.sensor, cfg.trigger.rate_hz)
             .map_err(anyhow::Error::msg)?;
         let device = crate::gige::GigeDevice::start(g, desc, registry.clone()).await?;
-        let dropped = registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
+        let dropped =
+            registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
         inputs = crate::gige::triggers::merge_software_triggers(inputs, &device, dropped);
         sinks.push(Sink::Gige(device));
     }
