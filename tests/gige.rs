@@ -521,3 +521,16 @@ async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pin
     assert_eq!(report.scheduler.triggers, 2, "one render per software trigger");
     drop(slave);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn aravis_reads_the_xml_from_a_zip_in_device_memory() {
+    let ip = Ipv4Addr::new(127, 0, 0, 29);
+    let cfg = GigeConfig { address: ip, zip_xml: true, ..GigeConfig::default() };
+    let device = GigeDevice::start(&cfg, camera(320, 240), Registry::new()).await.expect("device starts");
+    let (ok, out) =
+        run("arv-tool-0.8", vec!["-a".into(), ip.to_string(), "control".into(), "SensorWidth".into()]).await;
+    assert!(ok && out.contains("SensorWidth = 320"), "{out}");
+    let (ok, xml) = run("arv-tool-0.8", vec!["-a".into(), ip.to_string(), "genicam".into()]).await;
+    assert!(ok && xml.contains("<Port Name=\"HilcamChunkPort\">"), "{xml}");
+    device.shutdown().await;
+}

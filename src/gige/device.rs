@@ -141,8 +141,8 @@ impl Metrics {
             dropped_busy: dropped("stream_busy"),
             dropped_convert: dropped("convert"),
             latency: r.histogram(
-                "hilcam_gige_pose_to_last_packet_ns",
-                "Pose arrival to the last GVSP packet of its frame sent, ns",
+                "hilcam_gige_latency_seconds",
+                "Pose arrival to the last GVSP packet of its frame sent",
                 &[],
             ),
         }
@@ -160,7 +160,8 @@ struct Shared {
     jobs: mpsc::Sender<StreamJob>,
     frames_queued: AtomicUsize,
     pending_triggers: AtomicU32,
-    last_sent: Mutex<Option<Instant>>,
+    /// When the next frame is due under AcquisitionFrameRate (None: send the next one).
+    next_due: Mutex<Option<Instant>>,
     /// (pose time of the newest frame, when it was published): the device clock.
     clock: Mutex<(u64, Instant)>,
     trigger_hook: Mutex<Option<Box<dyn Fn() + Send + Sync>>>,
@@ -238,7 +239,7 @@ impl GigeDevice {
             jobs: jobs_tx,
             frames_queued: AtomicUsize::new(0),
             pending_triggers: AtomicU32::new(0),
-            last_sent: Mutex::new(None),
+            next_due: Mutex::new(None),
             clock: Mutex::new((0, Instant::now())),
             trigger_hook: Mutex::new(None),
             metrics: Metrics::new(&registry),
@@ -318,16 +319,17 @@ impl GigeDevice {
                     return;
                 }
             } else {
-                let mut last = s.last_sent.lock().expect("last sent lock");
+                // A schedule at the frame rate that tolerates a quarter period of jitter:
+                // a source at exactly the rate loses nothing, one at twice it loses half.
+                let mut due = s.next_due.lock().expect("next due lock");
                 let period = Duration::from_secs_f64(1.0 / f64::from(st.frame_rate_hz.max(1e-3)));
-                // Frames up to 2% early pass, so a source at exactly the rate is not halved.
-                if let Some(t) = *last
-                    && t.elapsed() < period.mul_f64(0.98)
-                {
+                let now = Instant::now();
+                let d = due.unwrap_or(now);
+                if now + period / 4 < d {
                     m.dropped_rate.inc();
                     return;
                 }
-                *last = Some(Instant::now());
+                *due = Some(d.max(now.checked_sub(period).unwrap_or(now)) + period);
             }
             if st.acquisition_mode == AcquisitionMode::SingleFrame {
                 c.regs.acquiring = false;
@@ -428,7 +430,7 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
             tracing::info!(from = ?before, to = ?c.controller(), "GigE Vision control privilege changed");
         }
         if o.effects.contains(&Effect::AcquisitionStart) {
-            *shared.last_sent.lock().expect("last sent lock") = None;
+            *shared.next_due.lock().expect("next due lock") = None;
             shared.pending_triggers.store(0, Ordering::Release);
         }
         let settings = c.regs.settings;

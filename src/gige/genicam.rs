@@ -26,21 +26,21 @@ impl Access {
 }
 
 fn int_reg(x: &mut String, name: &str, address: u32, len: u32, access: Access, port: &str) {
-    let _ = write!(
+    let _ = writeln!(
         x,
         "<IntReg Name=\"{name}\"><Address>{address:#x}</Address><Length>{len}</Length>\
          <AccessMode>{}</AccessMode><pPort>{port}</pPort><Cachable>NoCache</Cachable>\
-         <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></IntReg>\n",
+         <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></IntReg>",
         access.as_str()
     );
 }
 
 /// An Integer feature over its own register, with a range.
 fn integer(x: &mut String, name: &str, address: u32, access: Access, min: u64, max: u64, inc: u64) {
-    let _ = write!(
+    let _ = writeln!(
         x,
         "<Integer Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue>\
-         <Min>{min}</Min><Max>{max}</Max><Inc>{inc}</Inc></Integer>\n"
+         <Min>{min}</Min><Max>{max}</Max><Inc>{inc}</Inc></Integer>"
     );
     int_reg(x, &format!("{name}Reg"), address, 4, access, "Device");
 }

@@ -41,6 +41,10 @@
 //! [metrics]
 //! listen = "127.0.0.1:9100"            # optional Prometheus endpoint
 //! print_interval_s = 5.0
+//!
+//! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
+//! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address
+//! packet_size = 1500                   # also stream_port, serial, model, resend_ring, zip_xml
 //! ```
 
 use super::governor::Policy;
