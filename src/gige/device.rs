@@ -470,19 +470,21 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
     outcome.reply
 }
 
-/// Paces packets by the negotiated inter-packet delay. The schedule is absolute (packet
-/// k leaves at start + k·delay), so the mean rate is exact; the thread sleeps only when
-/// it is more than 200 µs ahead, so delays below the OS sleep granularity are kept on
-/// average, in short bursts, without spinning.
+/// Paces packets by the negotiated inter-packet delay. The schedule is absolute and
+/// restarts with each block (packet k leaves at start + k·delay), so the mean rate is
+/// exact; the thread sleeps only when it is more than 200 µs ahead, so delays below the
+/// OS sleep granularity are kept on average, in short bursts, without spinning. After
+/// an oversleep (a loaded machine) it catches up rather than losing the time.
 struct Pacer {
     next: Instant,
 }
 
 impl Pacer {
     const SLEEP_AHEAD: Duration = Duration::from_micros(200);
-    /// Behind by more than this (a pause between frames): restart the schedule rather
-    /// than burst to catch up.
-    const MAX_BEHIND: Duration = Duration::from_millis(2);
+
+    fn start_block(&mut self) {
+        self.next = Instant::now();
+    }
 
     fn wait(&mut self, delay: Duration) {
         if delay.is_zero() {
@@ -491,8 +493,6 @@ impl Pacer {
         let now = Instant::now();
         if self.next > now + Self::SLEEP_AHEAD {
             std::thread::sleep(self.next - now);
-        } else if now > self.next + Self::MAX_BEHIND {
-            self.next = now;
         }
         self.next += delay;
     }
@@ -560,6 +560,7 @@ fn stream_loop(socket: UdpSocket, jobs: mpsc::Receiver<StreamJob>, shared: Arc<S
                 };
                 let dest = SocketAddr::V4(SocketAddrV4::new(channel.destination, channel.host_port));
                 let delay = Duration::from_nanos(u64::from(channel.packet_delay_ticks));
+                pacer.start_block();
                 for pid in 0..block.packet_count(channel.packet_size) {
                     if let Some(p) = block.packet(pid, channel.packet_size, gvsp::STATUS_SUCCESS) {
                         pacer.wait(delay);

@@ -54,7 +54,6 @@ def main():
     address, frames = sys.argv[1], int(sys.argv[2])
     trigger = "--trigger" in sys.argv
     sets = [a for a in sys.argv[3:] if "=" in a and not a.startswith("--")]
-    Aravis.set_interface_flags = getattr(Aravis, "set_interface_flags", None)
     cam = Aravis.Camera.new(address)
     cam.gv_set_stream_options(Aravis.GvStreamOption.PACKET_SOCKET_DISABLED)
     dev = cam.get_device()
