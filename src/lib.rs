@@ -21,6 +21,7 @@
 //! - [`sensor`]: entrance-pupil radiance → electrons → digital numbers.
 //! - [`frame`]: a rendered frame with its metadata, as streamed and recorded.
 //! - [`sink`]: frame sinks (TCP stream, recorder, null).
+//! - [`gige`]: hilcam as a GigE Vision camera (GVCP device, GenICam XML, GVSP stream).
 //! - [`metrics`]: counters, latency histograms, Prometheus text and `/metrics` HTTP.
 //! - [`transport`]: async serial / SocketCAN / slcan I/O feeding the pose codecs.
 //! - [`trajectory`]: trajectory CSV files (timed poses) for replay and `hilcam send`.
@@ -39,6 +40,7 @@ pub mod film;
 pub mod fold;
 pub mod frame;
 pub mod geometry;
+pub mod gige;
 pub mod integrator;
 pub mod metrics;
 pub mod model;

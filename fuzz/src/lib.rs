@@ -5,3 +5,5 @@
 pub mod pose;
 #[path = "../../src/trajectory.rs"]
 pub mod trajectory;
+#[path = "../../src/gige/gvcp.rs"]
+pub mod gvcp;

@@ -45,6 +45,10 @@
 //! [metrics]
 //! listen = "127.0.0.1:9100"            # optional Prometheus endpoint
 //! print_interval_s = 5.0
+//!
+//! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
+//! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address
+//! packet_size = 1500                   # also stream_port, serial, model, resend_ring, zip_xml
 //! ```
 
 use super::governor::Policy;
@@ -83,6 +87,16 @@ pub struct ServeConfig {
     pub record: Option<RecordSection>,
     #[serde(default)]
     pub metrics: MetricsSection,
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[output]`: frame outputs beside the TCP stream.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// `[output.gige]`: also be a GigE Vision camera (docs/gige.md).
+    pub gige: Option<crate::gige::GigeConfig>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]

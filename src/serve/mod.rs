@@ -141,7 +141,7 @@ pub async fn run(
     let mut tasks = Vec::new();
 
     // Inputs.
-    let inputs = match embed.inputs.take() {
+    let mut inputs = match embed.inputs.take() {
         Some(rx) => rx,
         None => {
             let (tx, rx) = mpsc::channel::<InputEvent>(1024);
@@ -209,6 +209,15 @@ pub async fn run(
         && let Some(dir) = &r.dir
     {
         sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(dir, r.format), &registry)?));
+    }
+    if let Some(g) = &cfg.output.gige {
+        let desc = crate::gige::CameraDescription::from_scene(&camera, &scene.sensor, cfg.trigger.rate_hz)
+            .map_err(anyhow::Error::msg)?;
+        let device = crate::gige::GigeDevice::start(g, desc, registry.clone()).await?;
+        let dropped =
+            registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
+        inputs = crate::gige::triggers::merge_software_triggers(inputs, &device, dropped);
+        sinks.push(Sink::Gige(device));
     }
     let input_name = if embedded { "embedded" } else { cfg.input.kind.as_str() };
     let session_writer = match cfg.record.as_ref().and_then(|r| r.session.as_ref()) {

@@ -28,6 +28,8 @@ pub enum Sink {
     Stream(StreamServer),
     Recorder(Recorder),
     Null(NullSink),
+    /// The GigE Vision camera's stream (docs/gige.md).
+    Gige(crate::gige::GigeDevice),
 }
 
 impl Sink {
@@ -41,6 +43,7 @@ impl Sink {
                 r.publish(frame.clone());
             }
             Sink::Null(n) => n.publish(frame),
+            Sink::Gige(g) => g.publish(frame),
         }
     }
 
@@ -49,6 +52,7 @@ impl Sink {
             Sink::Stream(_) => "stream",
             Sink::Recorder(_) => "recorder",
             Sink::Null(_) => "null",
+            Sink::Gige(_) => "gige",
         }
     }
 
@@ -63,6 +67,7 @@ impl Sink {
                 Err(e) => tracing::error!("recorder thread: {e}"),
             },
             Sink::Null(_) => {}
+            Sink::Gige(g) => g.shutdown().await,
         }
     }
 }

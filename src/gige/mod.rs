@@ -1,0 +1,34 @@
+//! hilcam as a GigE Vision camera: discovery and register access over GVCP, a GenICam
+//! XML describing the camera, frames over GVSP — so an unmodified GigE Vision client
+//! (Aravis, a vendor SDK, a GenTL producer) can control and receive hilcam.
+//!
+//! Pure codecs first, the I/O shell last:
+//! - [`gvcp`]: GVCP command / acknowledge codec (fuzzed).
+//! - [`registers`]: bootstrap + feature register map, validation → effects.
+//! - [`control`]: control privilege, heartbeat, command dispatch.
+//! - [`genicam`]: the GenICam XML, from the camera description.
+//! - [`pixel`]: PFNC formats; a frame's DN → the client's ROI and format.
+//! - [`chunk`]: the metadata chunk (pose sequence, pose time, flags …).
+//! - [`gvsp`]: leader / payload / trailer packets.
+//! - [`zip`]: the XML as a stored zip.
+//! - [`describe`]: the camera description from hilcam's camera and sensor config.
+//! - [`device`]: sockets, the stream thread, the resend ring.
+//! - [`triggers`]: software triggers into the serve loop's inputs.
+//!
+//! Reference: `docs/gige.md`.
+
+pub mod chunk;
+pub mod control;
+pub mod describe;
+pub mod device;
+pub mod genicam;
+pub mod gvcp;
+pub mod gvsp;
+pub mod pixel;
+pub mod registers;
+pub mod triggers;
+pub mod zip;
+
+pub use device::{GigeConfig, GigeDevice, GigeError};
+pub use pixel::GevPixelFormat;
+pub use registers::{CameraDescription, CameraSettings};

@@ -1,0 +1,717 @@
+//! The device's register and memory map: GigE Vision bootstrap registers, the GenICam
+//! XML file, and hilcam's feature registers. Pure state: reads and writes over
+//! addresses, each write validated (out of range → a GigE Vision status, never a
+//! panic) and reported as an [`Effect`] for the device shell to act on.
+//!
+//! All registers are 32-bit big-endian words at 4-byte-aligned addresses. The table of
+//! addresses is in `docs/gige.md`; the XML (`genicam.rs`) names the same constants.
+
+use super::gvcp::Status;
+use super::pixel::GevPixelFormat;
+use std::net::Ipv4Addr;
+
+// Bootstrap registers (GigE Vision), as Aravis names them in arvgvcpprivate.h.
+pub const VERSION: u32 = 0x0000;
+pub const DEVICE_MODE: u32 = 0x0004;
+pub const MAC_HIGH: u32 = 0x0008;
+pub const MAC_LOW: u32 = 0x000C;
+pub const IP_CONFIG_SUPPORTED: u32 = 0x0010;
+pub const IP_CONFIG_CURRENT: u32 = 0x0014;
+pub const CURRENT_IP: u32 = 0x0024;
+pub const CURRENT_SUBNET: u32 = 0x0034;
+pub const CURRENT_GATEWAY: u32 = 0x0044;
+pub const MANUFACTURER_NAME: u32 = 0x0048;
+pub const MODEL_NAME: u32 = 0x0068;
+pub const DEVICE_VERSION: u32 = 0x0088;
+pub const MANUFACTURER_INFO: u32 = 0x00A8;
+pub const SERIAL_NUMBER: u32 = 0x00D8;
+pub const USER_NAME: u32 = 0x00E8;
+/// Bytes of bootstrap memory a DISCOVERY_ACK carries.
+pub const DISCOVERY_LEN: u32 = 0x00F8;
+pub const XML_URL_0: u32 = 0x0200;
+pub const XML_URL_1: u32 = 0x0400;
+pub const XML_URL_LEN: u32 = 512;
+pub const N_INTERFACES: u32 = 0x0600;
+pub const N_MESSAGE_CHANNELS: u32 = 0x0900;
+pub const N_STREAM_CHANNELS: u32 = 0x0904;
+pub const GVCP_CAPABILITY: u32 = 0x0934;
+pub const HEARTBEAT_TIMEOUT: u32 = 0x0938;
+pub const TICK_FREQ_HIGH: u32 = 0x093C;
+pub const TICK_FREQ_LOW: u32 = 0x0940;
+pub const TIMESTAMP_CONTROL: u32 = 0x0944;
+pub const TIMESTAMP_VALUE_HIGH: u32 = 0x0948;
+pub const TIMESTAMP_VALUE_LOW: u32 = 0x094C;
+pub const GVCP_CONFIG: u32 = 0x0954;
+pub const CCP: u32 = 0x0A00;
+pub const MCP: u32 = 0x0B00;
+pub const MCDA: u32 = 0x0B10;
+pub const SCP0: u32 = 0x0D00;
+pub const SCPS0: u32 = 0x0D04;
+pub const SCPD0: u32 = 0x0D08;
+pub const SCDA0: u32 = 0x0D18;
+pub const SCSP0: u32 = 0x0D1C;
+pub const SCC0: u32 = 0x0D20;
+pub const SCCFG0: u32 = 0x0D24;
+/// End of the bootstrap block: reserved words below it read as 0.
+pub const BOOTSTRAP_END: u32 = 0x1000;
+
+/// Where the GenICam XML file lives in device memory.
+pub const XML_BASE: u32 = 0x0001_0000;
+/// Room for it (the XML is refused at start-up if larger).
+pub const XML_MAX: u32 = 0x0001_0000;
+
+// hilcam feature registers.
+pub const FEATURES: u32 = 0x0002_0000;
+pub const WIDTH: u32 = FEATURES;
+pub const HEIGHT: u32 = FEATURES + 0x04;
+pub const OFFSET_X: u32 = FEATURES + 0x08;
+pub const OFFSET_Y: u32 = FEATURES + 0x0C;
+pub const SENSOR_WIDTH: u32 = FEATURES + 0x10;
+pub const SENSOR_HEIGHT: u32 = FEATURES + 0x14;
+pub const PIXEL_FORMAT: u32 = FEATURES + 0x18;
+pub const PAYLOAD_SIZE: u32 = FEATURES + 0x1C;
+pub const ACQUISITION_MODE: u32 = FEATURES + 0x20;
+pub const ACQUISITION_START: u32 = FEATURES + 0x24;
+pub const ACQUISITION_STOP: u32 = FEATURES + 0x28;
+pub const TRIGGER_SELECTOR: u32 = FEATURES + 0x2C;
+pub const TRIGGER_MODE: u32 = FEATURES + 0x30;
+pub const TRIGGER_SOURCE: u32 = FEATURES + 0x34;
+pub const TRIGGER_SOFTWARE: u32 = FEATURES + 0x38;
+/// f32 bits, µs.
+pub const EXPOSURE_TIME: u32 = FEATURES + 0x3C;
+pub const EXPOSURE_AUTO: u32 = FEATURES + 0x40;
+/// f32 bits, Hz.
+pub const FRAME_RATE: u32 = FEATURES + 0x44;
+pub const CHUNK_MODE_ACTIVE: u32 = FEATURES + 0x48;
+pub const ACQUISITION_STATUS: u32 = FEATURES + 0x4C;
+pub const FEATURES_END: u32 = FEATURES + 0x50;
+
+/// GVCP capability bits this device implements (register 0x0934).
+pub mod capability {
+    pub const CONCATENATION: u32 = 1 << 0;
+    pub const WRITE_MEMORY: u32 = 1 << 1;
+    pub const PACKET_RESEND: u32 = 1 << 2;
+    pub const PENDING_ACK: u32 = 1 << 5;
+    pub const HEARTBEAT_DISABLE: u32 = 1 << 29;
+    pub const SERIAL_NUMBER: u32 = 1 << 30;
+}
+
+/// CCP register bits.
+pub const CCP_EXCLUSIVE: u32 = 1 << 0;
+pub const CCP_CONTROL: u32 = 1 << 1;
+/// Timestamp control: latch the current timestamp into the value registers.
+pub const TIMESTAMP_LATCH: u32 = 1 << 1;
+/// GVCP configuration bit 0: heartbeat disabled.
+pub const GVCP_CONFIG_HEARTBEAT_DISABLE: u32 = 1 << 0;
+/// SCPS bit 31: fire a test packet (not implemented; the XML does not offer it).
+pub const SCPS_FIRE_TEST: u32 = 1 << 31;
+pub const SCPS_DO_NOT_FRAGMENT: u32 = 1 << 30;
+/// SCPS bit 29: big-endian pixels (refused: pixels are little-endian).
+pub const SCPS_BIG_ENDIAN: u32 = 1 << 29;
+
+/// Packet sizes (IP datagram, as the SCPS register counts) the stream accepts.
+pub const PACKET_SIZE_MIN: u32 = 576;
+pub const PACKET_SIZE_MAX: u32 = 9000;
+pub const PACKET_SIZE_INC: u32 = 4;
+/// Heartbeat timeouts accepted (ms).
+pub const HEARTBEAT_MIN_MS: u32 = 500;
+pub const HEARTBEAT_MAX_MS: u32 = 600_000;
+/// Frame rates accepted (Hz).
+pub const FRAME_RATE_MIN: f32 = 0.01;
+pub const FRAME_RATE_MAX: f32 = 1000.0;
+
+/// Identity strings and fixed facts, from the `[output.gige]` config and the camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeviceIdentity {
+    pub manufacturer: String,
+    pub model: String,
+    pub version: String,
+    pub info: String,
+    pub serial: String,
+    pub user_name: String,
+    pub mac: [u8; 6],
+    pub ip: Ipv4Addr,
+}
+
+/// What the camera is: the sensor geometry and the exposure range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraDescription {
+    pub sensor_width: u32,
+    pub sensor_height: u32,
+    /// The ADC's bit depth (Mono10 / Mono12 are offered when it is 10 / 12).
+    pub adc_bits: u8,
+    pub exposure_us: f32,
+    pub exposure_min_us: f32,
+    pub exposure_max_us: f32,
+    /// Whether the sensor model starts in auto-exposure.
+    pub auto_exposure: bool,
+    pub frame_rate_hz: f32,
+}
+
+impl CameraDescription {
+    /// Pixel formats offered: Mono8, Mono16, and Mono10/Mono12 when the ADC has that depth.
+    pub fn pixel_formats(&self) -> Vec<GevPixelFormat> {
+        let mut v = vec![GevPixelFormat::Mono8];
+        match self.adc_bits {
+            10 => v.push(GevPixelFormat::Mono10),
+            12 => v.push(GevPixelFormat::Mono12),
+            _ => {}
+        }
+        v.push(GevPixelFormat::Mono16);
+        v
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AcquisitionMode {
+    Continuous = 0,
+    SingleFrame = 1,
+}
+
+/// The camera settings a GigE Vision client controls: what hilcam renders and sends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraSettings {
+    pub width: u32,
+    pub height: u32,
+    pub offset_x: u32,
+    pub offset_y: u32,
+    pub pixel_format: GevPixelFormat,
+    pub exposure_us: f32,
+    pub exposure_auto: bool,
+    pub acquisition_mode: AcquisitionMode,
+    /// TriggerMode On for FrameStart (source Software): a frame is sent per trigger.
+    pub trigger_on: bool,
+    pub frame_rate_hz: f32,
+    pub chunk_mode: bool,
+}
+
+impl CameraSettings {
+    pub fn initial(cam: &CameraDescription) -> Self {
+        CameraSettings {
+            width: cam.sensor_width,
+            height: cam.sensor_height,
+            offset_x: 0,
+            offset_y: 0,
+            pixel_format: GevPixelFormat::Mono16,
+            exposure_us: cam.exposure_us,
+            exposure_auto: cam.auto_exposure,
+            acquisition_mode: AcquisitionMode::Continuous,
+            trigger_on: false,
+            frame_rate_hz: cam.frame_rate_hz,
+            chunk_mode: true,
+        }
+    }
+
+    /// Bytes of one frame's pixels.
+    pub fn image_bytes(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height) * self.pixel_format.bytes_per_pixel() as u64
+    }
+
+    /// Bytes of one block (pixels, plus the chunks when chunk mode is on).
+    pub fn payload_size(&self) -> u64 {
+        self.image_bytes() + if self.chunk_mode { super::chunk::CHUNK_OVERHEAD as u64 } else { 0 }
+    }
+}
+
+/// Stream channel 0 as negotiated by the client.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamChannel {
+    /// Host port; 0 = channel closed.
+    pub host_port: u16,
+    pub destination: Ipv4Addr,
+    /// IP datagram size (IP + UDP + GVSP headers + data).
+    pub packet_size: u32,
+    pub do_not_fragment: bool,
+    /// Delay between packets, timestamp ticks (ns).
+    pub packet_delay_ticks: u32,
+    /// The device's stream source port (read-only for clients).
+    pub source_port: u16,
+    pub config: u32,
+}
+
+/// What a successful write asks the device shell to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Effect {
+    None,
+    AcquisitionStart,
+    AcquisitionStop,
+    SoftwareTrigger,
+    TimestampLatch,
+    /// A camera setting changed (publish the new settings).
+    Settings,
+    /// The stream channel changed (destination, packet size, delay).
+    Stream,
+}
+
+/// The whole register/memory state of the device.
+#[derive(Clone, Debug)]
+pub struct Registers {
+    pub identity: DeviceIdentity,
+    pub camera: CameraDescription,
+    pub settings: CameraSettings,
+    pub stream: StreamChannel,
+    pub ccp: u32,
+    pub heartbeat_timeout_ms: u32,
+    pub gvcp_config: u32,
+    pub acquiring: bool,
+    pub latched_timestamp: u64,
+    /// Capability register value.
+    pub capability: u32,
+    xml_url: String,
+    xml: Vec<u8>,
+}
+
+/// Tick frequency of GVSP timestamps and the timestamp latch: 1 GHz (ns).
+pub const TICK_HZ: u64 = 1_000_000_000;
+
+impl Registers {
+    /// `xml` is the file clients download (plain XML or a zip, as `xml_file_name` says).
+    pub fn new(
+        identity: DeviceIdentity,
+        camera: CameraDescription,
+        packet_size: u32,
+        xml_file_name: &str,
+        xml: Vec<u8>,
+    ) -> Result<Self, String> {
+        if xml.len() as u32 > XML_MAX {
+            return Err(format!("GenICam XML is {} bytes, device memory holds {XML_MAX}", xml.len()));
+        }
+        check_packet_size(packet_size).map_err(|_| {
+            format!(
+                "[output.gige] packet_size {packet_size}: {PACKET_SIZE_MIN}..={PACKET_SIZE_MAX} in steps of {PACKET_SIZE_INC}"
+            )
+        })?;
+        let xml_url = format!("Local:{xml_file_name};{XML_BASE:x};{:x}", xml.len());
+        let settings = CameraSettings::initial(&camera);
+        Ok(Registers {
+            identity,
+            camera,
+            settings,
+            stream: StreamChannel {
+                host_port: 0,
+                destination: Ipv4Addr::UNSPECIFIED,
+                packet_size,
+                do_not_fragment: false,
+                packet_delay_ticks: 0,
+                source_port: 0,
+                config: 0,
+            },
+            ccp: 0,
+            heartbeat_timeout_ms: 3000,
+            gvcp_config: 0,
+            acquiring: false,
+            latched_timestamp: 0,
+            capability: capability::CONCATENATION
+                | capability::WRITE_MEMORY
+                | capability::PACKET_RESEND
+                | capability::HEARTBEAT_DISABLE
+                | capability::SERIAL_NUMBER,
+            xml_url,
+            xml,
+        })
+    }
+
+    pub fn xml_url(&self) -> &str {
+        &self.xml_url
+    }
+
+    pub fn heartbeat_disabled(&self) -> bool {
+        self.gvcp_config & GVCP_CONFIG_HEARTBEAT_DISABLE != 0
+    }
+
+    /// One 32-bit register.
+    pub fn read_u32(&self, addr: u32) -> Result<u32, Status> {
+        if !addr.is_multiple_of(4) {
+            return Err(Status::BadAlignment);
+        }
+        let s = &self.settings;
+        let v = match addr {
+            VERSION => 0x0002_0000,
+            DEVICE_MODE => 0x8000_0001, // big-endian registers, transmitter, UTF-8
+            MAC_HIGH => u32::from(u16::from_be_bytes([self.identity.mac[0], self.identity.mac[1]])),
+            MAC_LOW => u32::from_be_bytes(self.identity.mac[2..6].try_into().expect("4 bytes")),
+            IP_CONFIG_SUPPORTED => 0x0000_0007,
+            IP_CONFIG_CURRENT => 0x0000_0005,
+            CURRENT_IP => u32::from(self.identity.ip),
+            CURRENT_SUBNET => {
+                if self.identity.ip.is_loopback() {
+                    0xFF00_0000
+                } else {
+                    0xFFFF_FF00
+                }
+            }
+            N_INTERFACES => 1,
+            N_MESSAGE_CHANNELS => 0,
+            N_STREAM_CHANNELS => 1,
+            GVCP_CAPABILITY => self.capability,
+            HEARTBEAT_TIMEOUT => self.heartbeat_timeout_ms,
+            TICK_FREQ_HIGH => (TICK_HZ >> 32) as u32,
+            TICK_FREQ_LOW => TICK_HZ as u32,
+            TIMESTAMP_CONTROL => 0,
+            TIMESTAMP_VALUE_HIGH => (self.latched_timestamp >> 32) as u32,
+            TIMESTAMP_VALUE_LOW => self.latched_timestamp as u32,
+            GVCP_CONFIG => self.gvcp_config,
+            CCP => self.ccp,
+            SCP0 => u32::from(self.stream.host_port),
+            SCPS0 => self.stream.packet_size | if self.stream.do_not_fragment { SCPS_DO_NOT_FRAGMENT } else { 0 },
+            SCPD0 => self.stream.packet_delay_ticks,
+            SCDA0 => u32::from(self.stream.destination),
+            SCSP0 => u32::from(self.stream.source_port),
+            SCC0 => 0,
+            SCCFG0 => self.stream.config,
+            a if a < BOOTSTRAP_END => return Ok(self.read_bytes_word(a)),
+            a if (XML_BASE..XML_BASE + XML_MAX).contains(&a) => {
+                let i = (a - XML_BASE) as usize;
+                let mut w = [0u8; 4];
+                for (k, b) in w.iter_mut().enumerate() {
+                    *b = self.xml.get(i + k).copied().unwrap_or(0);
+                }
+                u32::from_be_bytes(w)
+            }
+            WIDTH => s.width,
+            HEIGHT => s.height,
+            OFFSET_X => s.offset_x,
+            OFFSET_Y => s.offset_y,
+            SENSOR_WIDTH => self.camera.sensor_width,
+            SENSOR_HEIGHT => self.camera.sensor_height,
+            PIXEL_FORMAT => s.pixel_format.pfnc(),
+            PAYLOAD_SIZE => s.payload_size().min(u64::from(u32::MAX)) as u32,
+            ACQUISITION_MODE => s.acquisition_mode as u32,
+            ACQUISITION_START | ACQUISITION_STOP | TRIGGER_SOFTWARE => 0,
+            TRIGGER_SELECTOR | TRIGGER_SOURCE => 0,
+            TRIGGER_MODE => u32::from(s.trigger_on),
+            EXPOSURE_TIME => s.exposure_us.to_bits(),
+            EXPOSURE_AUTO => u32::from(s.exposure_auto) * 2, // Off = 0, Continuous = 2
+            FRAME_RATE => s.frame_rate_hz.to_bits(),
+            CHUNK_MODE_ACTIVE => u32::from(s.chunk_mode),
+            ACQUISITION_STATUS => u32::from(self.acquiring),
+            _ => return Err(Status::InvalidAddress),
+        };
+        Ok(v)
+    }
+
+    /// Bootstrap words made of string bytes (names, URLs), 0 elsewhere.
+    fn read_bytes_word(&self, addr: u32) -> u32 {
+        let mut w = [0u8; 4];
+        for (k, b) in w.iter_mut().enumerate() {
+            *b = self.bootstrap_byte(addr + k as u32);
+        }
+        u32::from_be_bytes(w)
+    }
+
+    fn bootstrap_byte(&self, a: u32) -> u8 {
+        let field = |base: u32, len: u32, s: &str| -> Option<u8> {
+            if (base..base + len).contains(&a) {
+                // NUL-terminated: the last byte of the field is always 0.
+                let i = (a - base) as usize;
+                Some(if i + 1 < len as usize { s.as_bytes().get(i).copied().unwrap_or(0) } else { 0 })
+            } else {
+                None
+            }
+        };
+        let id = &self.identity;
+        field(MANUFACTURER_NAME, 32, &id.manufacturer)
+            .or_else(|| field(MODEL_NAME, 32, &id.model))
+            .or_else(|| field(DEVICE_VERSION, 32, &id.version))
+            .or_else(|| field(MANUFACTURER_INFO, 48, &id.info))
+            .or_else(|| field(SERIAL_NUMBER, 16, &id.serial))
+            .or_else(|| field(USER_NAME, 16, &id.user_name))
+            .or_else(|| field(XML_URL_0, XML_URL_LEN, &self.xml_url))
+            .unwrap_or(0)
+    }
+
+    /// A block of memory (READMEM, DISCOVERY): every word must be readable.
+    pub fn read_block(&self, addr: u32, len: u32) -> Result<Vec<u8>, Status> {
+        if !addr.is_multiple_of(4) || !len.is_multiple_of(4) {
+            return Err(Status::BadAlignment);
+        }
+        let mut out = Vec::with_capacity(len as usize);
+        for k in (0..len).step_by(4) {
+            let a = addr.checked_add(k).ok_or(Status::InvalidAddress)?;
+            out.extend_from_slice(&self.read_u32(a)?.to_be_bytes());
+        }
+        Ok(out)
+    }
+
+    /// Write one register (the control channel has already been checked). CCP is
+    /// handled by the control layer, which owns the controller's identity.
+    pub fn write_u32(&mut self, addr: u32, v: u32) -> Result<Effect, Status> {
+        if !addr.is_multiple_of(4) {
+            return Err(Status::BadAlignment);
+        }
+        let locked = self.acquiring;
+        let cam = self.camera.clone();
+        let s = &mut self.settings;
+        let effect = match addr {
+            HEARTBEAT_TIMEOUT => {
+                if !(HEARTBEAT_MIN_MS..=HEARTBEAT_MAX_MS).contains(&v) {
+                    return Err(Status::InvalidParameter);
+                }
+                self.heartbeat_timeout_ms = v;
+                Effect::None
+            }
+            TIMESTAMP_CONTROL => {
+                if v & TIMESTAMP_LATCH != 0 {
+                    Effect::TimestampLatch
+                } else {
+                    Effect::None
+                }
+            }
+            GVCP_CONFIG => {
+                self.gvcp_config = v & GVCP_CONFIG_HEARTBEAT_DISABLE;
+                Effect::None
+            }
+            SCP0 => {
+                self.stream.host_port = (v & 0xFFFF) as u16;
+                Effect::Stream
+            }
+            SCPS0 => {
+                if v & SCPS_BIG_ENDIAN != 0 {
+                    return Err(Status::InvalidParameter);
+                }
+                let size = v & 0xFFFF;
+                check_packet_size(size)?;
+                self.stream.packet_size = size;
+                self.stream.do_not_fragment = v & SCPS_DO_NOT_FRAGMENT != 0;
+                Effect::Stream
+            }
+            SCPD0 => {
+                self.stream.packet_delay_ticks = v;
+                Effect::Stream
+            }
+            SCDA0 => {
+                self.stream.destination = Ipv4Addr::from(v);
+                Effect::Stream
+            }
+            SCCFG0 => {
+                // Multipart and the other extended stream modes are not offered.
+                if v != 0 {
+                    return Err(Status::InvalidParameter);
+                }
+                self.stream.config = v;
+                Effect::Stream
+            }
+            MCP | MCDA => Effect::None, // no message channel: accepted and ignored
+            WIDTH | HEIGHT | OFFSET_X | OFFSET_Y | PIXEL_FORMAT | CHUNK_MODE_ACTIVE if locked => {
+                return Err(Status::WriteProtect);
+            }
+            WIDTH => {
+                if v == 0 || u64::from(v) + u64::from(s.offset_x) > u64::from(cam.sensor_width) {
+                    return Err(Status::InvalidParameter);
+                }
+                s.width = v;
+                Effect::Settings
+            }
+            HEIGHT => {
+                if v == 0 || u64::from(v) + u64::from(s.offset_y) > u64::from(cam.sensor_height) {
+                    return Err(Status::InvalidParameter);
+                }
+                s.height = v;
+                Effect::Settings
+            }
+            OFFSET_X => {
+                if u64::from(v) + u64::from(s.width) > u64::from(cam.sensor_width) {
+                    return Err(Status::InvalidParameter);
+                }
+                s.offset_x = v;
+                Effect::Settings
+            }
+            OFFSET_Y => {
+                if u64::from(v) + u64::from(s.height) > u64::from(cam.sensor_height) {
+                    return Err(Status::InvalidParameter);
+                }
+                s.offset_y = v;
+                Effect::Settings
+            }
+            PIXEL_FORMAT => {
+                let f = GevPixelFormat::from_pfnc(v)
+                    .filter(|f| cam.pixel_formats().contains(f))
+                    .ok_or(Status::InvalidParameter)?;
+                s.pixel_format = f;
+                Effect::Settings
+            }
+            CHUNK_MODE_ACTIVE => {
+                s.chunk_mode = match v {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(Status::InvalidParameter),
+                };
+                Effect::Settings
+            }
+            ACQUISITION_MODE => {
+                s.acquisition_mode = match v {
+                    0 => AcquisitionMode::Continuous,
+                    1 => AcquisitionMode::SingleFrame,
+                    _ => return Err(Status::InvalidParameter),
+                };
+                Effect::Settings
+            }
+            ACQUISITION_START => {
+                if v == 0 {
+                    Effect::None
+                } else {
+                    Effect::AcquisitionStart
+                }
+            }
+            ACQUISITION_STOP => {
+                if v == 0 {
+                    Effect::None
+                } else {
+                    Effect::AcquisitionStop
+                }
+            }
+            TRIGGER_SELECTOR | TRIGGER_SOURCE => {
+                // One selector (FrameStart) and one source (Software).
+                if v != 0 {
+                    return Err(Status::InvalidParameter);
+                }
+                Effect::None
+            }
+            TRIGGER_MODE => {
+                s.trigger_on = match v {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(Status::InvalidParameter),
+                };
+                Effect::Settings
+            }
+            TRIGGER_SOFTWARE => {
+                if v == 0 {
+                    Effect::None
+                } else {
+                    Effect::SoftwareTrigger
+                }
+            }
+            EXPOSURE_TIME => {
+                let us = f32::from_bits(v);
+                if !(us.is_finite() && (cam.exposure_min_us..=cam.exposure_max_us).contains(&us)) {
+                    return Err(Status::InvalidParameter);
+                }
+                s.exposure_us = us;
+                s.exposure_auto = false;
+                Effect::Settings
+            }
+            EXPOSURE_AUTO => {
+                s.exposure_auto = match v {
+                    0 => false,
+                    2 => true,
+                    _ => return Err(Status::InvalidParameter),
+                };
+                Effect::Settings
+            }
+            FRAME_RATE => {
+                let hz = f32::from_bits(v);
+                if !(hz.is_finite() && (FRAME_RATE_MIN..=FRAME_RATE_MAX).contains(&hz)) {
+                    return Err(Status::InvalidParameter);
+                }
+                s.frame_rate_hz = hz;
+                Effect::Settings
+            }
+            a if self.read_u32(a).is_ok() => return Err(Status::WriteProtect),
+            _ => return Err(Status::InvalidAddress),
+        };
+        Ok(effect)
+    }
+
+    /// WRITEMEM: word by word; stops at the first word refused.
+    pub fn write_block(&mut self, addr: u32, data: &[u8]) -> (Result<(), Status>, Vec<Effect>, u16) {
+        if !addr.is_multiple_of(4) || !data.len().is_multiple_of(4) {
+            return (Err(Status::BadAlignment), vec![], 0);
+        }
+        let mut effects = Vec::new();
+        for (k, w) in data.chunks_exact(4).enumerate() {
+            let a = match addr.checked_add(4 * k as u32) {
+                Some(a) => a,
+                None => return (Err(Status::InvalidAddress), effects, (4 * k) as u16),
+            };
+            match self.write_u32(a, u32::from_be_bytes(w.try_into().expect("4 bytes"))) {
+                Ok(e) => effects.push(e),
+                Err(st) => return (Err(st), effects, (4 * k) as u16),
+            }
+        }
+        (Ok(()), effects, data.len() as u16)
+    }
+}
+
+fn check_packet_size(size: u32) -> Result<(), Status> {
+    if (PACKET_SIZE_MIN..=PACKET_SIZE_MAX).contains(&size) && size.is_multiple_of(PACKET_SIZE_INC) {
+        Ok(())
+    } else {
+        Err(Status::InvalidParameter)
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    pub(crate) fn camera() -> CameraDescription {
+        CameraDescription {
+            sensor_width: 64,
+            sensor_height: 48,
+            adc_bits: 12,
+            exposure_us: 1000.0,
+            exposure_min_us: 1.0,
+            exposure_max_us: 1e6,
+            auto_exposure: true,
+            frame_rate_hz: 10.0,
+        }
+    }
+
+    pub(crate) fn registers() -> Registers {
+        let id = DeviceIdentity {
+            manufacturer: "hilcam".into(),
+            model: "hilcam-sim".into(),
+            version: "0.1.0".into(),
+            info: "test".into(),
+            serial: "HC0001".into(),
+            user_name: "".into(),
+            mac: [2, 0x48, 0x4c, 0, 0, 1],
+            ip: Ipv4Addr::LOCALHOST,
+        };
+        Registers::new(id, camera(), 1500, "hilcam.xml", b"<xml/>".to_vec()).unwrap()
+    }
+
+    #[test]
+    fn strings_and_url_read_back() {
+        let r = registers();
+        let model = r.read_block(MODEL_NAME, 32).unwrap();
+        assert_eq!(&model[..10], b"hilcam-sim");
+        assert_eq!(model[10], 0);
+        let url = r.read_block(XML_URL_0, 512).unwrap();
+        let end = url.iter().position(|&b| b == 0).unwrap();
+        assert_eq!(std::str::from_utf8(&url[..end]).unwrap(), "Local:hilcam.xml;10000;6");
+        assert_eq!(&r.read_block(XML_BASE, 8).unwrap()[..6], b"<xml/>");
+    }
+
+    #[test]
+    fn roi_and_ranges_are_validated() {
+        let mut r = registers();
+        assert_eq!(r.write_u32(WIDTH, 65), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(WIDTH, 32), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(OFFSET_X, 32), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(OFFSET_X, 33), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(WIDTH, 33), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(PIXEL_FORMAT, GevPixelFormat::Mono10.pfnc()), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(PIXEL_FORMAT, GevPixelFormat::Mono12.pfnc()), Ok(Effect::Settings));
+        assert_eq!(r.read_u32(PAYLOAD_SIZE).unwrap() as u64, 32 * 48 * 2 + super::super::chunk::CHUNK_OVERHEAD as u64);
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 0.5f32.to_bits()), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(EXPOSURE_TIME, f32::NAN.to_bits()), Err(Status::InvalidParameter));
+        assert!(r.settings.exposure_auto);
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 250.0f32.to_bits()), Ok(Effect::Settings));
+        assert!(!r.settings.exposure_auto, "writing ExposureTime turns auto-exposure off");
+        assert_eq!(r.write_u32(SENSOR_WIDTH, 1), Err(Status::WriteProtect));
+        assert_eq!(r.write_u32(0x3_0000, 1), Err(Status::InvalidAddress));
+        assert_eq!(r.read_u32(WIDTH + 1), Err(Status::BadAlignment));
+        assert_eq!(r.write_u32(SCPS0, 100), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(SCPS0, 8192), Ok(Effect::Stream));
+    }
+
+    #[test]
+    fn geometry_is_locked_while_acquiring() {
+        let mut r = registers();
+        r.acquiring = true;
+        assert_eq!(r.write_u32(WIDTH, 16), Err(Status::WriteProtect));
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 10.0f32.to_bits()), Ok(Effect::Settings));
+    }
+}
