@@ -27,6 +27,10 @@ else
 fi
 # ---------------------------------------------------------------------------
 
+# GigE Vision (tests/gige.rs): a real third-party client, Debian's Aravis tools and
+# its Python bindings.
+scripts/setup-aravis.sh
+
 cargo test --all-targets
 
 # --- pose input (issue 4), continued --------------------------------------
