@@ -7,6 +7,7 @@
 //! (127.0.0.21 …) on that port. Aravis must be installed (`scripts/setup-aravis.sh`);
 //! the tests that need it fail, loudly, when it is not.
 
+mod serve_common;
 use hilcam::film::Pixels;
 use hilcam::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, PixelFormat};
 use hilcam::gige::gvcp::{self, FLAG_ACK_REQUIRED, code};
@@ -429,33 +430,12 @@ async fn resend_requests_are_answered_and_packet_delay_is_honoured() {
 /// A 96×96 camera (f = 200 px) looking at a unit sphere, with a 12-bit ADC: the
 /// sensor's DN is what the GigE stream carries.
 fn dn_sphere_scene(dir: &std::path::Path) -> std::path::PathBuf {
-    let mesh = std::fs::canonicalize("scenes/meshes/sphere.obj").unwrap();
-    let text = format!(
-        r#"
-[[mesh]]
-obj = "{}"
-[materials.white_paint]
-model = "lambert"
-rho = 0.5
-[camera]
-width = 96
-height = 96
-pitch_um = 10.0
-focal_mm = 2.0
-[render]
-spp = 16
-depth = 1
-[sensor]
-output = "dn"
-radiance_scale = 5.0
-[sensor.adc]
-bits = 12
-"#,
-        mesh.display()
-    );
-    let p = dir.join("scene.toml");
-    std::fs::write(&p, text).unwrap();
-    p
+    serve_common::sphere_scene_with(
+        dir,
+        96,
+        16,
+        "[sensor]\noutput = \"dn\"\nradiance_scale = 5.0\n[sensor.adc]\nbits = 12\n",
+    )
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

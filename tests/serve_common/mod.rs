@@ -19,6 +19,11 @@ pub const PATIENCE: Duration = Duration::from_secs(60);
 
 /// A sphere scene with a small float-output camera (no sensor): pixels are radiance.
 pub fn sphere_scene(dir: &Path, width: u32, spp: impl std::fmt::Display) -> PathBuf {
+    sphere_scene_with(dir, width, spp, "")
+}
+
+/// [`sphere_scene`] with more TOML appended (e.g. a `[sensor]` section).
+pub fn sphere_scene_with(dir: &Path, width: u32, spp: impl std::fmt::Display, extra: &str) -> PathBuf {
     let mesh = std::fs::canonicalize("scenes/meshes/sphere.obj").unwrap();
     let text = format!(
         r#"
@@ -35,7 +40,7 @@ focal_mm = 2.0
 [render]
 spp = {spp}
 depth = 1
-"#,
+{extra}"#,
         mesh.display()
     );
     let p = dir.join("scene.toml");
