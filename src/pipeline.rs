@@ -116,15 +116,30 @@ impl FramePipeline {
 
     /// Render and convert frame `index` at `pose`.
     pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
+        self.frame_exposed(pose, settings, index, None)
+    }
+
+    /// [`FramePipeline::frame`] with the integration time set from outside (a camera
+    /// client's ExposureTime): it replaces the configured or auto-exposure time for this
+    /// frame and leaves the auto-exposure state alone. Ignored without a detector.
+    pub fn frame_exposed(
+        &mut self,
+        pose: &Pose,
+        settings: &RenderSettings,
+        index: u64,
+        integration_s: Option<f64>,
+    ) -> Result<RenderedFrame, SensorError> {
         let view = self.view(pose);
         let (render, _) =
             render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
         let radiance = self.buffers.image();
         let t0 = Instant::now();
         let seed = Self::sensor_seed(settings, index);
-        let out = match &mut self.auto_exposure {
-            Some(ae) => self.sensor.apply_auto(radiance, seed, ae)?.0,
-            None => self.sensor.apply(radiance, seed)?,
+        let fixed = integration_s.filter(|_| self.scene.sensor.detector.is_some());
+        let out = match (fixed, &mut self.auto_exposure) {
+            (Some(t), _) => self.sensor.apply_with_integration(radiance, seed, t)?,
+            (None, Some(ae)) => self.sensor.apply_auto(radiance, seed, ae)?.0,
+            (None, None) => self.sensor.apply(radiance, seed)?,
         };
         Ok(RenderedFrame {
             pixels: out.pixels,

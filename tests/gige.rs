@@ -514,3 +514,46 @@ async fn aravis_reads_the_xml_from_a_zip_in_device_memory() {
     assert!(ok && xml.contains("<Port Name=\"HilcamChunkPort\">"), "{xml}");
     device.shutdown().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_clients_exposure_time_is_the_integration_time_of_the_next_frames() {
+    use hilcam::serve::config::{InputConfig, TriggerConfig};
+    use hilcam::transport::InputEvent;
+    let ip = Ipv4Addr::new(127, 0, 0, 30);
+    let dir = tempfile::tempdir().unwrap();
+    let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
+                  [sensor.adc]\nbits = 16\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
+    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, sensor);
+    let mut cfg = serve_common::config(scene, InputConfig::default(), TriggerConfig::default(), Default::default());
+    cfg.output.gige = Some(GigeConfig { address: ip, ..GigeConfig::default() });
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let server = serve_common::start(cfg, Some(rx)).await;
+    let mut reader = serve_common::Reader::connect(server.info.stream).await;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let frame_at = |seq: u32| {
+        let tx = tx.clone();
+        async move {
+            let pose = serve_common::pose(seq, glam::DVec3::new(0.0, 0.0, 10.0), glam::DVec3::NEG_Z);
+            tx.send(InputEvent::Pose { pose, arrival: std::time::Instant::now() }).await.unwrap();
+        }
+    };
+    let dn_sum = |f: &Frame| match &f.pixels {
+        Pixels::Mono16 { data, .. } => data.iter().map(|&v| f64::from(v)).sum::<f64>(),
+        other => panic!("expected DN, got {:?}", other.format()),
+    };
+    frame_at(1).await;
+    let f1 = reader.next().await;
+    assert_eq!(f1.meta.integration_s, 2e-5, "before any write: the configured time");
+    // A client writes ExposureTime (µs); the next frame integrates that long.
+    let (ok, out) =
+        run("arv-tool-0.8", vec!["-a".into(), ip.to_string(), "control".into(), "ExposureTime=5".into()]).await;
+    assert!(ok, "{out}");
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    frame_at(2).await;
+    let f2 = reader.next().await;
+    assert_eq!(f2.meta.pose_seq, 2);
+    assert_eq!(f2.meta.integration_s, 5e-6, "the client's exposure");
+    let ratio = dn_sum(&f2) / dn_sum(&f1);
+    assert!((ratio - 0.25).abs() < 0.01, "signal scales with the exposure: ratio {ratio}");
+    server.finish().await;
+}

@@ -14,6 +14,7 @@
 //! - [`describe`]: the camera description from hilcam's camera and sensor config.
 //! - [`device`]: sockets, the stream thread, the resend ring.
 //! - [`triggers`]: software triggers into the serve loop's inputs.
+//! - [`exposure`]: the client's ExposureTime as the sensor's integration time.
 //!
 //! Reference: `docs/gige.md`.
 
@@ -21,6 +22,7 @@ pub mod chunk;
 pub mod control;
 pub mod describe;
 pub mod device;
+pub mod exposure;
 pub mod genicam;
 pub mod gvcp;
 pub mod gvsp;

@@ -210,6 +210,7 @@ pub async fn run(
     {
         sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(dir, r.format), &registry)?));
     }
+    let mut exposure = None;
     if let Some(g) = &cfg.output.gige {
         let desc = crate::gige::CameraDescription::from_scene(&camera, &scene.sensor, cfg.trigger.rate_hz)
             .map_err(anyhow::Error::msg)?;
@@ -217,6 +218,7 @@ pub async fn run(
         let dropped =
             registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
         inputs = crate::gige::triggers::merge_software_triggers(inputs, &device, dropped);
+        exposure = Some(crate::gige::exposure::follow_exposure(&device));
         sinks.push(Sink::Gige(device));
     }
     let input_name = if embedded { "embedded" } else { cfg.input.kind.as_str() };
@@ -278,6 +280,7 @@ pub async fn run(
         max_frames: embed.max_frames,
         session: session_writer.as_ref().map(SessionWriter::tap),
         fault: embed.render_fault.take(),
+        exposure,
     };
     let summary = run_scheduler(sched_cfg, pipeline, inputs, sinks.clone(), registry.clone(), shutdown).await;
 

@@ -56,6 +56,9 @@ pub struct SchedulerConfig {
     /// Called on the render thread with each frame's index just before it renders: a
     /// panic here is a render fault (tests inject one to show what the server does).
     pub fault: Option<FaultInjector>,
+    /// An integration time set from outside (a GigE Vision client's ExposureTime), read
+    /// as each frame starts; `None` in the channel: the sensor's own (configured or auto).
+    pub exposure: Option<tokio::sync::watch::Receiver<Option<f64>>>,
 }
 
 /// See [`SchedulerConfig::fault`].
@@ -118,6 +121,8 @@ struct Job {
     /// Lateness is measured from here (pose arrival, tick or trigger).
     reference: Instant,
     settings: RenderSettings,
+    /// Integration time override for the sensor (see [`SchedulerConfig::exposure`]).
+    exposure_s: Option<f64>,
     index: u64,
     flags: FrameFlags,
 }
@@ -275,7 +280,7 @@ fn render_job(
     job: &Job,
     budget: Duration,
 ) -> (Result<Arc<EncodedFrame>, FrameFailure>, Option<f64>) {
-    let f = match pipeline.frame(&job.pose, &job.settings, job.index) {
+    let f = match pipeline.frame_exposed(&job.pose, &job.settings, job.index, job.exposure_s) {
         Ok(f) => f,
         Err(e) => return (Err(FrameFailure { reason: "sensor", message: e.to_string() }), None),
     };
@@ -504,6 +509,7 @@ pub async fn run_scheduler(
                 arrival_unix_ns: unix_ns_of(arrival),
                 reference,
                 settings,
+                exposure_s: cfg.exposure.as_ref().and_then(|rx| *rx.borrow()),
                 index,
                 flags,
             };
