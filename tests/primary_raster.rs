@@ -139,7 +139,7 @@ fn auto_traces_packets_or_rasterises_with_enough_samples_per_triangle() {
     let cam = small_nav(&plate, 64, 64);
     let view = View::new(&cam, &plate.pose, plate.frame_origin_body, plate.bounds);
     // Where the 8-wide tree walks primary rays in packets, they are traced: faster than
-    // rasterising at any number of samples (docs/performance.md, session 8).
+    // rasterising at any number of samples (docs/performance.md).
     let (_, packets, _) = render_view_with::<()>(&plate, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
     assert_eq!(packets.primary_rasterised, !plate.accel.walks_packets());
     // With single-ray walks: rasterised where enough samples share the per-frame binning.

@@ -20,7 +20,7 @@
 //! exactly on a face, where the triangle test's rounding could accept a point just
 //! outside the box.
 //!
-//! Why eight: traversal is branch-bound (`docs/performance.md`, session 5), and an 8-wide
+//! Why eight: traversal is branch-bound (`docs/performance.md`), and an 8-wide
 //! tree has two thirds of the levels of a 4-wide one (`log 8 / log 4`), so a ray makes
 //! about two thirds of the node visits (and their mispredicted branches) with one box
 //! test of eight lanes per visit (measured: 7.2 → 4.85 visits per closest-hit ray).

@@ -5,7 +5,7 @@
 //! sphere and point almost the same way, so they enter nearly the same nodes. Walked
 //! together, a node's boxes are tested against all eight rays at once (AVX2 lanes) and
 //! the walk's branches, sorting and stack traffic — what a single-ray walk is bound by
-//! (docs/performance.md, session 5) — are paid once per packet.
+//! (docs/performance.md) — are paid once per packet.
 //!
 //! Each lane's answer is the single-ray walk's closest hit: the box test is `bvh8`'s slab
 //! test per lane (the near plane picked by the direction's sign bit, the same operations in

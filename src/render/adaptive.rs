@@ -14,7 +14,7 @@
 //! the noisy pixels (folds, the dish) are also the expensive ones — their paths bounce
 //! and their rays start among small triangles, ~2.4× the cost of an average sample — and
 //! the optimum for per-sample cost cₚ is Nₚ ∝ σₚ/√cₚ; √σ̂ measured best on the shipped
-//! satellite (docs/performance.md, session 4).
+//! satellite (docs/performance.md).
 //!
 //! The estimate for pixel p is taken from the pilot samples of its eight *neighbours
 //! only*, never its own: the number of samples p gets is
@@ -121,7 +121,7 @@ impl Adaptive {
     /// per pixel to share, the best use is on the few worst pixels (the optimum with a
     /// pilot already in every pixel gives nothing to most pixels and more to the worst),
     /// and σ̂ concentrates it there. Measured on the shipped satellite (err² × time,
-    /// docs/performance.md, session 10): σ̂ is 15 % better at 1.125 spp and 10 % at 1.25,
+    /// docs/performance.md): σ̂ is 15 % better at 1.125 spp and 10 % at 1.25,
     /// √σ̂ 6 % better at 1.5 and from 2 spp on.
     pub fn concentrated(&self) -> bool {
         self.extra() < CONCENTRATE_BELOW

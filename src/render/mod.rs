@@ -214,7 +214,7 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
         // about two samples per triangle on (`hilcam bench render`, "primary hits").
         // Neighbouring primary rays walked eight at a time (`Accel::intersect_packet`) cost
         // less than the rasteriser's per-sample work alone, so where the tree walks
-        // packets, primary rays are traced (docs/performance.md, session 8).
+        // packets, primary rays are traced (docs/performance.md).
         let planned = (rect.row0..rect.row1)
             .map(|r| {
                 let (a, b) = span(r);
