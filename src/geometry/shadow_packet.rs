@@ -3,7 +3,8 @@
 //! Every shadow ray of a frame runs along the same direction, and a wave's rays start at
 //! the hits of neighbouring pixels, so eight consecutive ones walk nearly the same nodes.
 //! Walked together, a node's boxes are tested against all eight origins at once (AVX2
-//! lanes) and the traversal's branches — the cost of a single-ray walk (docs/performance.md) — are taken once per packet instead of once per ray.
+//! lanes) and the traversal's branches — the cost of a single-ray walk
+//! (docs/performance.md) — are taken once per packet instead of once per ray.
 //!
 //! The answers are those of the single-ray walk: the box test is the same conservative slab
 //! test as `bvh4` (same operations in the same order per lane, so it culls no box holding a
