@@ -7,9 +7,8 @@
 //!
 //! e.g. `... -- scenes/satellite_lambert.toml 4 4 7 bvh4,bvh8`.
 
-use clap::ValueEnum;
-use hilcam::geometry::{Accel, BvhLayout, Ray};
-use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
+use hilcam_core::render::geometry::{Accel, BvhLayout, Ray};
+use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
 use std::time::Instant;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -27,17 +26,18 @@ fn main() -> anyhow::Result<()> {
         .get(4)
         .map_or("bvh4,bvh8", String::as_str)
         .split(',')
-        .map(|s| BvhLayout::from_str(s, true).map_err(anyhow::Error::msg))
+        .map(|s| hilcam_core::scene::file::parse_name::<BvhLayout>(s).map_err(anyhow::Error::msg))
         .collect::<Result<_, _>>()?;
-    let scene = hilcam::scene::file::load(std::path::Path::new(scene))?;
+    let scene = hilcam_core::scene::file::load(std::path::Path::new(scene))?;
     let settings = RenderSettings {
-        spp: hilcam::integrator::Spp::whole(spp),
+        spp: hilcam_core::render::integrator::Spp::whole(spp),
         depth,
         sampler: SamplerKind::Cosine,
         roulette: false,
         ..Default::default()
     };
-    let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(&scene, &scene.camera, &scene.pose, &settings, 0);
+    let (_, _, logs) =
+        hilcam_core::render::render_logged::<RecordedRays>(&scene, &scene.camera, &scene.pose, &settings, 0);
     let closest: Vec<Ray> = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
     println!("{} closest-hit rays, {} shadow rays (spp {spp}, depth {depth})", closest.len(), shadow.len());

@@ -4,11 +4,11 @@
 //!
 //!     cargo run --release --example stream_bench -- [frames] [fps] [width]
 
-use hilcam::film::Pixels;
-use hilcam::frame::{Frame, FrameFlags, FrameMeta, PixelFormat, unix_ns_now};
-use hilcam::metrics::{Histogram, Registry};
-use hilcam::sink::client::{RecvOptions, receive};
-use hilcam::sink::tcp::{FrameWritten, StreamConfig, StreamServer, WriteHook};
+use hilcam_core::frame::{Frame, FrameFlags, FrameMeta, PixelFormat, unix_ns_now};
+use hilcam_core::metrics::{Histogram, Registry};
+use hilcam_core::render::film::Pixels;
+use hilcam_core::sink::client::{RecvOptions, receive};
+use hilcam_core::sink::tcp::{FrameWritten, StreamConfig, StreamServer, WriteHook};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -66,7 +66,7 @@ async fn run(frames: u64, fps: f64, width: u32, stalled: bool) -> Run {
             height: width,
             format: PixelFormat::Mono16,
             bit_depth: 12,
-            spp: hilcam::integrator::Spp::ONE,
+            spp: hilcam_core::render::integrator::Spp::ONE,
             depth: 1,
             integration_s: 0.0,
             flags: FrameFlags::default(),

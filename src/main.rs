@@ -1,3 +1,8 @@
+//! The `hilcam` binary: the command line over hilcam-core (and hilcam-lab with the
+//! default `lab` feature).
+
+mod cli;
+
 fn main() -> std::process::ExitCode {
-    hilcam::cli::main()
+    cli::main()
 }

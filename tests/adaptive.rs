@@ -9,17 +9,17 @@
 mod common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
-use hilcam::camera::{CameraModel, View};
-use hilcam::film::RadianceImage;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
-use hilcam::pose::Pose;
-use hilcam::render::{render, render_view_counted};
-use hilcam::sampling::{PerSample, Rng, Sequence, SobolStream};
-use hilcam::scene::Scene;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::camera::{CameraModel, View};
+use hilcam_core::render::film::RadianceImage;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
+use hilcam_core::render::sampling::{PerSample, Rng, Sequence, SobolStream};
+use hilcam_core::render::{render, render_view_counted};
+use hilcam_core::scene::Scene;
 
 fn satellite() -> Scene {
-    hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap()
+    hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap()
 }
 
 /// The navigation camera scaled to `width` × `height` (same field of view).

@@ -8,8 +8,8 @@
 //! rad get hundreds of nodes. A direct wi-space quadrature cross-checks the Jacobian.
 
 use glam::Vec3;
-use hilcam::bsdf::{BlinnPhong, Bsdf, CookTorrance, ImprovedBlinnPhong, Lambert};
-use hilcam::sampling::Rng;
+use hilcam_core::render::bsdf::{BlinnPhong, Bsdf, CookTorrance, ImprovedBlinnPhong, Lambert};
+use hilcam_core::render::sampling::Rng;
 use std::f64::consts::PI;
 
 fn wo_at(theta_deg: f64) -> Vec3 {
@@ -147,8 +147,8 @@ fn cosine_weight_is_f_cos_over_the_cosine_pdf_for_every_model() {
         for th in VIEW_ANGLES {
             let wo = wo_at(th);
             for _ in 0..2000 {
-                let wi = hilcam::sampling::cosine_hemisphere(rng.next_2d());
-                let pdf = hilcam::sampling::cosine_hemisphere_pdf(wi.z);
+                let wi = hilcam_core::render::sampling::cosine_hemisphere(rng.next_2d());
+                let pdf = hilcam_core::render::sampling::cosine_hemisphere_pdf(wi.z);
                 let want = if pdf > 0.0 { b.eval_cos(wo, wi) / pdf } else { 0.0 };
                 let got = b.cosine_weight(wo, wi);
                 assert!((got - want).abs() <= 1e-6 * want.abs().max(1.0), "{name} θo {th} wi {wi}: {got} vs {want}");
@@ -224,8 +224,8 @@ fn reciprocity_where_it_holds() {
         Bsdf::CookTorrance(CookTorrance::new(0.3, 0.3, 0.5, 1.0).unwrap()),
     ];
     for _ in 0..20_000 {
-        let wo = hilcam::sampling::uniform_hemisphere(rng.next_2d());
-        let wi = hilcam::sampling::uniform_hemisphere(rng.next_2d());
+        let wo = hilcam_core::render::sampling::uniform_hemisphere(rng.next_2d());
+        let wi = hilcam_core::render::sampling::uniform_hemisphere(rng.next_2d());
         for b in &recip {
             let (f1, f2) = (b.eval(wo, wi), b.eval(wi, wo));
             assert!((f1 - f2).abs() <= 1e-4 * f1.abs().max(1e-3), "{b:?}: {f1} vs {f2}");
@@ -245,8 +245,8 @@ fn blinn_phong_models_are_not_reciprocal_by_exactly_the_nl_term() {
     for (b, a) in models {
         let rho_d = 0.3717 / std::f32::consts::PI;
         for _ in 0..5_000 {
-            let wo = hilcam::sampling::cosine_hemisphere(rng.next_2d());
-            let wi = hilcam::sampling::cosine_hemisphere(rng.next_2d());
+            let wo = hilcam_core::render::sampling::cosine_hemisphere(rng.next_2d());
+            let wi = hilcam_core::render::sampling::cosine_hemisphere(rng.next_2d());
             if wo.z < 0.05 || wi.z < 0.05 {
                 continue;
             }
@@ -512,7 +512,7 @@ fn gold_presets_are_local_minima_of_the_documented_fit() {
     // docs/brdf.md: Eq. 4 and Cook-Torrance were fitted to the paper's Eq. 5 curves at
     // θi = 30°, 60° (RMS over θv ∈ [−89°, 89°]). Moving any fitted parameter by ±1 % must
     // not improve the objective (beyond the rounding of the published constants).
-    use hilcam::cli::brdf::curve_rmse;
+    use hilcam_lab::cli::brdf::curve_rmse;
     let paper = Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide());
     let obj = |b: &Bsdf| ((curve_rmse(&paper, b, 30.0).powi(2) + curve_rmse(&paper, b, 60.0).powi(2)) / 2.0).sqrt();
     let [d, s, a] = BlinnPhong::GOLD_POLYIMIDE_FIT;
@@ -554,7 +554,7 @@ fn mis_sampling_beats_cosine_sampling_on_the_gold_lobe() {
         stats(&mut || b.sample(wo, r1.next_2d(), r1.next_f32()).map_or(0.0, |s| f64::from(s.f_cos / s.pdf)));
     let mut r2 = Rng::from_state(32);
     let (m_cos, v_cos) = stats(&mut || {
-        let wi = hilcam::sampling::cosine_hemisphere(r2.next_2d());
+        let wi = hilcam_core::render::sampling::cosine_hemisphere(r2.next_2d());
         if wi.z <= 0.0 { 0.0 } else { f64::from(b.eval_cos(wo, wi)) * PI / f64::from(wi.z) }
     });
     eprintln!(

@@ -1,9 +1,9 @@
 //! The BVH (both obvhs layouts) against a brute-force loop over all triangles.
 
 use glam::Vec3;
-use hilcam::geometry::bvh::brute_force;
-use hilcam::geometry::{Accel, BvhLayout, Ray, TriMesh};
-use hilcam::sampling::Rng;
+use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::geometry::{Accel, BvhLayout, Ray, TriMesh};
+use hilcam_core::render::sampling::Rng;
 
 fn random_vec(r: &mut Rng, scale: f32) -> Vec3 {
     (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 2.0 - 1.0) * scale

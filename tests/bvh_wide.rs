@@ -6,9 +6,9 @@
 //! for bit.)
 
 use glam::Vec3;
-use hilcam::geometry::bvh::brute_force;
-use hilcam::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
-use hilcam::sampling::Rng;
+use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
+use hilcam_core::render::sampling::Rng;
 
 mod common;
 use common::soup::{random_vec, soup, surface_point};
@@ -151,7 +151,8 @@ fn wide_layouts_match_the_narrower_on_satellite_rays() {
 
 fn matches_on_satellite_rays(layout: BvhLayout, reference: BvhLayout) {
     let scene =
-        hilcam::scene::file::load_with_layout(std::path::Path::new("scenes/satellite.toml"), Some(reference)).unwrap();
+        hilcam_core::scene::file::load_with_layout(std::path::Path::new("scenes/satellite.toml"), Some(reference))
+            .unwrap();
     // The navigation camera scaled to 96×96 px (same field of view).
     let (closest, shadow) = common::scenes::recorded_rays(&scene, 96, 1);
     assert!(closest.len() > 2000 && shadow.len() > 1000, "{} closest, {} shadow rays", closest.len(), shadow.len());
@@ -207,13 +208,13 @@ fn scene_file_selects_bvh8() {
              [camera]\nwidth = 64\nheight = 48\npitch_um = 10.0\nfocal_mm = 20.0\n[render]\n{render}\n"
         );
         let path = put("s.toml", &text);
-        hilcam::scene::file::parse(&path, &text).unwrap_or_else(|e| panic!("{e}"))
+        hilcam_core::scene::file::parse(&path, &text).unwrap_or_else(|e| panic!("{e}"))
     };
     assert_eq!(parts("bvh = \"bvh8\"").layout, BvhLayout::Bvh8);
     assert_eq!(parts("bvh = \"bvh4\"").layout, BvhLayout::Bvh4);
     assert_eq!(parts("spp = 2").layout, BvhLayout::Bvh8);
     // The built tree answers like brute force on the one triangle.
-    let s = hilcam::scene::Scene::build(parts("bvh = \"bvh8\""));
+    let s = hilcam_core::scene::Scene::build(parts("bvh = \"bvh8\""));
     let [a, b, c] = s.mesh.triangle(0);
     let centre = (a + b + c) / 3.0;
     let ray = Ray { origin: centre + Vec3::Z, dir: -Vec3::Z, tmax: f32::INFINITY };

@@ -8,12 +8,12 @@
 
 mod pose_common;
 
-use hilcam::pose::Message;
-use hilcam::pose::can::{CanIds, encode_message};
-use hilcam::trajectory::Trajectory;
-use hilcam::transport::send::{MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking};
-use hilcam::transport::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
-use hilcam::transport::{InputCounters, InputEvent};
+use hilcam_core::link::send::{MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking};
+use hilcam_core::link::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
+use hilcam_core::link::{InputCounters, InputEvent};
+use hilcam_core::pose::Message;
+use hilcam_core::pose::can::{CanIds, encode_message};
+use hilcam_core::pose::trajectory::Trajectory;
 use pose_common::*;
 use socketcan::Socket;
 use std::sync::Arc;
@@ -92,7 +92,7 @@ async fn vcan_groups_fd_frames_corruption_and_error_frames() {
             let f = &mut frames[3];
             let mut d = f.data().to_vec();
             d[4] ^= 0x01;
-            *f = hilcam::pose::can::CanFrame::new(f.id, false, &d).unwrap();
+            *f = hilcam_core::pose::can::CanFrame::new(f.id, false, &d).unwrap();
         }
         for f in &frames {
             sock.write_frame(&to_socketcan(f)).unwrap();

@@ -6,15 +6,15 @@
 //! rays of a satellite frame.
 
 use glam::Vec3;
-use hilcam::geometry::bvh::brute_force;
-use hilcam::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
-use hilcam::sampling::Rng;
+use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
+use hilcam_core::render::sampling::Rng;
 use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
 
 mod common;
 use common::soup::{random_vec, soup, surface_point};
 
-const PACKET: usize = hilcam::geometry::shadow_packet::PACKET;
+const PACKET: usize = hilcam_core::render::geometry::shadow_packet::PACKET;
 
 /// `t` of `ray` against triangle `i` of `mesh` by obvhs's own test (infinity for a miss).
 fn t_of(mesh: &TriMesh, i: u32, ray: &Ray) -> f32 {
@@ -127,8 +127,8 @@ fn packets_find_brute_force_closest_hits_on_soups() {
 
 #[test]
 fn packets_match_single_rays_on_a_satellite_frame() {
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite_lambert.toml")).unwrap();
-    assert!(scene.accel.walks_packets() || !hilcam::geometry::shadow_packet::avx2());
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite_lambert.toml")).unwrap();
+    assert!(scene.accel.walks_packets() || !hilcam_core::render::geometry::shadow_packet::avx2());
     let (closest, _) = common::scenes::recorded_rays(&scene, 128, 4);
     assert!(closest.len() > 15_000, "{} closest-hit rays", closest.len());
     let (mut hits, mut ties) = (0u32, 0u32);

@@ -2,8 +2,8 @@
 //! for byte against hilcam's encoders: the documentation cannot drift from the program.
 
 mod common;
-use hilcam::pose::can::{self, CanIds};
-use hilcam::pose::{Message, Pose, serial, slcan};
+use hilcam_core::pose::can::{self, CanIds};
+use hilcam_core::pose::{Message, Pose, serial, slcan};
 
 fn page() -> String {
     std::fs::read_to_string("docs/protocol.md").expect("docs/protocol.md")

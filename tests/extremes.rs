@@ -4,13 +4,13 @@
 mod common;
 use common::scenes::*;
 use glam::{DQuat, DVec3, Vec3};
-use hilcam::geometry::TriMesh;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{RenderSettings, SamplerKind};
-use hilcam::pose::Pose;
-use hilcam::render::render;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::geometry::TriMesh;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
+use hilcam_core::render::render;
 
-fn finite(img: &hilcam::film::RadianceImage) -> bool {
+fn finite(img: &hilcam_core::render::film::RadianceImage) -> bool {
     img.data.iter().all(|v| v.is_finite() && *v >= 0.0)
 }
 
@@ -197,7 +197,7 @@ fn matrix_error(q: DQuat, m: glam::DMat3) -> f64 {
 
 #[test]
 fn poses_at_10_khz_extrapolate_over_100_us_to_the_next_pose() {
-    use hilcam::serve::extrapolate::extrapolate;
+    use hilcam_core::serve::extrapolate::extrapolate;
     // One second at 10 kHz: every pose moved 100 µs ahead lands on the next one, and
     // 10 000 chained 100 µs steps land on the pose 1 s later.
     let mut chained = pose_at_10_khz(0);
@@ -220,9 +220,9 @@ fn poses_at_10_khz_extrapolate_over_100_us_to_the_next_pose() {
 
 #[test]
 fn poses_at_10_khz_survive_the_serial_codec_and_validation() {
-    use hilcam::pose::Message;
-    use hilcam::pose::serial::{DecodeEvent, SerialDecoder, encode_frame};
-    use hilcam::pose::validate::{PoseLimits, PoseValidator};
+    use hilcam_core::pose::Message;
+    use hilcam_core::pose::serial::{DecodeEvent, SerialDecoder, encode_frame};
+    use hilcam_core::pose::validate::{PoseLimits, PoseValidator};
     // One second of 10 kHz poses as one byte stream, fed in odd-sized chunks.
     let bytes: Vec<u8> = (1..=10_000u32).flat_map(|k| encode_frame(&Message::Pose(pose_at_10_khz(k)))).collect();
     let mut dec = SerialDecoder::new();

@@ -2,8 +2,8 @@
 //! analytic answers, wrapping leaves no cracks, the satellite model is complete.
 
 use glam::{DVec3, Vec3};
-use hilcam::fold::{self, FoldLevel, FoldParams, measure, wrap_faces};
-use hilcam::geometry::TriMesh;
+use hilcam_core::render::geometry::TriMesh;
+use hilcam_core::scene::fold::{self, FoldLevel, FoldParams, measure, wrap_faces};
 use std::collections::HashMap;
 
 /// Count how many triangles use each undirected edge.
@@ -240,7 +240,7 @@ fn wrapped_flat_panel_matches_the_plane_statistics_at_the_disk_resolution() {
 
 mod satellite {
     use super::*;
-    use hilcam::model::satellite::{self as sat, MATERIALS};
+    use hilcam_lab::model::satellite::{self as sat, MATERIALS};
 
     /// What `hilcam model satellite` uses by default: medium, seed 1, fitted at 2 cm.
     fn medium() -> FoldParams {
@@ -392,7 +392,7 @@ fn wrap_is_conforming_between_triangles_of_different_sizes() {
 
 #[test]
 fn custom_targets_fit_and_impossible_ones_are_refused() {
-    use hilcam::fold::{FoldError, FoldTarget};
+    use hilcam_core::scene::fold::{FoldError, FoldTarget};
     for (e, v) in [(0.99, 0.002), (0.96, 0.012)] {
         let p = fold::generate_plane(FoldTarget { e_plane: e, var: v }, 7).unwrap();
         assert!((p.stats.e_plane - e).abs() <= 0.002 && (p.stats.var - v).abs() <= 0.001, "{:?}", p.stats);

@@ -8,13 +8,13 @@
 //! the tests that need it fail, loudly, when it is not.
 
 mod serve_common;
-use hilcam::film::Pixels;
-use hilcam::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, PixelFormat};
-use hilcam::gige::gvcp::{self, FLAG_ACK_REQUIRED, code};
-use hilcam::gige::registers as reg;
-use hilcam::gige::{CameraDescription, GevPixelFormat, GigeConfig, GigeDevice, gvsp};
-use hilcam::integrator::Spp;
-use hilcam::metrics::Registry;
+use hilcam_core::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, PixelFormat};
+use hilcam_core::metrics::Registry;
+use hilcam_core::render::film::Pixels;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::sink::gige::gvcp::{self, FLAG_ACK_REQUIRED, code};
+use hilcam_core::sink::gige::registers as reg;
+use hilcam_core::sink::gige::{CameraDescription, GevPixelFormat, GigeConfig, GigeDevice, gvsp};
 use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::process::Command;
 use std::sync::Arc;
@@ -99,7 +99,7 @@ impl Rig {
             while !s.load(Ordering::Acquire) {
                 let mut f = images[(seq % 8) as usize].clone();
                 f.meta.frame_seq = seq;
-                f.meta.pose_arrival_unix_ns = hilcam::frame::unix_ns_now();
+                f.meta.pose_arrival_unix_ns = hilcam_core::frame::unix_ns_now();
                 d.publish(&Arc::new(f));
                 seq += 1;
                 std::thread::sleep(Duration::from_secs_f64(1.0 / RATE_HZ));
@@ -220,7 +220,7 @@ async fn aravis_client_gets_roi_mono8_and_the_pose_of_each_frame() {
     let v = python_client(ip, 6, &["Width=256", "Height=200", "OffsetX=32", "OffsetY=20", "PixelFormat=Mono8"]).await;
     let f = &v["features"];
     assert_eq!((f["Width"].as_u64(), f["Height"].as_u64()), (Some(256), Some(200)));
-    assert_eq!(f["PayloadSize"].as_u64(), Some(256 * 200 + hilcam::gige::chunk::CHUNK_OVERHEAD as u64));
+    assert_eq!(f["PayloadSize"].as_u64(), Some(256 * 200 + hilcam_core::sink::gige::chunk::CHUNK_OVERHEAD as u64));
     assert_eq!(f["TickFrequency"].as_u64(), Some(1_000_000_000));
     for b in v["buffers"].as_array().unwrap() {
         assert_eq!(b["status"], "success", "{v}");
@@ -394,7 +394,7 @@ async fn resend_requests_are_answered_and_packet_delay_is_honoured() {
         }
         assert_eq!(c.write(reg::ACQUISITION_STOP, 1), 0);
         let n_packets = block.len() as u32;
-        let bytes = (w * h * 2) as usize + hilcam::gige::chunk::CHUNK_OVERHEAD;
+        let bytes = (w * h * 2) as usize + hilcam_core::sink::gige::chunk::CHUNK_OVERHEAD;
         assert_eq!(n_packets, bytes.div_ceil(540) as u32 + 2);
         let span = block.last().unwrap().2 - block[0].2;
         let floor = Duration::from_micros(300) * (n_packets - 1);
@@ -441,10 +441,10 @@ fn dn_sphere_scene(dir: &std::path::Path) -> std::path::PathBuf {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pinhole_puts_it() {
     use glam::DVec3;
-    use hilcam::pose::{Message, Pose};
-    use hilcam::serve::config::ServeConfig;
-    use hilcam::serve::{Embed, run};
-    use hilcam::transport::send::{MessageWriter, SerialWriter};
+    use hilcam_core::link::send::{MessageWriter, SerialWriter};
+    use hilcam_core::pose::{Message, Pose};
+    use hilcam_core::serve::config::ServeConfig;
+    use hilcam_core::serve::{Embed, run};
     use serialport::SerialPort;
 
     let ip = Ipv4Addr::new(127, 0, 0, 28);
@@ -517,8 +517,8 @@ async fn aravis_reads_the_xml_from_a_zip_in_device_memory() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_clients_exposure_time_is_the_integration_time_of_the_next_frames() {
-    use hilcam::serve::config::{InputConfig, TriggerConfig};
-    use hilcam::transport::InputEvent;
+    use hilcam_core::link::InputEvent;
+    use hilcam_core::serve::config::{InputConfig, TriggerConfig};
     let ip = Ipv4Addr::new(127, 0, 0, 30);
     let dir = tempfile::tempdir().unwrap();
     let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\

@@ -8,13 +8,13 @@
 //! checksums hold for any thread count on one kind of machine.
 
 mod serve_common;
-use hilcam::film::Pixels;
-use hilcam::frame::CRC32;
-use hilcam::pipeline::FramePipeline;
-use hilcam::pose::validate::PoseLimits;
-use hilcam::sink::recorder::FrameRecord;
-use hilcam::trajectory::Trajectory;
-use hilcam::transport::InputEvent;
+use hilcam_core::frame::CRC32;
+use hilcam_core::link::InputEvent;
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::trajectory::Trajectory;
+use hilcam_core::pose::validate::PoseLimits;
+use hilcam_core::render::film::Pixels;
+use hilcam_core::sink::recorder::FrameRecord;
 use serve_common::*;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -39,7 +39,7 @@ fn crc_f32(v: &[f32]) -> u32 {
 }
 
 /// The first three rows of the shipped fly-around, gated as replay gates them.
-fn flyaround() -> Vec<hilcam::trajectory::TrajectorySample> {
+fn flyaround() -> Vec<hilcam_core::pose::trajectory::TrajectorySample> {
     let mut s = Trajectory::load_gated("scenes/trajectories/flyaround.csv", &PoseLimits::default()).unwrap();
     s.truncate(3);
     s
@@ -50,8 +50,8 @@ fn outputs() -> BTreeMap<String, u32> {
     let mut out = BTreeMap::new();
     // Render and sensor, each shipped scene at its own pose and settings.
     for name in SCENES {
-        let mut scene = hilcam::scene::load(Path::new(&format!("scenes/{name}.toml"))).unwrap();
-        scene.camera = hilcam::cli::render::scaled_camera(&scene.camera, Some(WIDTH), None);
+        let mut scene = hilcam_core::scene::load(Path::new(&format!("scenes/{name}.toml"))).unwrap();
+        scene.camera = scene.camera.scaled(Some(WIDTH), None);
         let scene = Arc::new(scene);
         let mut pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
         let (img, _) = pipeline.radiance(&scene.pose, &scene.render, 0);

@@ -4,13 +4,13 @@
 //! pixels are finite and non-negative; nothing panics.
 
 use glam::{DQuat, DVec3};
-use hilcam::frame::{DecodeError, HEADER_LEN, decode_frame};
-use hilcam::pipeline::FramePipeline;
-use hilcam::pose::can::{self, CanAssembler, CanEvent, CanIds};
-use hilcam::pose::validate::{PoseLimits, check_pose};
-use hilcam::pose::{Message, Pose, serial};
-use hilcam::scene::Scene;
-use hilcam::trajectory::Trajectory;
+use hilcam_core::frame::{DecodeError, HEADER_LEN, decode_frame};
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::can::{self, CanAssembler, CanEvent, CanIds};
+use hilcam_core::pose::trajectory::Trajectory;
+use hilcam_core::pose::validate::{PoseLimits, check_pose};
+use hilcam_core::pose::{Message, Pose, serial};
+use hilcam_core::scene::Scene;
 use proptest::prelude::*;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
@@ -86,8 +86,8 @@ fn any_pose() -> impl Strategy<Value = Pose> {
 fn plate() -> &'static Arc<Scene> {
     static SCENE: OnceLock<Arc<Scene>> = OnceLock::new();
     SCENE.get_or_init(|| {
-        let mut s = hilcam::scene::load(Path::new("scenes/plate.toml")).unwrap();
-        s.camera = hilcam::cli::render::scaled_camera(&s.camera, Some(8), None);
+        let mut s = hilcam_core::scene::load(Path::new("scenes/plate.toml")).unwrap();
+        s.camera = s.camera.scaled(Some(8), None);
         Arc::new(s)
     })
 }
@@ -97,8 +97,11 @@ fn plate() -> &'static Arc<Scene> {
 fn render_checked(pose: &Pose) -> Result<(), TestCaseError> {
     let scene = plate();
     let mut pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
-    let settings =
-        hilcam::integrator::RenderSettings { spp: hilcam::integrator::Spp::whole(2), depth: 2, ..scene.render };
+    let settings = hilcam_core::render::integrator::RenderSettings {
+        spp: hilcam_core::render::integrator::Spp::whole(2),
+        depth: 2,
+        ..scene.render
+    };
     let (img, _) = pipeline.radiance(pose, &settings, 0);
     prop_assert!(img.data.iter().all(|x| x.is_finite() && *x >= 0.0), "pose {pose:?}: {:?}", img.data);
     let f = pipeline.frame(pose, &settings, 0).map_err(|e| TestCaseError::fail(format!("sensor: {e}")))?;
@@ -198,7 +201,7 @@ proptest! {
         h[57] = bits;
         h[58..60].copy_from_slice(&1u16.to_le_bytes());
         h[72..80].copy_from_slice(&payload_len.to_le_bytes());
-        let crc = hilcam::frame::CRC32.checksum(&h[..84]);
+        let crc = hilcam_core::frame::CRC32.checksum(&h[..84]);
         h[84..88].copy_from_slice(&crc.to_le_bytes());
         match decode_frame(&h) {
             Err(DecodeError::Malformed(m)) => prop_assert!(!m.to_string().is_empty()),
@@ -278,7 +281,7 @@ proptest! {
         );
         let path = dir.path().join("s.toml");
         std::fs::write(&path, &text).unwrap();
-        match hilcam::scene::load(&path) {
+        match hilcam_core::scene::load(&path) {
             Err(e) => {
                 let e = e.to_string();
                 prop_assert!(e.starts_with(&path.display().to_string()), "unnamed error: {e}");

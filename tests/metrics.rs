@@ -1,6 +1,6 @@
 //! Metrics: histogram percentiles against exact ones, Prometheus text, HTTP endpoint.
 
-use hilcam::metrics::*;
+use hilcam_core::metrics::*;
 use proptest::prelude::*;
 use std::collections::BTreeMap;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};

@@ -3,15 +3,15 @@
 //! `bench sampling` pipeline runs end to end on a tiny image.
 
 use glam::Vec3;
-use hilcam::bench::sampling::PlaneCase;
-use hilcam::bench::table1::{Table1Config, run_table1};
-use hilcam::bsdf::{Bsdf, ImprovedBlinnPhong, Lambert};
-use hilcam::film::RadianceImage;
-use hilcam::fold::FoldLevel;
-use hilcam::fold::disk::reference_disk;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{RenderSettings, SamplerKind};
-use hilcam::sampling::Sequence;
+use hilcam_core::render::bsdf::{Bsdf, ImprovedBlinnPhong, Lambert};
+use hilcam_core::render::film::RadianceImage;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
+use hilcam_core::render::sampling::Sequence;
+use hilcam_core::scene::fold::FoldLevel;
+use hilcam_core::scene::fold::disk::reference_disk;
+use hilcam_lab::bench::sampling::PlaneCase;
+use hilcam_lab::bench::table1::{Table1Config, run_table1};
 
 const SIZE: u32 = 24;
 

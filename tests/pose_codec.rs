@@ -2,10 +2,10 @@
 //! implementation, not the `crc` crate), plus property-based round trips.
 
 use glam::{DQuat, DVec3};
-use hilcam::pose::can::{self, CanAssembler, CanEvent, CanFrame, CanIds, GroupDrop};
-use hilcam::pose::serial::{self, DecodeEvent, FrameError, Malformed, SerialDecoder};
-use hilcam::pose::slcan::{self, SlcanDecoder, SlcanError, SlcanItem};
-use hilcam::pose::{Message, Pose};
+use hilcam_core::pose::can::{self, CanAssembler, CanEvent, CanFrame, CanIds, GroupDrop};
+use hilcam_core::pose::serial::{self, DecodeEvent, FrameError, Malformed, SerialDecoder};
+use hilcam_core::pose::slcan::{self, SlcanDecoder, SlcanError, SlcanItem};
+use hilcam_core::pose::{Message, Pose};
 use proptest::prelude::*;
 
 fn unhex(s: &str) -> Vec<u8> {
@@ -70,7 +70,7 @@ fn serial_malformed_kinds() {
     // Valid CRC but a reserved byte set: a sender bug, still malformed.
     b = good.clone();
     b[19] = 1;
-    let crc = hilcam::pose::crc::crc32c(&b[2..b.len() - 4]);
+    let crc = hilcam_core::pose::crc::crc32c(&b[2..b.len() - 4]);
     let n = b.len();
     b[n - 4..].copy_from_slice(&crc.to_le_bytes());
     assert_eq!(m(&b), Malformed::BadFlags(0));

@@ -3,12 +3,12 @@
 //! accepted by the decoder + validator. Seeded, so failures reproduce.
 
 use glam::{DQuat, DVec3};
-use hilcam::pose::can::{self, CanAssembler, CanEvent, CanFrame, CanIds};
-use hilcam::pose::serial::{self, DecodeEvent, SerialDecoder};
-use hilcam::pose::slcan::{self, SlcanDecoder, SlcanItem};
-use hilcam::pose::validate::{PoseLimits, PoseValidator};
-use hilcam::pose::{Message, Pose};
-use hilcam::sampling::Rng;
+use hilcam_core::pose::can::{self, CanAssembler, CanEvent, CanFrame, CanIds};
+use hilcam_core::pose::serial::{self, DecodeEvent, SerialDecoder};
+use hilcam_core::pose::slcan::{self, SlcanDecoder, SlcanItem};
+use hilcam_core::pose::validate::{PoseLimits, PoseValidator};
+use hilcam_core::pose::{Message, Pose};
+use hilcam_core::render::sampling::Rng;
 
 struct R(Rng);
 impl R {

@@ -4,7 +4,7 @@
 //! next sample, an independent check of the rate convention).
 
 use glam::{DQuat, DVec3};
-use hilcam::trajectory::{Trajectory, TrajectorySample};
+use hilcam_core::pose::trajectory::{Trajectory, TrajectorySample};
 
 const HALF_FOV: f64 = 10.0 * std::f64::consts::PI / 180.0;
 

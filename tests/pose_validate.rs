@@ -1,8 +1,8 @@
 //! Validation: every rejection reason, renormalisation of small drift.
 
 use glam::{DQuat, DVec3};
-use hilcam::pose::Pose;
-use hilcam::pose::validate::{PoseLimits, PoseValidator, Rejection, check_pose};
+use hilcam_core::pose::Pose;
+use hilcam_core::pose::validate::{PoseLimits, PoseValidator, Rejection, check_pose};
 
 fn lim() -> PoseLimits {
     PoseLimits::default()

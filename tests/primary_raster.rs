@@ -5,16 +5,16 @@
 
 mod common;
 use glam::{DQuat, DVec3};
-use hilcam::camera::{CameraModel, View};
-use hilcam::geometry::bvh::brute_force;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{RenderSettings, SamplerKind};
-use hilcam::pose::Pose;
-use hilcam::render::coverage::Coverage;
-use hilcam::render::visibility::{PrimaryRaster, RasterScratch};
-use hilcam::render::{PrimaryVisibility, RenderStats, render_view_with};
-use hilcam::sampling::{PerSample, Sequence, SobolStream};
-use hilcam::scene::Scene;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::camera::{CameraModel, View};
+use hilcam_core::render::coverage::Coverage;
+use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
+use hilcam_core::render::sampling::{PerSample, Sequence, SobolStream};
+use hilcam_core::render::visibility::{PrimaryRaster, RasterScratch};
+use hilcam_core::render::{PrimaryVisibility, RenderStats, render_view_with};
+use hilcam_core::scene::Scene;
 
 fn small_nav(scene: &Scene, width: u32, height: u32) -> CameraModel {
     common::scenes::scaled_camera(scene, width, height, [1.5, -2.25])
@@ -68,7 +68,7 @@ fn compare(
 
 #[test]
 fn rasterised_primary_hits_give_the_same_bytes_as_tracing() {
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let cam = small_nav(&scene, 160, 120);
     let settings = RenderSettings {
         spp: Spp::whole(3),
@@ -118,7 +118,7 @@ fn rasterised_primary_hits_give_the_same_bytes_as_tracing() {
 
 #[test]
 fn camera_among_the_triangles_falls_back_to_tracing() {
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let cam = small_nav(&scene, 64, 48);
     let settings = RenderSettings { spp: Spp::whole(2), depth: 2, ..RenderSettings::default() };
     // Camera at the centre of the target's bounds, looking along its boresight.
@@ -133,9 +133,9 @@ fn camera_among_the_triangles_falls_back_to_tracing() {
 
 #[test]
 fn auto_traces_packets_or_rasterises_with_enough_samples_per_triangle() {
-    use hilcam::geometry::{Accel, BvhLayout};
+    use hilcam_core::render::geometry::{Accel, BvhLayout};
     let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..RenderSettings::default() };
-    let mut plate = hilcam::scene::file::load(std::path::Path::new("scenes/plate.toml")).unwrap();
+    let mut plate = hilcam_core::scene::file::load(std::path::Path::new("scenes/plate.toml")).unwrap();
     let cam = small_nav(&plate, 64, 64);
     let view = View::new(&cam, &plate.pose, plate.frame_origin_body, plate.bounds);
     // Where the 8-wide tree walks primary rays in packets, they are traced: faster than
@@ -148,7 +148,7 @@ fn auto_traces_packets_or_rasterises_with_enough_samples_per_triangle() {
     let (_, many, _) = render_view_with::<()>(&plate, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
     assert!(many.primary_rasterised);
     // ~7 000 samples for 145 616 triangles: the per-frame binning would cost more.
-    let mut scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let mut scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     scene.accel = Accel::build(&scene.mesh, BvhLayout::Bvh4);
     let cam = small_nav(&scene, 160, 120);
     let view = View::new(&cam, &scene.pose, scene.frame_origin_body, scene.bounds);
@@ -167,7 +167,7 @@ type MayHit<'a> = dyn Fn(u32, u32) -> bool + 'a;
 
 #[test]
 fn coverage_never_skips_a_pixel_that_can_see_the_target() {
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let cam = small_nav(&scene, 160, 120);
     let base = scene.pose;
     let poses = [
@@ -175,7 +175,7 @@ fn coverage_never_skips_a_pixel_that_can_see_the_target() {
         Pose { position: base.position * 0.45, ..base },
         Pose { position: base.position * 0.6 + DVec3::new(1.0, -0.5, 0.0), ..base },
     ];
-    let mut rng = hilcam::sampling::Rng::from_state(11);
+    let mut rng = hilcam_core::render::sampling::Rng::from_state(11);
     for (p, pose) in poses.iter().enumerate() {
         for lens in [true, false] {
             let distortion = if lens { scene.sensor.optics.distortion } else { None };

@@ -91,7 +91,7 @@ fn the_fixture_renders() {
     let f = Fixture::new();
     let o = f.render(&[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let img = hilcam::film::read_pfm(&f.path("out.pfm")).unwrap();
+    let img = hilcam_core::render::film::read_pfm(&f.path("out.pfm")).unwrap();
     assert_eq!((img.width, img.height), (16, 16));
     assert!(img.data.iter().any(|v| *v > 0.0), "the triangle is lit");
 }
@@ -182,10 +182,10 @@ fn a_huge_sun_direction_is_normalised_and_renders_lit() {
     f.write("s.toml", &scene_text("").replace("sun = [0.0, 0.0, -1.0]", "sun = [1e300, 0.0, -1e300]"));
     let o = f.render(&[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let huge = hilcam::film::read_pfm(&f.path("out.pfm")).unwrap();
+    let huge = hilcam_core::render::film::read_pfm(&f.path("out.pfm")).unwrap();
     f.write("s.toml", &scene_text("").replace("sun = [0.0, 0.0, -1.0]", "sun = [1.0, 0.0, -1.0]"));
     assert!(f.render(&[]).status.success());
-    let unit = hilcam::film::read_pfm(&f.path("out.pfm")).unwrap();
+    let unit = hilcam_core::render::film::read_pfm(&f.path("out.pfm")).unwrap();
     assert!(huge.data.iter().any(|v| *v > 0.0), "not black");
     assert_eq!(huge.data, unit.data);
     // A zero sun is no direction.
@@ -218,21 +218,21 @@ fn pose_flags_go_through_the_pose_gate() {
 
 #[test]
 fn recv_refuses_hostile_frame_headers_without_allocating() {
-    use hilcam::frame::{DecodeError, Malformed, decode_header};
+    use hilcam_core::frame::{DecodeError, Malformed, decode_header};
     let header = |w: u32, h: u32| {
-        let mut b = [0u8; hilcam::frame::HEADER_LEN];
+        let mut b = [0u8; hilcam_core::frame::HEADER_LEN];
         b[0..4].copy_from_slice(b"HLCF");
         b[4..6].copy_from_slice(&1u16.to_le_bytes());
-        b[6..8].copy_from_slice(&(hilcam::frame::HEADER_LEN as u16).to_le_bytes());
+        b[6..8].copy_from_slice(&(hilcam_core::frame::HEADER_LEN as u16).to_le_bytes());
         b[48..52].copy_from_slice(&w.to_le_bytes());
         b[52..56].copy_from_slice(&h.to_le_bytes());
-        b[56] = hilcam::frame::PixelFormat::Float32.code();
+        b[56] = hilcam_core::frame::PixelFormat::Float32.code();
         b[57] = 32;
         b[58..60].copy_from_slice(&1u16.to_le_bytes());
         // payload_len: what the dimensions imply, wrapped as a naive u64 product would.
         let len = u64::from(w).wrapping_mul(u64::from(h)).wrapping_mul(4);
         b[72..80].copy_from_slice(&len.to_le_bytes());
-        let crc = hilcam::frame::CRC32.checksum(&b[..84]);
+        let crc = hilcam_core::frame::CRC32.checksum(&b[..84]);
         b[84..88].copy_from_slice(&crc.to_le_bytes());
         b
     };
@@ -277,7 +277,7 @@ fn shipped(p: &str) -> PathBuf {
 #[test]
 fn the_shipped_scenes_still_load() {
     for s in ["scenes/plate.toml", "scenes/satellite.toml", "scenes/corner.toml", "scenes/sphere.toml"] {
-        hilcam::scene::file::parse(&shipped(s), &std::fs::read_to_string(shipped(s)).unwrap())
+        hilcam_core::scene::file::parse(&shipped(s), &std::fs::read_to_string(shipped(s)).unwrap())
             .unwrap_or_else(|e| panic!("{e}"));
     }
 }
@@ -288,9 +288,9 @@ mod bypassing_the_pose_gate {
 
     use super::Fixture;
     use glam::{DQuat, DVec3};
-    use hilcam::camera::View;
-    use hilcam::pipeline::FramePipeline;
-    use hilcam::pose::Pose;
+    use hilcam_core::pipeline::FramePipeline;
+    use hilcam_core::pose::Pose;
+    use hilcam_core::render::camera::View;
     use proptest::prelude::*;
     use std::sync::{Arc, OnceLock};
 
@@ -329,12 +329,12 @@ mod bypassing_the_pose_gate {
     }
 
     /// The fixture scene with an 8 × 8 camera, loaded once.
-    fn pipeline() -> &'static (Arc<hilcam::scene::Scene>, tempfile::TempDir) {
-        static SCENE: OnceLock<(Arc<hilcam::scene::Scene>, tempfile::TempDir)> = OnceLock::new();
+    fn pipeline() -> &'static (Arc<hilcam_core::scene::Scene>, tempfile::TempDir) {
+        static SCENE: OnceLock<(Arc<hilcam_core::scene::Scene>, tempfile::TempDir)> = OnceLock::new();
         SCENE.get_or_init(|| {
             let f = Fixture::new();
             f.write("cam.toml", &super::CAMERA.replace("16", "8"));
-            let scene = hilcam::scene::load(&f.path("s.toml")).unwrap();
+            let scene = hilcam_core::scene::load(&f.path("s.toml")).unwrap();
             (Arc::new(scene), f.dir)
         })
     }

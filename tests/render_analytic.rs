@@ -3,11 +3,11 @@
 mod common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
-use hilcam::camera::View;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{RenderSettings, SamplerKind};
-use hilcam::pose::Pose;
-use hilcam::render::render;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::camera::View;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
+use hilcam_core::render::render;
 
 const E: f64 = 593.1;
 
@@ -16,7 +16,7 @@ fn plate_pose(range: f64, incidence_deg: f64) -> Pose {
 }
 
 /// Pixels fully inside the plate's image (2 px away from its edges).
-fn inner_pixels(img: &hilcam::film::RadianceImage, half_px: f64) -> Vec<f32> {
+fn inner_pixels(img: &hilcam_core::render::film::RadianceImage, half_px: f64) -> Vec<f32> {
     let (cx, cy) = (img.width as f64 / 2.0, img.height as f64 / 2.0);
     let mut v = Vec::new();
     for row in 0..img.height {
@@ -118,7 +118,9 @@ fn same_bytes_whatever_the_thread_count() {
         pool.install(|| render(&s, &cam, &s.pose, &settings, 7).0)
     };
     let (a, b) = (run(1), run(2));
-    let bytes = |img: &hilcam::film::RadianceImage| img.data.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
+    let bytes = |img: &hilcam_core::render::film::RadianceImage| {
+        img.data.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>()
+    };
     assert_eq!(bytes(&a), bytes(&b));
     assert!(a.data.iter().any(|&v| v > 0.0));
     // A different frame index gives different noise (the key includes it).
@@ -137,7 +139,7 @@ fn a_vertex_lands_on_the_pixel_the_pinhole_model_predicts() {
     // f = 500 px: the 6 mm triangle at 6 m spans half a pixel.
     let cam = camera(200, 150, 10.0, 5.0);
     let point = glam::Vec3::new(0.4, -0.3, 0.2);
-    let tri = hilcam::geometry::TriMesh {
+    let tri = hilcam_core::render::geometry::TriMesh {
         positions: vec![
             point + glam::Vec3::new(-3e-3, -3e-3, 0.0),
             point + glam::Vec3::new(3e-3, -3e-3, 0.0),
@@ -178,7 +180,7 @@ fn a_vertex_lands_on_the_pixel_the_pinhole_model_predicts() {
 
 /// Render `mesh` at `near` and `far` range with the focal length scaled by far/near (same
 /// image size) and return the relative L1 difference of the two images.
-fn range_difference(mesh: hilcam::geometry::TriMesh, attitude: DQuat, near: f64, far: f64) -> f64 {
+fn range_difference(mesh: hilcam_core::render::geometry::TriMesh, attitude: DQuat, near: f64, far: f64) -> f64 {
     let cam_near = camera(96, 96, 20.0, 40.0);
     let cam_far = camera(96, 96, 20.0, 40.0 * far / near);
     let settings =
@@ -290,7 +292,7 @@ fn grazing_and_hidden_sun_give_finite_images() {
 
 #[test]
 fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster() {
-    use hilcam::sampling::Sequence;
+    use hilcam_core::render::sampling::Sequence;
     // Uniform sky, uniform hemisphere sampling (the noisiest estimator): the exact answer
     // is ρ·L on every plate pixel, so per-pixel error is measurable.
     let cam = camera(64, 64, 20.0, 40.0);
@@ -311,7 +313,7 @@ fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster(
         s.background = 1.0;
         render(&s, &cam, &s.pose, &settings, 0).0
     };
-    let rmse = |img: &hilcam::film::RadianceImage| {
+    let rmse = |img: &hilcam_core::render::film::RadianceImage| {
         (img.data.iter().map(|&v| ((v - rho) as f64).powi(2)).sum::<f64>() / img.data.len() as f64).sqrt()
     };
     let (ind, sob) = (run(Sequence::Independent, 16), run(Sequence::Sobol, 16));

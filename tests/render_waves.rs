@@ -4,13 +4,13 @@
 //! sequences, every sampler, roulette on and off, several samples per pixel, on the
 //! shipped satellite (several materials, glossy lobes, self-shadowing, inter-reflection).
 
-use hilcam::camera::{CameraModel, View};
-use hilcam::film::RadianceImage;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
-use hilcam::render::render;
-use hilcam::sampling::{PerSample, Rng, Sequence, SobolStream};
-use hilcam::scene::Scene;
+use hilcam_core::render::camera::{CameraModel, View};
+use hilcam_core::render::film::RadianceImage;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
+use hilcam_core::render::render;
+use hilcam_core::render::sampling::{PerSample, Rng, Sequence, SobolStream};
+use hilcam_core::scene::Scene;
 
 fn per_sample_reference<S: PerSample>(
     scene: &Scene,
@@ -46,7 +46,7 @@ fn per_sample_reference<S: PerSample>(
 
 #[test]
 fn waves_give_the_same_bytes_as_tracing_sample_by_sample() {
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     // The navigation camera scaled to 72×56 px (same field of view, off-square on purpose).
     let nav = &scene.camera;
     let cam = CameraModel {

@@ -5,17 +5,17 @@
 mod common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
-use hilcam::frame::CRC32;
-use hilcam::integrator::RenderSettings;
-use hilcam::integrator::Spp;
-use hilcam::pipeline::FramePipeline;
-use hilcam::pose::Pose;
-use hilcam::replay::{
+use hilcam_core::frame::CRC32;
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::Pose;
+use hilcam_core::pose::trajectory::TrajectorySample;
+use hilcam_core::render::integrator::RenderSettings;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::replay::{
     ReplayConfig, ReplayError, ReplayStats, Shard, merge, pin_integration_time, replay, select_frames,
 };
-use hilcam::scene::Scene;
-use hilcam::sink::recorder::{FrameRecord, ImageFormat};
-use hilcam::trajectory::TrajectorySample;
+use hilcam_core::scene::Scene;
+use hilcam_core::sink::recorder::{FrameRecord, ImageFormat};
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::sync::Arc;
@@ -23,8 +23,8 @@ use std::sync::Arc;
 const SETTINGS: RenderSettings = RenderSettings {
     spp: Spp::whole(2),
     depth: 2,
-    sampler: hilcam::integrator::SamplerKind::Cosine,
-    sequence: hilcam::sampling::Sequence::Sobol,
+    sampler: hilcam_core::render::integrator::SamplerKind::Cosine,
+    sequence: hilcam_core::render::sampling::Sequence::Sobol,
     roulette: true,
     adaptive: true,
     seed: 7,
@@ -98,7 +98,7 @@ fn writes_every_frame_and_matches_live_frames_bit_for_bit() {
         assert_eq!(rec.payload_crc32, CRC32.checksum(&payload), "frame {k} CRC");
         assert_eq!((rec.width, rec.height, rec.spp, rec.depth), (12, 12, Spp::whole(2), 2));
         // The file holds the same f32 values (PFM is lossless for Float32).
-        let img = hilcam::film::read_pfm(&dir.path().join(&rec.file)).unwrap();
+        let img = hilcam_core::render::film::read_pfm(&dir.path().join(&rec.file)).unwrap();
         let bytes: Vec<u8> = img.data.iter().flat_map(|v| v.to_le_bytes()).collect();
         assert_eq!(bytes, payload, "frame {k} file bytes");
     }
@@ -231,7 +231,7 @@ fn shard_from_arguments_and_environment() {
 
 /// The plate behind the nav1024 camera's sensor, which has auto-exposure.
 fn auto_exposure_scene() -> Scene {
-    let preset = hilcam::scene::file::load_camera_file(Path::new("config/cameras/nav1024.toml")).unwrap();
+    let preset = hilcam_core::scene::file::load_camera_file(Path::new("config/cameras/nav1024.toml")).unwrap();
     assert!(preset.sensor.auto_exposure.is_some());
     let mut s = plate_scene();
     s.sensor = preset.sensor;
@@ -280,7 +280,9 @@ fn resuming_with_other_settings_is_refused_naming_the_directory_and_field() {
     type Change = fn(&mut ReplayConfig);
     let variants: [(&str, &str, &str, Change); 6] = [
         ("seed", "7", "8", |c| c.settings.seed = 8),
-        ("sampler", "cosine", "uniform", |c| c.settings.sampler = hilcam::integrator::SamplerKind::Uniform),
+        ("sampler", "cosine", "uniform", |c| {
+            c.settings.sampler = hilcam_core::render::integrator::SamplerKind::Uniform
+        }),
         ("spp", "2", "4", |c| c.settings.spp = Spp::whole(4)),
         ("depth", "2", "3", |c| c.settings.depth = 3),
         ("scene", "plate", "other", |c| c.scene = "other".into()),
@@ -303,8 +305,8 @@ fn resuming_with_other_settings_is_refused_naming_the_directory_and_field() {
 
 #[test]
 fn jobs_carry_their_own_settings_flags_and_expected_crc() {
-    use hilcam::frame::FrameFlags;
-    use hilcam::replay::{replay_jobs, trajectory_jobs};
+    use hilcam_core::frame::FrameFlags;
+    use hilcam_core::replay::{replay_jobs, trajectory_jobs};
     let dir = tempfile::tempdir().unwrap();
     let mut jobs = trajectory_jobs(&samples(3), &SETTINGS);
     // Frame 1 as a governor-degraded, extrapolated frame; its CRC computed independently.

@@ -1,6 +1,6 @@
 //! Scene files: the shipped scenes load; errors name the file, line and field.
 
-use hilcam::scene::{SceneError, load};
+use hilcam_core::scene::{SceneError, load};
 use std::path::{Path, PathBuf};
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {

@@ -1,11 +1,11 @@
 //! Sensor model tests (issue 6): each against an independent or analytic answer.
 
 use glam::DVec2;
-use hilcam::camera::CameraModel;
-use hilcam::camera::distortion::Distortion;
-use hilcam::film::{Pixels, RadianceImage};
-use hilcam::sensor::config::{AdcConfig, AutoExposureConfig, BandConfig, DetectorConfig, PsfConfig, QeConfig};
-use hilcam::sensor::{CameraPreset, OutputKind, Sensor, SensorConfig, SensorError, noise, psf, ptc};
+use hilcam_core::render::camera::CameraModel;
+use hilcam_core::render::camera::distortion::Distortion;
+use hilcam_core::render::film::{Pixels, RadianceImage};
+use hilcam_core::sensor::config::{AdcConfig, AutoExposureConfig, BandConfig, DetectorConfig, PsfConfig, QeConfig};
+use hilcam_core::sensor::{CameraPreset, OutputKind, Sensor, SensorConfig, SensorError, noise, psf, ptc};
 use std::path::Path;
 
 const H: f64 = 6.626_070_15e-34;
@@ -667,7 +667,7 @@ fn dn_frames_write_to_png_and_tiff_and_read_back_unchanged() {
     let dir = tempfile::tempdir().unwrap();
     for name in ["a.png", "a.tif"] {
         let p = dir.path().join(name);
-        hilcam::film::write_pixels(&p, 40, 30, &out.pixels).unwrap();
+        hilcam_core::render::film::write_pixels(&p, 40, 30, &out.pixels).unwrap();
         let back = image::open(&p).unwrap().into_luma16();
         assert_eq!(back.as_raw(), data);
     }
@@ -688,17 +688,17 @@ fn cli_applies_a_preset_to_a_pfm() {
         *v = i as f32;
     }
     let pfm = dir.path().join("in.pfm");
-    hilcam::film::write_radiance(&pfm, &img, None, false).unwrap();
+    hilcam_core::render::film::write_radiance(&pfm, &img, None, false).unwrap();
     let out = dir.path().join("out.png");
-    hilcam::cli::sensor::run(hilcam::cli::sensor::SensorArgs {
-        camera: cam_file,
-        input: Some(pfm),
-        out: Some(out.clone()),
-        seed: 0,
-        frames: 1,
-        ptc: false,
-    })
-    .unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
+        .args(["sensor", "--camera"])
+        .arg(&cam_file)
+        .arg(&pfm)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "hilcam sensor: {}", String::from_utf8_lossy(&status.stderr));
     let back = image::open(&out).unwrap().into_luma8();
     let want: Vec<u8> = (0..128).map(|i| (2 * i).min(255) as u8).collect();
     assert_eq!(back.as_raw(), &want);

@@ -5,11 +5,11 @@
 mod pose_common;
 
 use glam::DVec3;
-use hilcam::pose::serial::encode_frame;
-use hilcam::pose::validate::Rejection;
-use hilcam::pose::{Message, Pose};
-use hilcam::trajectory::Trajectory;
-use hilcam::transport::serial::{SerialConfig, open_port, run_serial};
+use hilcam_core::link::serial::{SerialConfig, open_port, run_serial};
+use hilcam_core::pose::serial::encode_frame;
+use hilcam_core::pose::trajectory::Trajectory;
+use hilcam_core::pose::validate::Rejection;
+use hilcam_core::pose::{Message, Pose};
 use pose_common::*;
 use serialport::{DataBits, Parity, SerialPort, StopBits, TTYPort};
 use std::io::Write;
@@ -41,7 +41,7 @@ fn line_settings_are_applied() {
 
 /// Writes heartbeats until the receiver has seen one, so later writes are not
 /// raced against the receiver opening the device.
-async fn handshake(w: &mut TTYPort, c: &hilcam::transport::InputCounters) {
+async fn handshake(w: &mut TTYPort, c: &hilcam_core::link::InputCounters) {
     let hb = encode_frame(&Message::Heartbeat { seq: 0, t_ns: 0, status: 0 });
     let ok = wait_for_with(|| {
         let _ = w.write_all(&hb);
@@ -98,7 +98,7 @@ async fn partial_writes_garbage_and_bad_poses_at_4_mbaud() {
     let writer = write_all_slowly(master.try_clone_native().unwrap(), chunks, Duration::from_micros(200));
     let mut ev = Vec::new();
     let done = collect_until(&mut rx, &mut ev, |e| {
-        e.iter().any(|x| matches!(x, hilcam::transport::InputEvent::Trigger { .. }))
+        e.iter().any(|x| matches!(x, hilcam_core::link::InputEvent::Trigger { .. }))
     })
     .await;
     writer.join().unwrap();

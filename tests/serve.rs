@@ -3,17 +3,17 @@
 
 mod serve_common;
 use glam::{DMat3, DQuat, DVec3};
-use hilcam::frame::{Frame, FrameFlags};
-use hilcam::integrator::Spp;
-use hilcam::pose::{Message, Pose};
-use hilcam::serve::ServeReport;
-use hilcam::serve::config::{GovernorConfig, InputConfig, InputKind, RecordSection, TriggerConfig};
-use hilcam::serve::governor::Policy;
-use hilcam::serve::scheduler::TriggerMode;
-use hilcam::session::Session;
-use hilcam::sink::ImageFormat;
-use hilcam::transport::InputEvent;
-use hilcam::transport::send::{MessageWriter, SerialWriter};
+use hilcam_core::frame::{Frame, FrameFlags};
+use hilcam_core::link::InputEvent;
+use hilcam_core::link::send::{MessageWriter, SerialWriter};
+use hilcam_core::pose::{Message, Pose};
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::serve::ServeReport;
+use hilcam_core::serve::config::{GovernorConfig, InputConfig, InputKind, RecordSection, TriggerConfig};
+use hilcam_core::serve::governor::Policy;
+use hilcam_core::serve::scheduler::TriggerMode;
+use hilcam_core::session::Session;
+use hilcam_core::sink::ImageFormat;
 use serialport::SerialPort;
 use serve_common::*;
 use std::collections::BTreeSet;
@@ -167,7 +167,7 @@ async fn poses_at_10_khz_are_all_counted_and_frames_use_the_newest_extrapolated_
             std::thread::sleep(due.saturating_duration_since(Instant::now()));
             let mut bytes = Vec::new();
             for seq in batch * 10 + 1..=batch * 10 + 10 {
-                bytes.extend(hilcam::pose::serial::encode_frame(&Message::Pose(pose_at_10_khz(seq))));
+                bytes.extend(hilcam_core::pose::serial::encode_frame(&Message::Pose(pose_at_10_khz(seq))));
             }
             master.write_all(&bytes).unwrap();
         }
@@ -418,7 +418,7 @@ async fn start_with_fault(
     fails: impl Fn(u64) -> bool + Send + Sync + 'static,
     session: Option<std::path::PathBuf>,
 ) -> (mpsc::Sender<InputEvent>, Running, tokio::sync::mpsc::UnboundedReceiver<u64>) {
-    use hilcam::serve::{Embed, run};
+    use hilcam_core::serve::{Embed, run};
     let mut cfg =
         config(sphere_scene(dir, 32, 1), InputConfig::default(), TriggerConfig::default(), Default::default());
     cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
@@ -427,7 +427,7 @@ async fn start_with_fault(
     }
     let (tx, rx) = mpsc::channel(16);
     let (faulted_tx, faulted) = tokio::sync::mpsc::unbounded_channel();
-    let fault: hilcam::serve::scheduler::FaultInjector = std::sync::Arc::new(move |index| {
+    let fault: hilcam_core::serve::scheduler::FaultInjector = std::sync::Arc::new(move |index| {
         if fails(index) {
             let _ = faulted_tx.send(index);
             panic!("injected render fault at frame {index}");
@@ -463,11 +463,13 @@ async fn a_render_panic_is_counted_and_the_next_pose_renders_the_same_bytes_as_a
     let f = reader.next().await;
     assert_eq!((f.meta.frame_seq, f.meta.pose_seq), (2, 3), "the frame after the fault renders the next pose");
     // The pipeline was reset after the panic: the frame is what a fresh pipeline renders.
-    let scene = std::sync::Arc::new(hilcam::scene::load(&dir.path().join("scene.toml")).unwrap());
-    let mut fresh = hilcam::pipeline::FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
+    let scene = std::sync::Arc::new(hilcam_core::scene::load(&dir.path().join("scene.toml")).unwrap());
+    let mut fresh = hilcam_core::pipeline::FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
     let want = fresh.frame(&p3, &scene.render, 2).unwrap();
     match want.pixels {
-        hilcam::film::Pixels::Float32(w) => assert!(w == radiance(&f), "recovered frame differs from a fresh render"),
+        hilcam_core::render::film::Pixels::Float32(w) => {
+            assert!(w == radiance(&f), "recovered frame differs from a fresh render")
+        }
         other => panic!("expected float pixels, got {:?}", other.format()),
     }
     let text = metrics_text(server.info.metrics.unwrap()).await;

@@ -1,6 +1,6 @@
 //! The serve configuration files and `hilcam demo` from the command line.
 
-use hilcam::serve::config::ServeConfig;
+use hilcam_core::serve::config::ServeConfig;
 use std::process::Command;
 
 #[test]

@@ -5,10 +5,10 @@
 //! fails they fail, saying why.
 
 mod serve_common;
-use hilcam::serve::config::{GovernorConfig, InputConfig, ServeConfig, TriggerConfig};
-use hilcam::serve::scheduler::TriggerMode;
-use hilcam::sink::recorder::FrameRecord;
-use hilcam::transport::InputEvent;
+use hilcam_core::link::InputEvent;
+use hilcam_core::serve::config::{GovernorConfig, InputConfig, ServeConfig, TriggerConfig};
+use hilcam_core::serve::scheduler::TriggerMode;
+use hilcam_core::sink::recorder::FrameRecord;
 use serve_common::*;
 use std::collections::BTreeSet;
 use std::io::{BufRead, Read, Write};
@@ -334,7 +334,8 @@ fn assert_complete_and_logged(dir: &Path, size: u32) -> usize {
         let p = dir.join(f);
         let len = std::fs::metadata(&p).unwrap().len();
         assert!(len > 0, "{f} is empty");
-        let img = hilcam::film::read_pfm(&p).unwrap_or_else(|e| panic!("{f} ({len} bytes) does not decode: {e}"));
+        let img = hilcam_core::render::film::read_pfm(&p)
+            .unwrap_or_else(|e| panic!("{f} ({len} bytes) does not decode: {e}"));
         assert_eq!((img.width, img.height), (size, size), "{f}");
     }
     let logged: BTreeSet<String> = log_records(dir).into_iter().map(|r| r.file).collect();

@@ -4,15 +4,15 @@
 
 mod serve_common;
 use glam::DVec3;
-use hilcam::film::Pixels;
-use hilcam::frame::{CRC32, Frame, FrameFlags};
-use hilcam::pipeline::FramePipeline;
-use hilcam::pose::Pose;
-use hilcam::serve::config::ServeConfig;
-use hilcam::serve::{Embed, run};
-use hilcam::session::{Session, frame_jobs};
-use hilcam::sink::recorder::FrameRecord;
-use hilcam::transport::InputEvent;
+use hilcam_core::frame::{CRC32, Frame, FrameFlags};
+use hilcam_core::link::InputEvent;
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::film::Pixels;
+use hilcam_core::serve::config::ServeConfig;
+use hilcam_core::serve::{Embed, run};
+use hilcam_core::session::{Session, frame_jobs};
+use hilcam_core::sink::recorder::FrameRecord;
 use serve_common::*;
 use std::path::Path;
 use std::process::Command;
@@ -141,8 +141,8 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
 
     // Independently of replay: a fresh pipeline fed the session's frames in order gives
     // the streamed bytes.
-    let scene = Arc::new(hilcam::scene::load(&cfg.scene).unwrap());
-    let camera = hilcam::cli::render::scaled_camera(&scene.camera, cfg.width, None);
+    let scene = Arc::new(hilcam_core::scene::load(&cfg.scene).unwrap());
+    let camera = scene.camera.scaled(cfg.width, None);
     let mut pipeline = FramePipeline::new(scene, camera).unwrap();
     for (job, f) in frame_jobs(&s, true).iter().zip(&streamed) {
         let again = pipeline.frame(&job.pose, &job.settings, job.index).unwrap();
@@ -165,7 +165,7 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
     for (r, f) in recs.iter().zip(&streamed) {
         assert_eq!((r.frame_seq, r.pose_seq, r.pose_t_ns), (f.meta.frame_seq, f.meta.pose_seq, f.meta.pose_t_ns));
         assert_eq!((r.spp, r.depth, r.flags), (f.meta.spp, f.meta.depth, f.meta.flags.0));
-        let img = hilcam::film::read_pfm(&out.join(&r.file)).unwrap();
+        let img = hilcam_core::render::film::read_pfm(&out.join(&r.file)).unwrap();
         let dn: Vec<u16> = img.data.iter().map(|v| *v as u16).collect();
         assert!(img.data.iter().zip(&dn).all(|(v, d)| *v == f32::from(*d)), "integral DN");
         let bytes: Vec<u8> = dn.iter().flat_map(|v| v.to_le_bytes()).collect();

@@ -4,10 +4,10 @@
 //! vertices and edges exactly) and on the shadow rays of a satellite frame.
 
 use glam::Vec3;
-use hilcam::geometry::bvh::brute_force;
-use hilcam::geometry::shadow_packet::{PACKET, avx2};
-use hilcam::geometry::{Accel, BvhLayout, Ray, TriMesh};
-use hilcam::sampling::Rng;
+use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::geometry::shadow_packet::{PACKET, avx2};
+use hilcam_core::render::geometry::{Accel, BvhLayout, Ray, TriMesh};
+use hilcam_core::render::sampling::Rng;
 
 mod common;
 use common::soup::{random_vec, soup, surface_point};
@@ -124,7 +124,7 @@ fn mixed_directions_fall_back_to_single_rays() {
 
 #[test]
 fn packets_answer_as_single_rays_on_satellite_shadow_rays() {
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let (_, shadow) = common::scenes::recorded_rays(&scene, 128, 3);
     assert!(shadow.len() > 5000, "{} shadow rays", shadow.len());
     let mut blocked = 0;

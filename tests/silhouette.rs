@@ -3,10 +3,10 @@
 //! target's box (independent slab test in f64), over random poses, boxes and cameras.
 
 use glam::{DQuat, DVec3};
-use hilcam::camera::distortion::Distortion;
-use hilcam::camera::{CameraModel, Silhouette, TargetBounds, View};
-use hilcam::pose::Pose;
-use hilcam::sampling::Rng;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::camera::distortion::Distortion;
+use hilcam_core::render::camera::{CameraModel, Silhouette, TargetBounds, View};
+use hilcam_core::render::sampling::Rng;
 
 /// Ray (origin, dir) against the box [min, max]: true if they meet at t ≥ 0.
 fn ray_meets_box(o: DVec3, d: DVec3, min: DVec3, max: DVec3) -> bool {

@@ -3,13 +3,13 @@
 
 mod pose_common;
 
-use hilcam::pose::Message;
-use hilcam::pose::can::{CanIds, encode_message};
-use hilcam::pose::slcan::{SlcanDecoder, SlcanItem, encode_frame};
-use hilcam::trajectory::Trajectory;
-use hilcam::transport::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
-use hilcam::transport::serial::SerialConfig;
-use hilcam::transport::slcan::{SlcanConfig, run_slcan};
+use hilcam_core::link::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
+use hilcam_core::link::serial::SerialConfig;
+use hilcam_core::link::slcan::{SlcanConfig, run_slcan};
+use hilcam_core::pose::Message;
+use hilcam_core::pose::can::{CanIds, encode_message};
+use hilcam_core::pose::slcan::{SlcanDecoder, SlcanItem, encode_frame};
+use hilcam_core::pose::trajectory::Trajectory;
 use pose_common::*;
 use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
@@ -79,7 +79,7 @@ async fn receiver_configures_adapter_and_decodes_groups() {
     assert!(
         collect_until(&mut rx, &mut ev, |e| e
             .iter()
-            .any(|x| matches!(x, hilcam::transport::InputEvent::Trigger { .. })))
+            .any(|x| matches!(x, hilcam_core::link::InputEvent::Trigger { .. })))
         .await
     );
     let got = poses(&ev);
@@ -102,7 +102,7 @@ fn slcan_sender_writes_what_an_adapter_expects() {
     let (mut adapter, slave) = pty_pair();
     let traj = Trajectory::load(root().join("scenes/trajectories/approach.csv")).unwrap();
     let sample = traj[..20].to_vec();
-    let port = hilcam::transport::serial::open_port(
+    let port = hilcam_core::link::serial::open_port(
         &pty_name(&slave),
         115_200,
         serialport::DataBits::Eight,
@@ -116,7 +116,7 @@ fn slcan_sender_writes_what_an_adapter_expects() {
     assert_eq!(stats.poses, 20);
     // 20 poses × 6 frames (approach has no velocity/rate columns) after "C S8 O".
     let mut dec = SlcanDecoder::new();
-    let mut asm = hilcam::pose::can::CanAssembler::new(CanIds::default());
+    let mut asm = hilcam_core::pose::can::CanAssembler::new(CanIds::default());
     let mut got = vec![];
     let mut raw = Vec::new();
     let mut buf = [0u8; 4096];
@@ -131,7 +131,7 @@ fn slcan_sender_writes_what_an_adapter_expects() {
         dec.push(&buf[..n]);
         while let Some(item) = dec.next_item() {
             if let Ok(SlcanItem::Frame(f)) = item
-                && let Some(hilcam::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f)
+                && let Some(hilcam_core::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f)
             {
                 got.push(p);
             }

@@ -3,13 +3,13 @@
 
 mod common;
 use common::frames::example_frame;
-use hilcam::film::Pixels;
-use hilcam::frame::*;
-use hilcam::integrator::Spp;
-use hilcam::metrics::Registry;
-use hilcam::sink::client::{RecvOptions, receive};
-use hilcam::sink::recorder::{FrameRecord, ImageFormat, LOG_NAME, Recorder, RecorderConfig};
-use hilcam::sink::tcp::{FrameWritten, StreamConfig, StreamServer, WriteHook};
+use hilcam_core::frame::*;
+use hilcam_core::metrics::Registry;
+use hilcam_core::render::film::Pixels;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::sink::client::{RecvOptions, receive};
+use hilcam_core::sink::recorder::{FrameRecord, ImageFormat, LOG_NAME, Recorder, RecorderConfig};
+use hilcam_core::sink::tcp::{FrameWritten, StreamConfig, StreamServer, WriteHook};
 use proptest::prelude::*;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
@@ -477,7 +477,7 @@ async fn receive_counts_payload_crc_errors_and_gaps() {
     let s = client.await.unwrap().unwrap();
     assert_eq!(s.seqs, vec![0, 5]);
     assert_eq!((s.payload_crc_errors, s.gaps, s.missing), (1, 1, 4));
-    let img = hilcam::film::read_pfm(&dir.path().join("frame_0000000005.pfm")).unwrap();
+    let img = hilcam_core::render::film::read_pfm(&dir.path().join("frame_0000000005.pfm")).unwrap();
     let Pixels::Float32(want) = float_frame(5, 4, 4).pixels() else { unreachable!() };
     assert_eq!(img.data, want);
     assert!(!dir.path().join("frame_0000000001.pfm").exists());
@@ -579,7 +579,7 @@ fn recorder_counts_what_it_cannot_keep_up_with() {
     assert_eq!(lines.lines().count() as u64, stats.written);
     for l in lines.lines() {
         let r: FrameRecord = serde_json::from_str(l).unwrap();
-        let img = hilcam::film::read_pfm(&dir.path().join(&r.file)).unwrap();
+        let img = hilcam_core::render::film::read_pfm(&dir.path().join(&r.file)).unwrap();
         let Pixels::Float32(want) = float_frame(r.frame_seq, 128, 128).pixels() else { unreachable!() };
         assert_eq!(img.data, want);
     }

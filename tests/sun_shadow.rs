@@ -7,21 +7,21 @@
 //! gives the same image bytes as one through the BVH alone.
 
 use glam::{DVec3, Vec3};
-use hilcam::camera::CameraModel;
-use hilcam::geometry::bvh::brute_force;
-use hilcam::geometry::{Ray, SunShadow, TriMesh};
-use hilcam::integrator::Spp;
-use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
-use hilcam::pose::Pose;
-use hilcam::render::{render, render_logged};
-use hilcam::sampling::{Rng, Sequence};
-use hilcam::scene::Scene;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::camera::CameraModel;
+use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::geometry::{Ray, SunShadow, TriMesh};
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
+use hilcam_core::render::sampling::{Rng, Sequence};
+use hilcam_core::render::{render, render_logged};
+use hilcam_core::scene::Scene;
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
 fn satellite() -> &'static Scene {
     static S: OnceLock<Scene> = OnceLock::new();
-    S.get_or_init(|| hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap())
+    S.get_or_init(|| hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap())
 }
 
 fn small_camera(scene: &Scene, w: u32) -> CameraModel {
@@ -50,7 +50,7 @@ fn logged_shadow_rays(scene: &Scene, pose: &Pose, sun_body: DVec3, w: u32) -> (V
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, &cam, &pose, &settings, 3);
     let rays: Vec<Ray> = logs.into_iter().flat_map(|l| l.shadow).collect();
     assert_eq!(rays.len() as u64, stats.rays.shadow);
-    let view = hilcam::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds);
+    let view = hilcam_core::render::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds);
     (view.sun, rays)
 }
 
@@ -217,11 +217,12 @@ fn rays_the_grid_does_not_answer_fall_back() {
 #[test]
 fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
     // Its own scene: switching the grid off must not race with other tests.
-    let scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let cam = small_camera(&scene, 80);
     let mut turned = scene.pose;
     turned.attitude = glam::DQuat::from_rotation_y(0.4) * turned.attitude;
-    let bits = |img: &hilcam::film::RadianceImage| img.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    let bits =
+        |img: &hilcam_core::render::film::RadianceImage| img.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
     for (pose, sequence) in
         [(scene.pose, Sequence::Sobol), (turned, Sequence::Independent), (scene.pose, Sequence::Sobol)]
     {
@@ -234,7 +235,7 @@ fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
             adaptive: true,
             seed: 11,
         };
-        let sun = hilcam::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds).sun;
+        let sun = hilcam_core::render::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds).sun;
         scene.sun_shadow.set_enabled(false);
         let (bvh, s0) = render(&scene, &cam, &pose, &settings, 5);
         assert!(s0.rays.shadow > 1000, "too few shadow rays to compare: {}", s0.rays.shadow);
@@ -254,7 +255,7 @@ fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
 fn the_cache_builds_on_the_second_request_and_reuses() {
     let scene = satellite_small_soup();
     let (a, b) = (Vec3::new(0.2, 0.3, 0.9).normalize(), Vec3::new(-0.5, 0.1, 0.8).normalize());
-    let cache = hilcam::geometry::SunShadowCache::default();
+    let cache = hilcam_core::render::geometry::SunShadowCache::default();
     assert!(cache.get(&scene, a).is_none() && cache.get(&scene, a).is_none(), "off by default");
     cache.set_enabled(true);
     assert!(cache.get(&scene, a).is_none(), "first request: BVH");

@@ -3,15 +3,15 @@
 
 mod common;
 use common::scenes::*;
-use hilcam::bench::trade::{
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::film::RadianceImage;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
+use hilcam_lab::bench::trade::{
     TradeGrid, TradePoint, best_for_error, best_for_fps, lit_quantile, measure, pareto_front, relative_rmse,
     relative_rmse_up_to, to_csv,
 };
-use hilcam::film::RadianceImage;
-use hilcam::integrator::Spp;
-use hilcam::integrator::{RenderSettings, SamplerKind};
-use hilcam::pipeline::FramePipeline;
-use hilcam::pose::Pose;
 use std::sync::Arc;
 
 #[test]

@@ -7,13 +7,13 @@
 mod common;
 use common::scenes::scaled_camera;
 use glam::{DQuat, DVec3};
-use hilcam::camera::View;
-use hilcam::integrator::RenderSettings;
-use hilcam::integrator::Spp;
-use hilcam::pose::Pose;
-use hilcam::render::{FrameBuffers, PrimaryVisibility, render_view_into, render_view_with};
-use hilcam::sampling::Sequence;
-use hilcam::scene::Scene;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::camera::View;
+use hilcam_core::render::integrator::RenderSettings;
+use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::sampling::Sequence;
+use hilcam_core::render::{FrameBuffers, PrimaryVisibility, render_view_into, render_view_with};
+use hilcam_core::scene::Scene;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
@@ -67,7 +67,7 @@ fn allocations_during<R>(f: impl FnOnce() -> R) -> (R, u64, u64) {
 #[test]
 fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    let scene: Scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene: Scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     let camera = scaled_camera(&scene, 256, 256, [0.0, 0.0]);
     // The shipped pose, and one nearer and turned, so the frames cover different rows,
     // bands and pixels.
@@ -162,11 +162,11 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
 #[test]
 fn sensor_stage_allocates_per_frame_not_per_row() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    let scene: Scene = hilcam::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let scene: Scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     assert!(scene.sensor.optics.psf.is_some(), "the shipped camera has a PSF");
     let calls_at = |size: u32| {
         let camera = scaled_camera(&scene, size, size, [0.0, 0.0]);
-        let sensor = hilcam::sensor::Sensor::new(&camera, &scene.sensor).unwrap();
+        let sensor = hilcam_core::sensor::Sensor::new(&camera, &scene.sensor).unwrap();
         let view = View::new(&camera, &scene.pose, scene.frame_origin_body, scene.bounds);
         let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..RenderSettings::default() };
         let (img, _, _) = render_view_with::<()>(&scene, &camera, &view, &settings, 3, PrimaryVisibility::Raster);
@@ -190,8 +190,8 @@ fn sensor_stage_allocates_per_frame_not_per_row() {
 fn reused_buffers_follow_a_change_of_background() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let path = std::path::Path::new("scenes/satellite.toml");
-    let dark: Scene = hilcam::scene::file::load(path).unwrap();
-    let mut lit: Scene = hilcam::scene::file::load(path).unwrap();
+    let dark: Scene = hilcam_core::scene::file::load(path).unwrap();
+    let mut lit: Scene = hilcam_core::scene::file::load(path).unwrap();
     lit.background = 0.25;
     let camera = scaled_camera(&dark, 96, 96, [0.0, 0.0]);
     let view = View::new(&camera, &dark.pose, dark.frame_origin_body, dark.bounds);

@@ -1,7 +1,7 @@
 #![no_main]
 //! Arbitrary text as a trajectory: no panic; accepted files have strictly
 //! increasing finite times and survive a save/parse round trip.
-use hilcam_fuzz::trajectory::Trajectory;
+use hilcam_fuzz::pose::trajectory::Trajectory;
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 

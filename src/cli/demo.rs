@@ -5,15 +5,15 @@
 //! navigation camera's geometry and streams over loopback TCP to a built-in client,
 //! which writes the frames and a latency summary.
 
-use crate::serve::config::{GovernorConfig, RenderOverrides};
-use crate::serve::config::{InputConfig, InputKind, MetricsSection, ServeConfig, StreamSection, TriggerConfig};
-use crate::serve::governor::Policy;
-use crate::serve::scheduler::TriggerMode;
-use crate::serve::{Embed, run};
-use crate::sink::{ImageFormat, RecvOptions, receive};
-use crate::trajectory::Trajectory;
-use crate::transport::send::{SendOptions, SerialWriter, send_trajectory};
 use anyhow::{Context, bail};
+use hilcam_core::link::send::{SendOptions, SerialWriter, send_trajectory};
+use hilcam_core::pose::trajectory::Trajectory;
+use hilcam_core::serve::config::{GovernorConfig, RenderOverrides};
+use hilcam_core::serve::config::{InputConfig, InputKind, MetricsSection, ServeConfig, StreamSection, TriggerConfig};
+use hilcam_core::serve::governor::Policy;
+use hilcam_core::serve::scheduler::TriggerMode;
+use hilcam_core::serve::{Embed, run};
+use hilcam_core::sink::{ImageFormat, RecvOptions, receive};
 use serialport::SerialPort;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -145,7 +145,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_summary(dir: &Path, s: &crate::sink::RecvSummary) -> anyhow::Result<()> {
+fn write_summary(dir: &Path, s: &hilcam_core::sink::RecvSummary) -> anyhow::Result<()> {
     let ms = |ns: u64| ns as f64 / 1e6;
     let l = &s.pose_to_recv;
     let text = format!(
@@ -167,7 +167,7 @@ fn write_summary(dir: &Path, s: &crate::sink::RecvSummary) -> anyhow::Result<()>
 /// themselves hold raw 10/12-bit DN, which look black in most viewers).
 fn write_preview(dir: &Path, last: Option<u64>) -> anyhow::Result<PathBuf> {
     let Some(seq) = last else { bail!("no frame received") };
-    let src = dir.join(crate::sink::recorder::frame_file_name(seq, ImageFormat::Png));
+    let src = dir.join(hilcam_core::sink::recorder::frame_file_name(seq, ImageFormat::Png));
     let img = image::open(&src).with_context(|| src.display().to_string())?.into_luma16();
     let mut v: Vec<u16> = img.as_raw().clone();
     v.sort_unstable();

@@ -1,8 +1,5 @@
 //! The `hilcam` command line: clap parses, each subcommand lives in its own file.
 
-pub mod bench;
-pub mod bench_trade;
-pub mod brdf;
 pub mod demo;
 pub mod recv;
 pub mod render;
@@ -14,8 +11,8 @@ pub mod serve;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
-pub mod fold;
-pub mod model;
+#[cfg(feature = "lab")]
+use hilcam_lab::cli::{bench, brdf, fold, model};
 
 #[derive(Parser, Debug)]
 #[command(name = "hilcam", version, about = "Hardware-in-the-loop camera simulator for spacecraft navigation")]
@@ -36,6 +33,7 @@ pub enum Command {
     /// Render one frame of a scene file to an image file.
     Render(render::RenderArgs),
     /// Benchmarks: ratios measured side by side in one run.
+    #[cfg(feature = "lab")]
     Bench(bench::BenchArgs),
     /// Print the version and exit (placeholder until real subcommands land).
     Version,
@@ -46,10 +44,13 @@ pub enum Command {
     /// Receive a frame stream: verify CRCs, save frames, print rate, gaps and latency.
     Recv(recv::RecvArgs),
     /// Tabulate and plot the BRDF models (gold polyimide) and their directional albedo.
+    #[cfg(feature = "lab")]
     Brdf(brdf::BrdfArgs),
     /// Fold planes: generate at the paper's levels, measure E_PLANE / Var.
+    #[cfg(feature = "lab")]
     Fold(fold::FoldArgs),
     /// Generate the shipped models (the Jason-like satellite).
+    #[cfg(feature = "lab")]
     Model(model::ModelArgs),
     /// Render a trajectory offline to image files (resumable; shards for clusters).
     Replay(replay::ReplayArgs),
@@ -68,6 +69,7 @@ pub fn main() -> ExitCode {
         Command::Render(a) => render::run(a),
         Command::Demo(a) => demo::run_cli(a),
         Command::Serve(a) => serve::run_cli(a),
+        #[cfg(feature = "lab")]
         Command::Bench(a) => bench::run(a),
         Command::Version => {
             println!("hilcam {}", env!("CARGO_PKG_VERSION"));
@@ -76,8 +78,11 @@ pub fn main() -> ExitCode {
         Command::Sensor(args) => sensor::run(args),
         Command::Send(args) => send::run(args),
         Command::Recv(args) => recv::run(args),
+        #[cfg(feature = "lab")]
         Command::Brdf(args) => brdf::run(args),
+        #[cfg(feature = "lab")]
         Command::Fold(args) => fold::run(args),
+        #[cfg(feature = "lab")]
         Command::Model(args) => model::run(args),
         Command::Replay(args) => replay::run(args),
     };
@@ -95,16 +100,12 @@ pub fn main() -> ExitCode {
 /// `serve`, `send`, `recv`, `replay` and `demo` keep Rust's ignored SIGPIPE, so a closed
 /// connection is an error they count and report, not a kill.
 fn writes_for_a_pipe(c: &Command) -> bool {
-    matches!(
-        c,
-        Command::Render(_)
-            | Command::Bench(_)
-            | Command::Version
-            | Command::Sensor(_)
-            | Command::Brdf(_)
-            | Command::Fold(_)
-            | Command::Model(_)
-    )
+    match c {
+        Command::Render(_) | Command::Version | Command::Sensor(_) => true,
+        #[cfg(feature = "lab")]
+        Command::Bench(_) | Command::Brdf(_) | Command::Fold(_) | Command::Model(_) => true,
+        _ => false,
+    }
 }
 
 /// The default SIGPIPE action (terminate), which Rust's runtime replaces with "ignore":
@@ -149,6 +150,6 @@ mod tests {
     }
 
     fn hilcam_scene_error(source: std::io::Error) -> anyhow::Error {
-        crate::scene::file::SceneError::Io { path: "scenes/x.toml".into(), source }.into()
+        hilcam_core::scene::file::SceneError::Io { path: "scenes/x.toml".into(), source }.into()
     }
 }

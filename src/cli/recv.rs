@@ -1,8 +1,9 @@
 //! `hilcam recv`: the reference frame stream client.
 
-use crate::sink::client::{LatencyStats, RecvOptions, receive};
-use crate::sink::recorder::ImageFormat;
 use anyhow::Context;
+use hilcam_core::scene::file::parse_name;
+use hilcam_core::sink::client::{LatencyStats, RecvOptions, receive};
+use hilcam_core::sink::recorder::ImageFormat;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
@@ -19,7 +20,7 @@ pub struct RecvArgs {
     #[arg(long)]
     pub count: Option<u64>,
     /// Image format for --out.
-    #[arg(long, value_enum, default_value = "png")]
+    #[arg(long, value_parser = parse_name::<ImageFormat>, default_value = "png")]
     pub format: ImageFormat,
 }
 

@@ -1,12 +1,15 @@
 //! `hilcam render`: one frame of a scene file to an image file.
 
-use crate::camera::CameraModel;
-use crate::film::write_radiance;
-use crate::integrator::{SamplerKind, Spp};
-use crate::pipeline::FramePipeline;
-use crate::pose::Pose;
 use anyhow::{Context, bail};
 use glam::{DQuat, DVec3};
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::PrimaryVisibility;
+use hilcam_core::render::film::write_radiance;
+use hilcam_core::render::integrator::{SamplerKind, Spp};
+use hilcam_core::render::sampling::Sequence;
+use hilcam_core::scene::file::parse_name;
+use hilcam_core::scene::limits::checked_scaled_camera;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -23,11 +26,11 @@ pub struct RenderArgs {
     /// Surface interactions per path (1 = direct sunlight only).
     #[arg(long)]
     pub depth: Option<u32>,
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = parse_name::<SamplerKind>)]
     pub sampler: Option<SamplerKind>,
     /// Random-number sequence: sobol (stratified, default) or independent.
-    #[arg(long, value_enum)]
-    pub sequence: Option<crate::sampling::Sequence>,
+    #[arg(long, value_parser = parse_name::<Sequence>)]
+    pub sequence: Option<Sequence>,
     #[arg(long)]
     pub seed: Option<u64>,
     /// Disable Russian roulette (every path runs to full depth).
@@ -68,8 +71,8 @@ pub struct RenderArgs {
     /// with uniform sampling; adaptive frames may differ slightly (each way skips the
     /// pixels that cannot see the target by its own rule, and the budget is spp × sampled
     /// pixels).
-    #[arg(long, value_enum, default_value = "auto")]
-    pub primary: crate::render::PrimaryVisibility,
+    #[arg(long, value_parser = parse_name::<PrimaryVisibility>, default_value = "auto")]
+    pub primary: PrimaryVisibility,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -89,7 +92,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
-    let scene = crate::scene::load(&a.scene)?;
+    let scene = hilcam_core::scene::load(&a.scene)?;
     let mut settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
     if let Some(v) = a.sequence {
         settings.sequence = v;
@@ -100,7 +103,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if a.no_adaptive {
         settings.adaptive = false;
     }
-    let camera = checked_scaled_camera(&scene.camera, a.width, a.height)?;
+    let camera = checked_scaled_camera(&scene.camera, a.width, a.height).map_err(anyhow::Error::msg)?;
     let pose = match &a.pose {
         Some(s) => parse_pose(s, &scene.pose).context("--pose")?,
         None => scene.pose,
@@ -116,18 +119,18 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     }
     let (info, stats) = if a.sensor {
         let f = pipeline.frame(&pose, &settings, a.frame)?;
-        crate::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;
+        hilcam_core::render::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;
         println!(
             "sensor: {:?}, {:.1} ms{}",
             f.pixels.format(),
             f.sensor_time.as_secs_f64() * 1e3,
             f.integration_s.map(|t| format!(", integration {:.3} ms", t * 1e3)).unwrap_or_default()
         );
-        (crate::film::WriteInfo { preview_scale: None }, f.render)
+        (hilcam_core::render::film::WriteInfo { preview_scale: None }, f.render)
     } else if let Some(map) = &a.samples_map {
-        let view = crate::camera::View::new(&camera, &pose, scene.frame_origin_body, scene.bounds)
+        let view = hilcam_core::render::camera::View::new(&camera, &pose, scene.frame_origin_body, scene.bounds)
             .with_distortion(scene.sensor.optics.distortion);
-        let (img, stats, counts) = crate::render::render_view_counted(&scene, &camera, &view, &settings, a.frame);
+        let (img, stats, counts) = hilcam_core::render::render_view_counted(&scene, &camera, &view, &settings, a.frame);
         let most = write_samples_map(map, camera.width, camera.height, &counts)?;
         println!("{}: samples per pixel, {most} at the brightest", map.display());
         (write_radiance(&a.out, &img, None, a.png16)?, stats)
@@ -159,7 +162,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         camera.height,
         settings.spp,
         // The renderer's own plan says whether spp is an average, and whether adaptive.
-        match crate::render::adaptive::Adaptive::new(settings.spp, settings.adaptive) {
+        match hilcam_core::render::adaptive::Adaptive::new(settings.spp, settings.adaptive) {
             Some(plan) if !plan.uniform => " (adaptive, average)",
             Some(_) => " (average)",
             None => "",
@@ -197,40 +200,8 @@ fn write_samples_map(path: &std::path::Path, width: u32, height: u32, counts: &[
     Ok(most)
 }
 
-/// [`scaled_camera`] for sizes given on the command line: `--width`/`--height` and the
-/// size they imply must lie in `1..=MAX_SIDE_PX`; the error names the flag and the limit.
-pub fn checked_scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -> anyhow::Result<CameraModel> {
-    for (flag, v) in [("--width", width), ("--height", height)] {
-        if let Some(v) = v {
-            crate::camera::check_side(v).map_err(|m| anyhow::anyhow!("{flag}: {m}"))?;
-        }
-    }
-    let scaled = scaled_camera(c, width, height);
-    scaled.check_size().map_err(|(field, m)| anyhow::anyhow!("--width/--height: the scaled camera's {field} {m}"))?;
-    crate::scene::file::validate_camera(&scaled)
-        .map_err(|(field, m)| anyhow::anyhow!("--width/--height: the scaled camera's {field} {m}"))?;
-    Ok(scaled)
-}
-
-/// The same camera at another resolution, with the same field of view.
-pub fn scaled_camera(c: &CameraModel, width: Option<u32>, height: Option<u32>) -> CameraModel {
-    let Some(w) = width.or(height.map(|h| (f64::from(h) * f64::from(c.width) / f64::from(c.height)).round() as u32))
-    else {
-        return c.clone();
-    };
-    let k = f64::from(c.width) / f64::from(w);
-    let h = height.unwrap_or_else(|| ((f64::from(c.height) / k).round() as u32).max(1));
-    CameraModel {
-        width: w.max(1),
-        height: h,
-        pitch_um: c.pitch_um * k,
-        focal_mm: c.focal_mm,
-        principal_point_px: c.principal_point_px.map(|v| v / k),
-    }
-}
-
 /// `px,py,pz[,qw,qx,qy,qz[,sx,sy,sz]]`; missing parts come from `base`. The result goes
-/// through the pose gate ([`crate::scene::limits::gate_pose`]) as a scene's `[pose]` does.
+/// through the pose gate ([`hilcam_core::scene::limits::gate_pose`]) as a scene's `[pose]` does.
 pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     let v: Vec<f64> = s
         .split(',')
@@ -247,5 +218,5 @@ pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     if v.len() == 10 {
         p.sun_dir = DVec3::new(v[7], v[8], v[9]);
     }
-    crate::scene::limits::gate_pose(&p).map_err(|e| anyhow::anyhow!("{}: {}", e.field, e.message))
+    hilcam_core::scene::limits::gate_pose(&p).map_err(|e| anyhow::anyhow!("{}: {}", e.field, e.message))
 }

@@ -6,19 +6,20 @@
 //! frames are complete; the same command resumes. A second signal exits at once (frames
 //! are written whole or not at all, so even that leaves no partial frame).
 
-use crate::cli::render::{checked_scaled_camera, scaled_camera};
-use crate::frame::FrameFlags;
-use crate::integrator::SamplerKind;
-use crate::pipeline::FramePipeline;
-use crate::pose::validate::{PoseLimits, check_pose, describe};
-use crate::replay::{
+use anyhow::{Context, bail};
+use hilcam_core::frame::FrameFlags;
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::pose::trajectory::Trajectory;
+use hilcam_core::pose::validate::{PoseLimits, check_pose, describe};
+use hilcam_core::render::integrator::SamplerKind;
+use hilcam_core::replay::{
     FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs_until, trajectory_jobs,
 };
-use crate::serve::config::ServeConfig;
-use crate::session::{Session, frame_jobs};
-use crate::sink::recorder::ImageFormat;
-use crate::trajectory::Trajectory;
-use anyhow::{Context, bail};
+use hilcam_core::scene::file::parse_name;
+use hilcam_core::scene::limits::checked_scaled_camera;
+use hilcam_core::serve::config::ServeConfig;
+use hilcam_core::session::{Session, frame_jobs};
+use hilcam_core::sink::recorder::ImageFormat;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -55,14 +56,14 @@ pub struct ReplayArgs {
     /// Samples per pixel, ≥ 1 (default: the scene's); a fraction such as 1.25 gives
     /// every pixel one sample and shares the rest out where the pilot saw variance
     #[arg(long)]
-    pub spp: Option<crate::integrator::Spp>,
+    pub spp: Option<hilcam_core::render::integrator::Spp>,
     #[arg(long)]
     pub depth: Option<u32>,
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = parse_name::<SamplerKind>)]
     pub sampler: Option<SamplerKind>,
     #[arg(long)]
     pub seed: Option<u64>,
-    #[arg(long, value_enum, default_value = "png")]
+    #[arg(long, value_parser = parse_name::<ImageFormat>, default_value = "png")]
     pub format: ImageFormat,
     /// Render every K-th trajectory row only.
     #[arg(long, default_value_t = 1)]
@@ -104,12 +105,12 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         bail!("--trajectory and --scene are required")
     };
     let samples = Trajectory::load_gated(traj, &PoseLimits::default())?;
-    let mut scene = crate::scene::load(scene_path)?;
+    let mut scene = hilcam_core::scene::load(scene_path)?;
     if let Some(t) = a.integration_s {
         pin_integration_time(&mut scene, t)?;
     }
     let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
-    let camera = checked_scaled_camera(&scene.camera, a.width, None)?;
+    let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;
     let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
     let cfg = ReplayConfig {
         out_dir: out.clone(),
@@ -177,8 +178,8 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
         Some(p) => p.clone(),
         None => PathBuf::from(&h.scene),
     };
-    let scene = crate::scene::load(&scene_path)?;
-    let camera = scaled_camera(&scene.camera, h.width_setting, None);
+    let scene = hilcam_core::scene::load(&scene_path)?;
+    let camera = scene.camera.scaled(h.width_setting, None);
     if (camera.width, camera.height) != (h.width, h.height) {
         bail!(
             "{}: the session streamed {}x{} frames, {} gives {}x{} (width setting {:?})",
@@ -244,7 +245,7 @@ fn identity(p: &Path, content: bool) -> anyhow::Result<String> {
         return Ok(abs.display().to_string());
     }
     let bytes = std::fs::read(&abs).with_context(|| abs.display().to_string())?;
-    Ok(format!("{} (crc32 {:08x})", abs.display(), crate::frame::CRC32.checksum(&bytes)))
+    Ok(format!("{} (crc32 {:08x})", abs.display(), hilcam_core::frame::CRC32.checksum(&bytes)))
 }
 
 /// Render `jobs` with the progress bar and print the summary.

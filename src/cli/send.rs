@@ -1,9 +1,9 @@
 //! `hilcam send`: replay a trajectory file as live pose messages.
 
-use crate::pose::can::CanIds;
-use crate::trajectory::Trajectory;
-use crate::transport::send::{SendOptions, SendTarget, open_target, send_trajectory};
 use anyhow::Context;
+use hilcam_core::link::send::{SendOptions, SendTarget, open_target, send_trajectory};
+use hilcam_core::pose::can::CanIds;
+use hilcam_core::pose::trajectory::Trajectory;
 use std::path::PathBuf;
 
 /// Arguments of `hilcam send`.

@@ -1,9 +1,9 @@
 //! `hilcam sensor`: apply a camera preset's sensor model to a radiance image (.pfm), or
 //! print the preset's photon-transfer table.
 
-use crate::film;
-use crate::sensor::{CameraPreset, Sensor, ptc};
 use anyhow::{Context, bail};
+use hilcam_core::render::film;
+use hilcam_core::sensor::{CameraPreset, Sensor, ptc};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

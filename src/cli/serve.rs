@@ -2,9 +2,9 @@
 //! SIGHUP (all three stop it cleanly: current frame finished, clients closed on a frame
 //! boundary, session file ended, summary printed, exit 0).
 
-use crate::serve::config::{RecordSection, ServeConfig};
-use crate::serve::{Embed, ServeReport, run};
-use crate::sink::ImageFormat;
+use hilcam_core::serve::config::{RecordSection, ServeConfig};
+use hilcam_core::serve::{Embed, ServeReport, run};
+use hilcam_core::sink::ImageFormat;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

@@ -1,9 +1,9 @@
 //! The frame of docs/protocol.md's worked example (tests/stream.rs checks its bytes
 //! against a literal, tests/docs_protocol.rs against the page).
 
-use hilcam::film::Pixels;
-use hilcam::frame::{Frame, FrameFlags, FrameMeta, PixelFormat};
-use hilcam::integrator::Spp;
+use hilcam_core::frame::{Frame, FrameFlags, FrameMeta, PixelFormat};
+use hilcam_core::render::film::Pixels;
+use hilcam_core::render::integrator::Spp;
 
 /// The worked example of docs/protocol.md.
 pub fn example_frame() -> Frame {

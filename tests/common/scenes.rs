@@ -1,12 +1,12 @@
 //! Scene builders shared by the rendering tests.
 
 use glam::{DVec3, Vec3};
-use hilcam::bsdf::BsdfSpec;
-use hilcam::camera::CameraModel;
-use hilcam::geometry::{BvhLayout, TriMesh};
-use hilcam::integrator::RenderSettings;
-use hilcam::pose::Pose;
-use hilcam::scene::{Material, Scene, SceneParts};
+use hilcam_core::pose::Pose;
+use hilcam_core::render::bsdf::BsdfSpec;
+use hilcam_core::render::camera::CameraModel;
+use hilcam_core::render::geometry::{BvhLayout, TriMesh};
+use hilcam_core::render::integrator::RenderSettings;
+use hilcam_core::scene::{Material, Scene, SceneParts};
 
 /// The scene's camera at `width` × `height` pixels with the same field of view, principal
 /// point offset `pp` (pixels).
@@ -23,17 +23,21 @@ pub fn scaled_camera(scene: &Scene, width: u32, height: u32, pp: [f64; 2]) -> Ca
 
 /// Every ray a `width`² frame of `scene` at `spp`, depth 4, cosine bounces, no roulette
 /// traces: (closest-hit rays, shadow rays), for re-tracing them through another walk.
-pub fn recorded_rays(scene: &Scene, width: u32, spp: u32) -> (Vec<hilcam::geometry::Ray>, Vec<hilcam::geometry::Ray>) {
-    use hilcam::integrator::{RecordedRays, RenderSettings, SamplerKind};
+pub fn recorded_rays(
+    scene: &Scene,
+    width: u32,
+    spp: u32,
+) -> (Vec<hilcam_core::render::geometry::Ray>, Vec<hilcam_core::render::geometry::Ray>) {
+    use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
     let cam = scaled_camera(scene, width, width, [0.0, 0.0]);
     let settings = RenderSettings {
-        spp: hilcam::integrator::Spp::whole(spp),
+        spp: hilcam_core::render::integrator::Spp::whole(spp),
         depth: 4,
         sampler: SamplerKind::Cosine,
         roulette: false,
         ..Default::default()
     };
-    let (_, _, logs) = hilcam::render::render_logged::<RecordedRays>(scene, &cam, &scene.pose, &settings, 0);
+    let (_, _, logs) = hilcam_core::render::render_logged::<RecordedRays>(scene, &cam, &scene.pose, &settings, 0);
     let closest = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
     (closest, shadow)

@@ -2,8 +2,8 @@
 //! axis-aligned triangles.
 
 use glam::Vec3;
-use hilcam::geometry::TriMesh;
-use hilcam::sampling::Rng;
+use hilcam_core::render::geometry::TriMesh;
+use hilcam_core::render::sampling::Rng;
 
 pub fn random_vec(r: &mut Rng, scale: f32) -> Vec3 {
     (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 2.0 - 1.0) * scale

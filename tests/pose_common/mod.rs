@@ -2,7 +2,7 @@
 //! interpreter with pyserial/python-can, and event collection helpers.
 #![allow(dead_code)]
 
-use hilcam::transport::{InputCounters, InputEvent};
+use hilcam_core::link::{InputCounters, InputEvent};
 use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
 use std::path::PathBuf;
@@ -120,7 +120,7 @@ pub async fn wait_for(pred: impl Fn() -> bool) -> bool {
     true
 }
 
-pub fn poses(events: &[InputEvent]) -> Vec<hilcam::pose::Pose> {
+pub fn poses(events: &[InputEvent]) -> Vec<hilcam_core::pose::Pose> {
     events
         .iter()
         .filter_map(|e| match e {

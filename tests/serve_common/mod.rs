@@ -3,12 +3,12 @@
 #![allow(dead_code)]
 
 use glam::DVec3;
-use hilcam::film::Pixels;
-use hilcam::frame::{DecodeError, Frame, decode_frame};
-use hilcam::pose::Pose;
-use hilcam::serve::config::{GovernorConfig, InputConfig, ServeConfig, TriggerConfig};
-use hilcam::serve::{Embed, ServeInfo, ServeReport, run};
-use hilcam::transport::InputEvent;
+use hilcam_core::frame::{DecodeError, Frame, decode_frame};
+use hilcam_core::link::InputEvent;
+use hilcam_core::pose::Pose;
+use hilcam_core::render::film::Pixels;
+use hilcam_core::serve::config::{GovernorConfig, InputConfig, ServeConfig, TriggerConfig};
+use hilcam_core::serve::{Embed, ServeInfo, ServeReport, run};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use tokio::io::AsyncReadExt;

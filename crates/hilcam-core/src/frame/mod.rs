@@ -1,0 +1,395 @@
+//! A rendered frame with the metadata that travels with it (stream and recorder), and
+//! the wire header codec: pure functions over bytes, no I/O.
+//!
+//! Wire layout of one frame: an 88-byte little-endian header ([`HEADER_LEN`]) followed
+//! by `payload_len` bytes of pixels (row-major, little-endian, no padding). The byte
+//! table is in `docs/protocol.md`, section "Frame stream (TCP)". Both checksums are
+//! CRC-32/ISO-HDLC (the "IEEE" CRC of zlib, Ethernet and PNG: `crc::CRC_32_ISO_HDLC`).
+
+use crate::render::film::Pixels;
+use crate::render::integrator::Spp;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// How the payload's pixels are encoded (little-endian, row-major, no padding).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PixelFormat {
+    Mono8,
+    /// 16-bit container; the sensor's bit depth (10/12/16) is in the metadata.
+    Mono16,
+    /// Entrance-pupil radiance, W·sr⁻¹·m⁻², f32.
+    Float32,
+}
+
+impl PixelFormat {
+    /// The wire code (header byte 56).
+    pub fn code(self) -> u8 {
+        match self {
+            PixelFormat::Mono8 => 1,
+            PixelFormat::Mono16 => 2,
+            PixelFormat::Float32 => 3,
+        }
+    }
+
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(PixelFormat::Mono8),
+            2 => Some(PixelFormat::Mono16),
+            3 => Some(PixelFormat::Float32),
+            _ => None,
+        }
+    }
+
+    pub fn bytes_per_pixel(self) -> usize {
+        match self {
+            PixelFormat::Mono8 => 1,
+            PixelFormat::Mono16 => 2,
+            PixelFormat::Float32 => 4,
+        }
+    }
+
+    /// Significant bit depths a header may carry for this format.
+    fn valid_bits(self, bits: u8) -> bool {
+        match self {
+            PixelFormat::Mono8 => (1..=8).contains(&bits),
+            PixelFormat::Mono16 => (1..=16).contains(&bits),
+            PixelFormat::Float32 => bits == 32,
+        }
+    }
+}
+
+/// Per-frame flag bits (header bytes 20..24). Unknown bits are preserved, not rejected,
+/// so that a newer sender's flags pass through an older receiver.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct FrameFlags(pub u32);
+
+impl FrameFlags {
+    /// The frame missed its deadline (rendered with a reduced budget or emitted late).
+    pub const LATE: u32 = 1 << 0;
+    /// Rendered from a pose extrapolated past the last received one.
+    pub const EXTRAPOLATED: u32 = 1 << 1;
+    /// The render budget was cut by the governor (fewer spp or bounces than configured).
+    pub const DEGRADED: u32 = 1 << 2;
+
+    pub fn contains(self, bit: u32) -> bool {
+        self.0 & bit == bit
+    }
+    pub fn with(self, bit: u32) -> Self {
+        FrameFlags(self.0 | bit)
+    }
+}
+
+/// Everything the header says about a frame except the payload's length and checksum
+/// (which are computed from the payload when encoding).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameMeta {
+    /// Frame counter of this run, starting at 0; gaps mean frames a receiver lost.
+    pub frame_seq: u64,
+    /// Sequence number of the pose the frame was rendered from.
+    pub pose_seq: u32,
+    /// That pose's timestamp, simulation time, ns.
+    pub pose_t_ns: u64,
+    /// When the pose arrived at hilcam, wall clock, ns since the UNIX epoch (0: none).
+    pub pose_arrival_unix_ns: u64,
+    /// When the frame was encoded for the sinks, wall clock, ns since the UNIX epoch.
+    pub emit_unix_ns: u64,
+    pub width: u32,
+    pub height: u32,
+    pub format: PixelFormat,
+    /// Significant bits per pixel: 1..=8 (Mono8), 1..=16 (Mono16), 32 (Float32).
+    pub bit_depth: u8,
+    /// Samples per pixel used for this frame (the average, when it has a fraction). The
+    /// header carries the whole part in bytes 58..60 and the thousandths in 62..64, which
+    /// older receivers read as reserved.
+    pub spp: Spp,
+    /// Maximum path depth (bounces) used for this frame.
+    pub depth: u16,
+    /// Sensor integration (exposure) time in seconds; 0 when no sensor model ran.
+    pub integration_s: f32,
+    pub flags: FrameFlags,
+}
+
+impl FrameMeta {
+    /// Payload size in bytes implied by the dimensions and format.
+    pub fn payload_len(&self) -> u64 {
+        // Saturating: u32 × u32 × 4 can exceed u64, and a saturated length matches no payload.
+        (self.width as u64).saturating_mul(self.height as u64).saturating_mul(self.format.bytes_per_pixel() as u64)
+    }
+}
+
+/// A frame: metadata plus pixels, consistent with each other (see [`Frame::new`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub meta: FrameMeta,
+    pub pixels: Pixels,
+}
+
+/// A frame whose metadata does not match its pixels.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FrameError {
+    #[error("frame {seq}: {width}x{height} needs {expected} pixels, buffer has {actual}")]
+    SizeMismatch { seq: u64, width: u32, height: u32, expected: u64, actual: u64 },
+    #[error("frame {seq}: bit depth {bits} is invalid for {format:?}")]
+    BitDepth { seq: u64, bits: u8, format: PixelFormat },
+}
+
+impl Frame {
+    /// Build a frame; `meta.format` and `meta.bit_depth` are taken from the pixels
+    /// (8 for Mono8, `bits` for Mono16, 32 for Float32), the size is checked.
+    pub fn new(mut meta: FrameMeta, pixels: Pixels) -> Result<Frame, FrameError> {
+        meta.format = pixels.format();
+        meta.bit_depth = match &pixels {
+            Pixels::Mono8(_) => 8,
+            Pixels::Mono16 { bits, .. } => *bits,
+            Pixels::Float32(_) => 32,
+        };
+        let expected = meta.width as u64 * meta.height as u64;
+        if pixels.len() as u64 != expected {
+            return Err(FrameError::SizeMismatch {
+                seq: meta.frame_seq,
+                width: meta.width,
+                height: meta.height,
+                expected,
+                actual: pixels.len() as u64,
+            });
+        }
+        if !meta.format.valid_bits(meta.bit_depth) {
+            return Err(FrameError::BitDepth { seq: meta.frame_seq, bits: meta.bit_depth, format: meta.format });
+        }
+        Ok(Frame { meta, pixels })
+    }
+
+    /// Header + payload as one buffer, ready to be shared by all sinks.
+    pub fn encode(&self) -> EncodedFrame {
+        let payload = self.pixels.to_le_bytes();
+        let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
+        bytes.extend_from_slice(&encode_header(&self.meta, &payload));
+        bytes.extend_from_slice(&payload);
+        EncodedFrame { meta: self.meta, bytes }
+    }
+}
+
+/// A frame encoded once for every sink (share it as `Arc<EncodedFrame>`, never copy).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodedFrame {
+    pub meta: FrameMeta,
+    /// The 88-byte header followed by the payload.
+    pub bytes: Vec<u8>,
+}
+
+impl EncodedFrame {
+    pub fn payload(&self) -> &[u8] {
+        &self.bytes[HEADER_LEN..]
+    }
+    /// The pixels, decoded from the payload (a copy; for sinks that need typed pixels).
+    pub fn pixels(&self) -> Pixels {
+        pixels_from_le_bytes(self.meta.format, self.meta.bit_depth, self.payload())
+    }
+}
+
+/// Header magic, bytes 0..4: ASCII "HLCF" (HiLcam Frame).
+pub const MAGIC: [u8; 4] = *b"HLCF";
+/// Wire version this codec writes and accepts.
+pub const VERSION: u16 = 1;
+/// Header size in bytes for version 1 (also sent in bytes 6..8).
+pub const HEADER_LEN: usize = 88;
+
+/// CRC-32/ISO-HDLC (poly 0x04C11DB7 reflected, init and xorout 0xFFFFFFFF): the CRC of
+/// zlib, PNG and Ethernet; Python's `zlib.crc32` computes the same value.
+pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Wall-clock now, ns since the UNIX epoch (0 if the clock is before 1970).
+pub fn unix_ns_now() -> u64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0)
+}
+
+/// A decoded header: the metadata plus the payload's length and CRC.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameHeader {
+    pub meta: FrameMeta,
+    pub payload_len: u64,
+    pub payload_crc: u32,
+}
+
+/// Why bytes could not be decoded. `Incomplete` is normal on a stream (read more);
+/// `Malformed` means the stream is not a valid hilcam frame stream.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DecodeError {
+    #[error("need {needed} more bytes")]
+    Incomplete { needed: usize },
+    #[error("malformed frame header: {0}")]
+    Malformed(#[from] Malformed),
+}
+
+/// The protocol violations the decoder detects, each naming the field.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum Malformed {
+    #[error("bad magic {0:02x?} (expected \"HLCF\")")]
+    Magic([u8; 4]),
+    #[error("unsupported version {0} (this build speaks {VERSION})")]
+    Version(u16),
+    #[error("header_len {0} (version 1 requires {HEADER_LEN})")]
+    HeaderLen(u16),
+    #[error("header CRC {found:#010x}, computed {computed:#010x}")]
+    HeaderCrc { found: u32, computed: u32 },
+    #[error("unknown pixel_format code {0}")]
+    PixelFormat(u8),
+    #[error("bit_depth {bits} invalid for {format:?}")]
+    BitDepth { bits: u8, format: PixelFormat },
+    #[error("payload_len {found}, but {width}x{height} {format:?} needs {expected}")]
+    PayloadLen { found: u64, expected: u64, width: u32, height: u32, format: PixelFormat },
+    #[error("frame {seq}: payload CRC {found:#010x}, computed {computed:#010x}")]
+    PayloadCrc { seq: u64, found: u32, computed: u32 },
+    #[error("spp {whole} and spp_frac_milli {milli}: a budget is at least 1 and its thousandths at most 999")]
+    Spp { whole: u16, milli: u16 },
+    /// A width or height above `MAX_SIDE_PX`: refused before anything is allocated.
+    #[error("{field} {value} above the limit of {limit} pixels")]
+    Dimension { field: &'static str, value: u32, limit: u32 },
+}
+
+/// Encode the header for `meta` and `payload` (the payload's length and CRC go in it).
+pub fn encode_header(meta: &FrameMeta, payload: &[u8]) -> [u8; HEADER_LEN] {
+    let mut h = [0u8; HEADER_LEN];
+    h[0..4].copy_from_slice(&MAGIC);
+    h[4..6].copy_from_slice(&VERSION.to_le_bytes());
+    h[6..8].copy_from_slice(&(HEADER_LEN as u16).to_le_bytes());
+    h[8..16].copy_from_slice(&meta.frame_seq.to_le_bytes());
+    h[16..20].copy_from_slice(&meta.pose_seq.to_le_bytes());
+    h[20..24].copy_from_slice(&meta.flags.0.to_le_bytes());
+    h[24..32].copy_from_slice(&meta.pose_t_ns.to_le_bytes());
+    h[32..40].copy_from_slice(&meta.pose_arrival_unix_ns.to_le_bytes());
+    h[40..48].copy_from_slice(&meta.emit_unix_ns.to_le_bytes());
+    h[48..52].copy_from_slice(&meta.width.to_le_bytes());
+    h[52..56].copy_from_slice(&meta.height.to_le_bytes());
+    h[56] = meta.format.code();
+    h[57] = meta.bit_depth;
+    h[58..60].copy_from_slice(&(meta.spp.floor() as u16).to_le_bytes());
+    h[60..62].copy_from_slice(&meta.depth.to_le_bytes());
+    h[62..64].copy_from_slice(&(meta.spp.fraction_milli() as u16).to_le_bytes());
+    h[64..68].copy_from_slice(&meta.integration_s.to_le_bytes());
+    h[68..72].copy_from_slice(&CRC32.checksum(payload).to_le_bytes());
+    h[72..80].copy_from_slice(&(payload.len() as u64).to_le_bytes());
+    // 80..84 reserved, zero.
+    let crc = CRC32.checksum(&h[..84]);
+    h[84..88].copy_from_slice(&crc.to_le_bytes());
+    h
+}
+
+fn u16_at(b: &[u8], i: usize) -> u16 {
+    u16::from_le_bytes([b[i], b[i + 1]])
+}
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"))
+}
+fn u64_at(b: &[u8], i: usize) -> u64 {
+    u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"))
+}
+
+/// Decode and validate a header from the start of `buf` (extra bytes are ignored).
+///
+/// Checks, in order: length, magic, version, header_len, header CRC, pixel format,
+/// bit depth, spp, width and height at most `crate::render::camera::MAX_SIDE_PX`,
+/// and that payload_len equals width·height·bytes-per-pixel. Reserved bytes
+/// are ignored (senders write zeros).
+pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
+    if buf.len() < HEADER_LEN {
+        return Err(DecodeError::Incomplete { needed: HEADER_LEN - buf.len() });
+    }
+    let b = &buf[..HEADER_LEN];
+    let magic: [u8; 4] = b[0..4].try_into().expect("4 bytes");
+    if magic != MAGIC {
+        return Err(Malformed::Magic(magic).into());
+    }
+    let version = u16_at(b, 4);
+    if version != VERSION {
+        return Err(Malformed::Version(version).into());
+    }
+    let header_len = u16_at(b, 6);
+    if header_len as usize != HEADER_LEN {
+        return Err(Malformed::HeaderLen(header_len).into());
+    }
+    let found = u32_at(b, 84);
+    let computed = CRC32.checksum(&b[..84]);
+    if found != computed {
+        return Err(Malformed::HeaderCrc { found, computed }.into());
+    }
+    let format = PixelFormat::from_code(b[56]).ok_or(Malformed::PixelFormat(b[56]))?;
+    let bit_depth = b[57];
+    if !format.valid_bits(bit_depth) {
+        return Err(Malformed::BitDepth { bits: bit_depth, format }.into());
+    }
+    // Bounded before anything is sized from them (an empty frame, 0 × n, allocates nothing).
+    for (field, value) in [("width", u32_at(b, 48)), ("height", u32_at(b, 52))] {
+        if value > crate::render::camera::MAX_SIDE_PX {
+            return Err(Malformed::Dimension { field, value, limit: crate::render::camera::MAX_SIDE_PX }.into());
+        }
+    }
+    let (whole, milli) = (u16_at(b, 58), u16_at(b, 62));
+    if whole == 0 || milli > 999 {
+        return Err(Malformed::Spp { whole, milli }.into());
+    }
+    let meta = FrameMeta {
+        frame_seq: u64_at(b, 8),
+        pose_seq: u32_at(b, 16),
+        flags: FrameFlags(u32_at(b, 20)),
+        pose_t_ns: u64_at(b, 24),
+        pose_arrival_unix_ns: u64_at(b, 32),
+        emit_unix_ns: u64_at(b, 40),
+        width: u32_at(b, 48),
+        height: u32_at(b, 52),
+        format,
+        bit_depth,
+        spp: Spp::from_milli(u32::from(whole) * 1000 + u32::from(milli)),
+        depth: u16_at(b, 60),
+        integration_s: f32::from_le_bytes(b[64..68].try_into().expect("4 bytes")),
+    };
+    let payload_len = u64_at(b, 72);
+    if payload_len != meta.payload_len() {
+        return Err(Malformed::PayloadLen {
+            found: payload_len,
+            expected: meta.payload_len(),
+            width: meta.width,
+            height: meta.height,
+            format,
+        }
+        .into());
+    }
+    Ok(FrameHeader { meta, payload_len, payload_crc: u32_at(b, 68) })
+}
+
+/// Check a payload against its header's CRC.
+pub fn check_payload(header: &FrameHeader, payload: &[u8]) -> Result<(), Malformed> {
+    let computed = CRC32.checksum(payload);
+    if computed != header.payload_crc {
+        return Err(Malformed::PayloadCrc { seq: header.meta.frame_seq, found: header.payload_crc, computed });
+    }
+    Ok(())
+}
+
+/// Decode one whole frame from the start of `buf`; returns it and the bytes consumed.
+pub fn decode_frame(buf: &[u8]) -> Result<(Frame, usize), DecodeError> {
+    let header = decode_header(buf)?;
+    let total = HEADER_LEN as u64 + header.payload_len;
+    if (buf.len() as u64) < total {
+        return Err(DecodeError::Incomplete { needed: (total - buf.len() as u64) as usize });
+    }
+    let payload = &buf[HEADER_LEN..total as usize];
+    check_payload(&header, payload)?;
+    let pixels = pixels_from_le_bytes(header.meta.format, header.meta.bit_depth, payload);
+    let frame = Frame { meta: header.meta, pixels };
+    Ok((frame, total as usize))
+}
+
+/// Pixels from a little-endian payload (length must be a multiple of the pixel size;
+/// a trailing partial pixel is ignored).
+pub fn pixels_from_le_bytes(format: PixelFormat, bit_depth: u8, payload: &[u8]) -> Pixels {
+    match format {
+        PixelFormat::Mono8 => Pixels::Mono8(payload.to_vec()),
+        PixelFormat::Mono16 => Pixels::Mono16 {
+            data: payload.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect(),
+            bits: bit_depth,
+        },
+        PixelFormat::Float32 => {
+            Pixels::Float32(payload.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+        }
+    }
+}

@@ -1,0 +1,164 @@
+//! Everything a frame needs besides the scene, kept from frame to frame.
+//!
+//! A frame of the goal scene fills ~10 MB of buffers: the image, the rasteriser's boxes,
+//! edges and coverage bits, each band's pixels and sums, the adaptive stage's statistics
+//! and the tiles' path arrays. Allocated afresh, that is page faults and zeroing in every
+//! frame, and a server's heap keeps moving. Held in a [`FrameBuffers`] (which
+//! `FramePipeline` owns), they grow to the largest frame seen and are then only cleared
+//! and refilled: rendering allocates nothing (`tests/zero_alloc.rs` counts).
+
+use super::Band;
+use super::coverage::Coverage;
+use super::tile::{CameraSample, Scratch};
+use super::visibility::PrimaryRaster;
+use crate::render::camera::SilhouetteBuffers;
+use crate::render::film::RadianceImage;
+use crate::render::sampling::{Rng, SobolStream};
+use std::sync::Mutex;
+
+/// The buffers of one frame at a time; `L` logs rays (`()` logs nothing).
+pub struct FrameBuffers<L = ()> {
+    pub(super) image: RadianceImage,
+    /// Rows of `image` the last frame may have written (the others hold `fill`, the last
+    /// frame's background): only they are cleared for the next frame of the same size.
+    pub(super) written_rows: std::ops::Range<usize>,
+    pub(super) fill: f32,
+    pub(super) raster: PrimaryRaster,
+    /// The pixels a traced frame samples (`coverage::Coverage::from_leaf_boxes`).
+    pub(super) coverage: Coverage,
+    /// One per band of rows; a frame uses the first `rows / BAND_ROWS` (the rest keep their
+    /// capacity for larger frames).
+    pub(super) bands: Vec<Band<L>>,
+    /// Pilot statistic of every pixel (adaptive frames).
+    pub(super) stat: Vec<[f32; 2]>,
+    /// Per-row spans through a distorting lens.
+    pub(super) silhouette: SilhouetteBuffers,
+    pub(super) sobol: Workers<SobolStream>,
+    pub(super) independent: Workers<Rng>,
+}
+
+impl<L> Default for FrameBuffers<L> {
+    fn default() -> Self {
+        FrameBuffers {
+            image: RadianceImage { width: 0, height: 0, data: Vec::new() },
+            written_rows: 0..0,
+            fill: 0.0,
+            raster: PrimaryRaster::default(),
+            coverage: Coverage::default(),
+            bands: Vec::new(),
+            stat: Vec::new(),
+            silhouette: SilhouetteBuffers::default(),
+            sobol: Workers::default(),
+            independent: Workers::default(),
+        }
+    }
+}
+
+impl<L> FrameBuffers<L> {
+    /// The image of the last frame rendered into these buffers.
+    pub fn image(&self) -> &RadianceImage {
+        &self.image
+    }
+
+    /// The image of the last frame, leaving an empty one (its buffer is then allocated
+    /// again by the next frame).
+    pub fn take_image(&mut self) -> RadianceImage {
+        std::mem::replace(&mut self.image, RadianceImage { width: 0, height: 0, data: Vec::new() })
+    }
+
+    /// Set the image to `width` × `height` pixels of `fill`, reusing its buffer: the whole
+    /// of it when its size or fill changed, else only the rows the last frame wrote (a
+    /// full 1024² clear is ~0.6 ms, one thread; the target covers ~40 % of the rows).
+    pub(super) fn reset_image(&mut self, width: u32, height: u32, fill: f32) {
+        let img = &mut self.image;
+        let n = width as usize * height as usize;
+        let same =
+            (img.width, img.height) == (width, height) && img.data.len() == n && self.fill.to_bits() == fill.to_bits();
+        if same {
+            let w = width as usize;
+            img.data[self.written_rows.start * w..self.written_rows.end * w].fill(fill);
+        } else {
+            (img.width, img.height) = (width, height);
+            img.data.clear();
+            img.data.resize(n, fill);
+            self.fill = fill;
+        }
+        self.written_rows = 0..0;
+    }
+}
+
+/// What one worker thread uses while tracing a band: the tiles' path buffers and the list
+/// of camera samples of the current pass (and whose they are).
+pub(super) struct WorkerScratch<S> {
+    pub tile: Scratch<S>,
+    pub pass: Vec<CameraSample>,
+    pub owner: Vec<u32>,
+}
+
+impl<S> WorkerScratch<S> {
+    /// Grow each buffer to at least the capacity of `other`'s.
+    fn grow_like(&mut self, other: &Self) {
+        self.tile.grow_like(&other.tile);
+        reserve_to(&mut self.pass, other.pass.capacity());
+        reserve_to(&mut self.owner, other.owner.capacity());
+    }
+}
+
+impl<S> Default for WorkerScratch<S> {
+    fn default() -> Self {
+        WorkerScratch { tile: Scratch::default(), pass: Vec::new(), owner: Vec::new() }
+    }
+}
+
+/// One [`WorkerScratch`] per rayon worker thread. rayon's `map_init` would create one per
+/// split job, i.e. many per frame; here a band takes its thread's own, behind a lock that
+/// no other thread touches (so it never waits).
+pub(super) struct Workers<S>(Vec<Mutex<WorkerScratch<S>>>);
+
+impl<S> Default for Workers<S> {
+    fn default() -> Self {
+        Workers(Vec::new())
+    }
+}
+
+impl<S> Workers<S> {
+    /// One scratch per thread of the current rayon pool (call outside the parallel part).
+    pub fn ensure(&mut self) {
+        let n = rayon::current_num_threads().max(1);
+        if self.0.len() < n {
+            self.0.resize_with(n, Default::default);
+        }
+    }
+
+    /// Grow every worker's buffers to the largest any of them has. Which thread traces
+    /// which band depends on scheduling, so without this a thread could meet a band larger
+    /// than any it had seen frames after the others, and allocate then; with it the
+    /// buffers stop growing once every band has been traced once.
+    pub fn equalise(&mut self) {
+        let Some((first, rest)) = self.0.split_first_mut() else { return };
+        let first = first.get_mut().unwrap_or_else(|e| e.into_inner());
+        // The first takes the largest of every buffer, then every other takes the first's.
+        for w in rest.iter_mut() {
+            first.grow_like(w.get_mut().unwrap_or_else(|e| e.into_inner()));
+        }
+        for w in rest.iter_mut() {
+            w.get_mut().unwrap_or_else(|e| e.into_inner()).grow_like(first);
+        }
+    }
+
+    /// Run `f` with the calling worker thread's scratch.
+    pub fn with<R>(&self, f: impl FnOnce(&mut WorkerScratch<S>) -> R) -> R {
+        let i = rayon::current_thread_index().unwrap_or(0) % self.0.len();
+        // A panic while tracing poisons only that band's scratch; its contents are
+        // cleared before use anyway.
+        let mut scratch = self.0[i].lock().unwrap_or_else(|e| e.into_inner());
+        f(&mut scratch)
+    }
+}
+
+/// Grow `v`'s capacity to at least `cap` (never shrinks).
+pub(super) fn reserve_to<T>(v: &mut Vec<T>, cap: usize) {
+    if v.capacity() < cap {
+        v.reserve_exact(cap - v.len());
+    }
+}

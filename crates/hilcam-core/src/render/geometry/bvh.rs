@@ -1,0 +1,353 @@
+//! The acceleration structure: obvhs BVHs over the scene's triangles. Only this module
+//! and `sun_shadow` (which must run the very same triangle test) import obvhs.
+//!
+//! Four layouts: obvhs's binary BVH2 (fastest on coherent primary rays), its 8-wide
+//! compressed CWBVH, our SSE 4-wide `bvh4` collapsed from the BVH2 (~11 % faster than the
+//! BVH2 on bounce and shadow rays, and it finds the hits of rays running along a box face
+//! that obvhs's box test can miss), and its 8-wide sibling `bvh8` (the default: the same
+//! box test in AVX2, eight lanes, two thirds of the levels; ~15 % cheaper bounce and
+//! shadow rays than `bvh4`, ~5 % faster frames). All run the same triangle test on the
+//! same triangle order. `hilcam bench render` measures them on the same rays
+//! (`docs/performance.md`).
+
+use super::TriMesh;
+use super::bvh4::Bvh4;
+use super::bvh8::Bvh8;
+use glam::{Vec3, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    bvh2::{Bvh2, builder::build_bvh2_from_tris},
+    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    ray::{Ray as ObRay, RayHit},
+    rt_triangle::RtTriangle,
+    triangle::Triangle,
+};
+use std::time::Duration;
+
+/// Which obvhs tree layout to build.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BvhLayout {
+    /// Binary BVH (obvhs `Bvh2`).
+    Bvh2,
+    /// Compressed 8-wide BVH (obvhs `CwBvh`).
+    Cwbvh,
+    /// 4-wide BVH collapsed from the obvhs `Bvh2`, four boxes per step in SSE (`Bvh4`).
+    Bvh4,
+    /// 8-wide BVH collapsed from the obvhs `Bvh2`, eight boxes per step in AVX2 when the
+    /// CPU has it, else a scalar loop (`Bvh8`): two thirds of the levels of `Bvh4`, the
+    /// same box test; the fastest for the incoherent bounce and shadow rays that dominate
+    /// once primary hits are rasterised.
+    #[default]
+    Bvh8,
+}
+
+/// A ray in the render frame (f32). `dir` need not be normalised; `t` is in its units.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmax: f32,
+}
+
+/// The closest hit: `tri` indexes the mesh's triangles (original order). The unit face
+/// normal and material come from data stored in BVH order next to the triangle that was
+/// just intersected, so shading touches no cold memory.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub tri: u32,
+    pub t: f32,
+    pub normal: Vec3,
+    pub material: u32,
+}
+
+/// A leaf of the tree: its bounding box and its primitives `first..first + count` (BVH
+/// order, as [`Accel::vertex_indices`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Leaf {
+    pub min: Vec3,
+    pub max: Vec3,
+    pub first: u32,
+    pub count: u32,
+}
+
+enum Tree {
+    Bvh2(Bvh2),
+    Cw(CwBvh),
+    Bvh4(Bvh4),
+    Bvh8(Bvh8),
+}
+
+/// A ray prepared once for many triangle tests ([`Accel::primitive_t`]).
+#[derive(Clone, Copy)]
+pub struct TestRay(ObRay);
+
+impl TestRay {
+    #[inline]
+    pub fn new(r: &Ray) -> Self {
+        TestRay(Accel::ob_ray(r))
+    }
+}
+
+/// BVH plus the triangles laid out in the BVH's primitive order (no indirection while
+/// intersecting; one lookup of the original index per hit).
+pub struct Accel {
+    tree: Tree,
+    tris: Vec<RtTriangle>,
+    original: Vec<u32>,
+    /// Material of each primitive, BVH order.
+    material: Vec<u32>,
+    /// Vertex indices of each primitive into the mesh's positions, BVH order.
+    vertices: Vec<[u32; 3]>,
+    /// Each leaf's box and primitives (for the traced frames' pixel coverage,
+    /// `render::coverage`): the `Bvh2`'s leaves, which the wide trees keep; for the CWBVH
+    /// each triangle.
+    leaves: Vec<Leaf>,
+    pub build_time: Duration,
+}
+
+impl Accel {
+    pub fn build(mesh: &TriMesh, layout: BvhLayout) -> Self {
+        let t0 = std::time::Instant::now();
+        let tris: Vec<Triangle> = (0..mesh.indices.len())
+            .map(|i| {
+                let [a, b, c] = mesh.triangle(i);
+                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
+            })
+            .collect();
+        let params = BvhBuildParams::medium_build();
+        let mut core = Duration::ZERO;
+        let of_bvh2 = |b: &Bvh2| -> Vec<Leaf> {
+            let leaf = |n: &obvhs::bvh2::node::Bvh2Node| Leaf {
+                min: n.aabb().min.into(),
+                max: n.aabb().max.into(),
+                first: n.first_index,
+                count: n.prim_count,
+            };
+            b.nodes.iter().filter(|n| n.is_leaf()).map(leaf).collect()
+        };
+        let mut leaves = Vec::new();
+        let (tree, original) = if tris.is_empty() {
+            (Tree::Bvh2(Bvh2::default()), Vec::new())
+        } else {
+            match layout {
+                BvhLayout::Bvh2 => {
+                    let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    leaves = of_bvh2(&b);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Bvh2(b), idx)
+                }
+                BvhLayout::Cwbvh => {
+                    let b = build_cwbvh_from_tris(&tris, params, &mut core);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Cw(b), idx)
+                }
+                BvhLayout::Bvh4 => {
+                    let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    leaves = of_bvh2(&b);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Bvh4(Bvh4::from_bvh2(&b)), idx)
+                }
+                BvhLayout::Bvh8 => {
+                    let b = build_bvh2_from_tris(&tris, params, &mut core);
+                    leaves = of_bvh2(&b);
+                    let idx = b.primitive_indices.clone();
+                    (Tree::Bvh8(Bvh8::from_bvh2(&b)), idx)
+                }
+            }
+        };
+        let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
+        let material = original.iter().map(|&i| mesh.material.get(i as usize).copied().unwrap_or(0)).collect();
+        let vertices = original.iter().map(|&i| mesh.indices[i as usize]).collect();
+        if matches!(tree, Tree::Cw(_)) {
+            let tri = |(k, &i): (usize, &u32)| {
+                let t = &tris[i as usize];
+                Leaf {
+                    min: t.v0.min(t.v1).min(t.v2).into(),
+                    max: t.v0.max(t.v1).max(t.v2).into(),
+                    first: k as u32,
+                    count: 1,
+                }
+            };
+            leaves = original.iter().enumerate().map(tri).collect();
+        }
+        Accel { tree, tris: rt, original, material, vertices, leaves, build_time: t0.elapsed() }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    #[inline(always)]
+    fn ob_ray(r: &Ray) -> ObRay {
+        ObRay::new(Vec3A::from(r.origin), Vec3A::from(r.dir), 0.0, r.tmax)
+    }
+
+    /// Closest hit along the ray within `(0, tmax]`.
+    #[inline]
+    pub fn intersect(&self, r: &Ray) -> Option<Hit> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let ray = Self::ob_ray(r);
+        let mut hit = RayHit::none();
+        let tris = &self.tris;
+        let found = match &self.tree {
+            Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
+            Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
+            Tree::Bvh4(b) => b.intersect(&ray, tris).map(|(k, t)| (hit.primitive_id, hit.t) = (k, t)).is_some(),
+            Tree::Bvh8(b) => b.intersect(&ray, tris).map(|(k, t)| (hit.primitive_id, hit.t) = (k, t)).is_some(),
+        };
+        found.then(|| self.primitive_hit(hit.primitive_id, hit.t))
+    }
+
+    /// The tree's leaves (every primitive lies in exactly one).
+    pub fn leaves(&self) -> &[Leaf] {
+        &self.leaves
+    }
+
+    /// Number of triangles; primitive `k` (BVH order, `0..len`) is the k-th one laid out.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Original triangle index of primitive `k`.
+    #[inline]
+    pub fn original(&self, k: u32) -> u32 {
+        self.original[k as usize]
+    }
+
+    /// Vertex indices (into the mesh's positions) of primitive `k`.
+    #[inline]
+    pub fn vertex_indices(&self, k: u32) -> [u32; 3] {
+        self.vertices[k as usize]
+    }
+
+    /// Distance at which `ray` hits primitive `k` by exactly the test the traversal runs,
+    /// or infinity: callers that pick candidates some other way (rasterised primary
+    /// visibility) get the same hits as the tree.
+    #[inline(always)]
+    pub fn primitive_t(&self, k: u32, ray: &TestRay) -> f32 {
+        self.tris[k as usize].intersect(&ray.0)
+    }
+
+    /// The [`Hit`] record of primitive `k` at distance `t` (what [`Accel::intersect`]
+    /// returns when `k` is the closest).
+    #[inline]
+    pub fn primitive_hit(&self, k: u32, t: f32) -> Hit {
+        let k = k as usize;
+        let normal = Vec3::from(self.tris[k].compute_normal());
+        Hit { tri: self.original[k], t, normal, material: self.material[k] }
+    }
+
+    /// True when anything blocks the ray within `(0, tmax]` (stops at the first hit).
+    #[inline]
+    pub fn occluded(&self, r: &Ray) -> bool {
+        if self.tris.is_empty() {
+            return false;
+        }
+        let ray = Self::ob_ray(r);
+        let tris = &self.tris;
+        let miss = match &self.tree {
+            Tree::Bvh2(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
+            Tree::Cw(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
+            Tree::Bvh4(b) => !b.occluded(&ray, tris),
+            Tree::Bvh8(b) => !b.occluded(&ray, tris),
+        };
+        !miss
+    }
+}
+
+impl Accel {
+    /// Occlusion of up to [`shadow_packet::PACKET`](super::shadow_packet::PACKET) rays that
+    /// share one direction (the shadow rays toward the sun): bit `i` set when ray `i` is
+    /// blocked, the same answers as [`Accel::occluded`] ray by ray. On the 4- and 8-wide
+    /// trees with AVX2 the rays walk it together (`shadow_packet`); otherwise one by one.
+    pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
+        use super::shadow_packet::{PACKET, one_by_one};
+        let one_by_one = || one_by_one(rays, |r| self.occluded(r));
+        if self.tris.is_empty() || rays.len() > PACKET {
+            return one_by_one();
+        }
+        let mut ob = [ObRay::new_inf(Vec3A::ZERO, Vec3A::X); PACKET];
+        for (o, r) in ob.iter_mut().zip(rays) {
+            *o = Self::ob_ray(r);
+        }
+        let ob = &ob[..rays.len()];
+        let walked = match &self.tree {
+            Tree::Bvh4(b) => b.occluded_packet(ob, &self.tris),
+            Tree::Bvh8(b) => b.occluded_packet(ob, &self.tris),
+            _ => None,
+        };
+        walked.unwrap_or_else(one_by_one)
+    }
+}
+
+impl Accel {
+    /// Whether [`Accel::intersect_packet`] walks its rays together (the 8-wide tree with
+    /// AVX2) rather than one by one.
+    pub fn walks_packets(&self) -> bool {
+        matches!(&self.tree, Tree::Bvh8(b) if b.uses_avx2())
+    }
+
+    /// Closest hits of up to [`shadow_packet::PACKET`](super::shadow_packet::PACKET) rays
+    /// (`out[i]` for `rays[i]`): the same hits as [`Accel::intersect`] ray by ray (the same
+    /// `t` bit for bit; of triangles tied at exactly the same `t`, possibly another). On the
+    /// 8-wide tree with AVX2 the rays walk it together (`closest_packet`: neighbouring
+    /// primary rays); otherwise one by one.
+    pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        use super::shadow_packet::PACKET;
+        assert!(out.len() >= rays.len(), "{} rays, room for {} hits", rays.len(), out.len());
+        let walked = match &self.tree {
+            Tree::Bvh8(b) if !self.tris.is_empty() && rays.len() <= PACKET => {
+                let mut ob = [ObRay::new_inf(Vec3A::ZERO, Vec3A::X); PACKET];
+                for (o, r) in ob.iter_mut().zip(rays) {
+                    *o = Self::ob_ray(r);
+                }
+                b.intersect_packet(&ob[..rays.len()], &self.tris)
+            }
+            _ => None,
+        };
+        match walked {
+            Some((prim, t)) => {
+                for (i, o) in out[..rays.len()].iter_mut().enumerate() {
+                    *o = (prim[i] != super::closest_packet::MISS).then(|| self.primitive_hit(prim[i], t[i]));
+                }
+            }
+            None => {
+                for (r, o) in rays.iter().zip(out.iter_mut()) {
+                    *o = self.intersect(r);
+                }
+            }
+        }
+    }
+}
+
+/// Reference answers for tests and validation: the same triangle test over every
+/// triangle, with obvhs's convention that a hit counts when `t < tmax`.
+pub mod brute_force {
+    use super::*;
+
+    fn rt(mesh: &TriMesh, i: usize) -> RtTriangle {
+        let [a, b, c] = mesh.triangle(i);
+        RtTriangle::new(a.into(), b.into(), c.into())
+    }
+
+    pub fn intersect(mesh: &TriMesh, r: &Ray) -> Option<Hit> {
+        let ray = Accel::ob_ray(r);
+        let mut best: Option<Hit> = None;
+        for i in 0..mesh.indices.len() {
+            let t = rt(mesh, i).intersect(&ray);
+            if t < best.map_or(ray.tmax, |h| h.t) {
+                let normal = mesh.face_normal_area2(i).normalize_or_zero();
+                best = Some(Hit { tri: i as u32, t, normal, material: mesh.material[i] });
+            }
+        }
+        best
+    }
+
+    pub fn occluded(mesh: &TriMesh, r: &Ray) -> bool {
+        let ray = Accel::ob_ray(r);
+        (0..mesh.indices.len()).any(|i| rt(mesh, i).intersect(&ray) < ray.tmax)
+    }
+}

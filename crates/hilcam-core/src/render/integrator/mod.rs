@@ -1,0 +1,297 @@
+//! The path-tracing estimator for one camera sample (no threading here).
+//!
+//! Backward path tracing as in the paper's Eq. (1)/(2): at each surface interaction,
+//! direct sunlight by next-event estimation (a shadow ray toward the parallel sun), then
+//! one sampled reflected direction for indirect light, up to `depth` interactions
+//! (depth 1 = direct only; Mitsuba's `max_depth` = depth + 1). Surfaces are two-sided:
+//! the shading normal is flipped to face the incoming ray. Shading uses face normals.
+
+use crate::render::geometry::{Hit, Ray, SunShadow};
+use crate::render::sampling::{
+    Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
+};
+use crate::scene::Scene;
+use glam::Vec3;
+use serde::Deserialize;
+use std::sync::Arc;
+
+mod spp;
+pub use spp::{Spp, SppError};
+
+/// How indirect directions are drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SamplerKind {
+    /// Uniform over the hemisphere, pdf 1/(2π) (the paper's baseline).
+    Uniform,
+    /// Cosine-weighted, pdf cosθ/π (the paper's Eq. 3).
+    #[default]
+    Cosine,
+    /// The BRDF's own importance sampling (specular lobe + cosine by MIS).
+    Brdf,
+}
+
+/// Quality settings of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Camera samples per pixel (a fraction is shared out by a second stage).
+    pub spp: Spp,
+    /// Surface interactions per path (≥ 1).
+    pub depth: u32,
+    pub sampler: SamplerKind,
+    /// Independent or low-discrepancy (Sobol) random numbers.
+    pub sequence: Sequence,
+    /// Russian roulette on low-throughput paths (from the second indirect bounce on).
+    pub roulette: bool,
+    /// Share the samples out by each pixel's estimated variance (`spp` is then the
+    /// average; `render::adaptive`), instead of `spp` in every pixel.
+    pub adaptive: bool,
+    pub seed: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            spp: Spp::whole(4),
+            depth: 2,
+            sampler: SamplerKind::Cosine,
+            sequence: Sequence::Sobol,
+            roulette: true,
+            adaptive: true,
+            seed: 0,
+        }
+    }
+}
+
+impl RenderSettings {
+    /// These settings with the given command-line or config overrides (spp and depth at
+    /// least 1). One place for `render`, `replay` and `serve`.
+    pub fn overridden(
+        mut self,
+        spp: Option<Spp>,
+        depth: Option<u32>,
+        sampler: Option<SamplerKind>,
+        seed: Option<u64>,
+    ) -> Self {
+        if let Some(v) = spp {
+            self.spp = v;
+        }
+        if let Some(v) = depth {
+            self.depth = v.max(1);
+        }
+        self.sampler = sampler.unwrap_or(self.sampler);
+        self.seed = seed.unwrap_or(self.seed);
+        self
+    }
+}
+
+/// Rays traced and samples discarded; summed over threads after a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    /// Camera rays that reached the target's bounds and were traced through the BVH.
+    pub primary: u64,
+    pub shadow: u64,
+    pub bounce: u64,
+    /// Samples whose estimate was not finite (dropped, counted; should stay 0).
+    pub nonfinite: u64,
+}
+
+impl RayCounts {
+    pub fn total(&self) -> u64 {
+        self.primary + self.shadow + self.bounce
+    }
+    pub fn add(&mut self, o: &RayCounts) {
+        self.primary += o.primary;
+        self.shadow += o.shadow;
+        self.bounce += o.bounce;
+        self.nonfinite += o.nonfinite;
+    }
+}
+
+/// Sees every ray the estimator traces (benchmarks record them to re-trace the same rays
+/// through the bare BVH). `()` sees nothing and compiles away.
+pub trait RayLog {
+    fn closest(&mut self, _ray: &Ray) {}
+    fn shadow(&mut self, _ray: &Ray) {}
+}
+
+impl RayLog for () {}
+
+/// Records rays for [`RayLog`].
+#[derive(Default)]
+pub struct RecordedRays {
+    pub closest: Vec<Ray>,
+    pub shadow: Vec<Ray>,
+}
+
+impl RayLog for RecordedRays {
+    fn closest(&mut self, ray: &Ray) {
+        self.closest.push(*ray);
+    }
+    fn shadow(&mut self, ray: &Ray) {
+        self.shadow.push(*ray);
+    }
+}
+
+/// What one surface interaction produces (see [`PathContext::scatter`]).
+pub struct Scatter {
+    /// Shadow ray toward the sun, and the radiance it adds if nothing blocks it.
+    pub shadow: Option<(Ray, f32)>,
+    /// The path's next ray and throughput; `None` when the path ends here.
+    pub next: Option<(Ray, f32)>,
+}
+
+/// Per-frame constants of the estimator.
+pub struct PathContext<'a> {
+    pub scene: &'a Scene,
+    /// Unit vector toward the sun, render frame.
+    pub sun: Vec3,
+    pub depth: u32,
+    pub sampler: SamplerKind,
+    /// False when no bounce can carry energy (depth 1 or all materials black).
+    pub indirect: bool,
+    pub roulette: bool,
+    /// Occlusion structure for rays toward `sun` (`None`: shadow rays use the BVH).
+    pub sun_shadow: Option<Arc<SunShadow>>,
+}
+
+impl<'a> PathContext<'a> {
+    pub fn new(scene: &'a Scene, sun: Vec3, settings: &RenderSettings) -> Self {
+        let indirect = settings.depth > 1 && scene.any_reflective();
+        PathContext {
+            scene,
+            sun,
+            depth: settings.depth.max(1),
+            sampler: settings.sampler,
+            indirect,
+            roulette: settings.roulette,
+            sun_shadow: scene.sun_shadow.get(&scene.mesh, sun),
+        }
+    }
+
+    /// Whether anything blocks `ray` (a shadow ray): through the sun structure when the ray
+    /// runs along `sun`, otherwise through the BVH; the same answer either way.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        match self.sun_shadow.as_ref().and_then(|s| s.occluded(ray)) {
+            Some(b) => b,
+            None => self.scene.accel.occluded(ray),
+        }
+    }
+
+    /// [`PathContext::occluded`] for up to eight shadow rays toward the sun at once (bit
+    /// `i`: ray `i` is blocked); the same answers.
+    #[inline]
+    pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
+        if self.sun_shadow.is_some() {
+            return crate::render::geometry::shadow_packet::one_by_one(rays, |r| self.occluded(r));
+        }
+        self.scene.accel.occluded_packet(rays)
+    }
+
+    /// Offset that moves a hit point off its surface: scaled to the coordinates' magnitude
+    /// (f32 intersection error grows with it) and to the target's size.
+    #[inline]
+    fn offset(&self, p: Vec3) -> f32 {
+        2e-5 * (p.abs().max_element() + self.scene.bounds.radius as f32 * 0.1)
+    }
+
+    /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻²: one path, traced to
+    /// the end. The tile renderer (`crate::render`) runs the same steps wave by wave.
+    #[inline]
+    pub fn radiance<L: RayLog, S: SampleSource>(
+        &self,
+        mut ray: Ray,
+        rng: &mut S,
+        counts: &mut RayCounts,
+        log: &mut L,
+    ) -> f32 {
+        let scene = self.scene;
+        let mut l = 0.0f32;
+        let mut beta = 1.0f32;
+        for bounce in 0..self.depth {
+            if bounce == 0 {
+                counts.primary += 1;
+            } else {
+                counts.bounce += 1;
+            }
+            log.closest(&ray);
+            let Some(hit) = scene.accel.intersect(&ray) else {
+                l += beta * scene.background;
+                break;
+            };
+            let sc = self.scatter(&ray, &hit, beta, bounce, rng);
+            if let Some((shadow, contribution)) = sc.shadow {
+                counts.shadow += 1;
+                log.shadow(&shadow);
+                if !self.occluded(&shadow) {
+                    l += contribution;
+                }
+            }
+            match sc.next {
+                Some((next, b)) => (ray, beta) = (next, b),
+                None => break,
+            }
+        }
+        l
+    }
+
+    /// One surface interaction of a path with throughput `beta` arriving along `ray`:
+    /// the shadow ray toward the sun with the radiance it adds if unoccluded (next-event
+    /// estimation: the sun is a delta light, so this is the whole direct estimate), and
+    /// the path's next ray and throughput, if it goes on.
+    #[inline(always)]
+    pub fn scatter<S: SampleSource>(&self, ray: &Ray, hit: &Hit, beta: f32, bounce: u32, rng: &mut S) -> Scatter {
+        let wo = -ray.dir;
+        let mut n = hit.normal;
+        if n.dot(wo) < 0.0 {
+            n = -n;
+        }
+        let bsdf = &self.scene.materials[hit.material as usize].bsdf;
+        let p = ray.origin + ray.dir * hit.t;
+        let origin = p + n * self.offset(p);
+        let frame = Frame::from_normal(n);
+        let wo_l = frame.to_local(wo);
+
+        let mut shadow = None;
+        if n.dot(self.sun) > 0.0 {
+            let f_cos = bsdf.eval_cos(wo_l, frame.to_local(self.sun));
+            if f_cos > 0.0 {
+                let ray = Ray { origin, dir: self.sun, tmax: f32::INFINITY };
+                shadow = Some((ray, beta * f_cos * self.scene.sun_irradiance));
+            }
+        }
+        if !self.indirect || bounce + 1 == self.depth || bsdf.is_black() {
+            return Scatter { shadow, next: None };
+        }
+        let u = rng.next_2d();
+        let (wi_l, weight) = match self.sampler {
+            SamplerKind::Uniform => {
+                let wi = uniform_hemisphere(u);
+                (wi, bsdf.eval_cos(wo_l, wi) / UNIFORM_HEMISPHERE_PDF)
+            }
+            SamplerKind::Cosine => {
+                let wi = cosine_hemisphere(u);
+                (wi, bsdf.cosine_weight(wo_l, wi))
+            }
+            SamplerKind::Brdf => match bsdf.sample(wo_l, u, rng.next_1d()) {
+                Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
+                _ => return Scatter { shadow, next: None },
+            },
+        };
+        let mut beta = beta * weight;
+        if beta <= 0.0 || !beta.is_finite() {
+            return Scatter { shadow, next: None };
+        }
+        // Russian roulette from the second indirect bounce on: a path whose throughput
+        // fell below 1 survives with probability `beta` and carries 1 afterwards —
+        // unbiased, and low-throughput paths stop costing rays.
+        if self.roulette && bounce >= 1 && beta < 1.0 {
+            if rng.next_1d() >= beta {
+                return Scatter { shadow, next: None };
+            }
+            beta = 1.0;
+        }
+        Scatter { shadow, next: Some((Ray { origin, dir: frame.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
+    }
+}

@@ -1,0 +1,522 @@
+//! The frame loop: (scene, camera, pose, settings, frame index) → radiance image.
+//!
+//! Synchronous and pure; rayon parallelises over bands of rows, each band is traced tile
+//! by tile in waves (`tile`). Only pixels whose area can see the target's bounds are
+//! sampled (per-row spans, `camera::Silhouette`; the rest get the background radiance
+//! without any work), so a far, small target costs in proportion to the pixels it
+//! covers. Every random
+//! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
+//! whatever the thread count.
+
+use crate::pose::Pose;
+use crate::render::camera::{CameraModel, PixelRect, Silhouette, View};
+use crate::render::film::RadianceImage;
+use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
+use crate::render::sampling::{PerSample, Sequence};
+use crate::scene::Scene;
+use adaptive::Adaptive;
+pub use buffers::FrameBuffers;
+use buffers::{WorkerScratch, Workers};
+use tile::{CameraSample, TILE_PATHS, TileJob};
+
+pub mod adaptive;
+pub mod bsdf;
+mod buffers;
+pub mod camera;
+pub mod coverage;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+mod lens_coverage;
+pub mod sampling;
+mod tile;
+pub mod visibility;
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+/// What a frame cost.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RenderStats {
+    pub time: Duration,
+    pub rays: RayCounts,
+    /// Pixels sampled: inside the traced rectangle and the bounding sphere's image (0 when
+    /// the target is out of view).
+    pub traced_pixels: u64,
+    pub rect: Option<PixelRect>,
+    /// True when the primary hits were rasterised (`visibility`), false when traced.
+    pub primary_rasterised: bool,
+    /// Camera samples traced (`spp` × traced pixels on average; per pixel it varies
+    /// when sampling is adaptive).
+    pub samples: u64,
+}
+
+/// How primary hits are found. Both give the same hits (see `visibility`,
+/// `geometry::closest_packet`); both skip the pixels that cannot see a triangle
+/// (`coverage`), each by its own conservative rule, so a uniform frame has the same bytes
+/// either way, and an adaptive one (whose budget is spp × sampled pixels) nearly so.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PrimaryVisibility {
+    /// Trace where the tree walks neighbouring primary rays eight at a time (8-wide tree,
+    /// AVX2: faster than rasterising); else rasterise when that is exact and pays (enough
+    /// camera samples per triangle), else trace.
+    #[default]
+    Auto,
+    /// Rasterise whenever that is exact.
+    Raster,
+    /// Trace every primary ray through the BVH (in packets of eight where the tree can).
+    Trace,
+}
+
+impl RenderStats {
+    pub fn mrays_per_s(&self) -> f64 {
+        self.rays.total() as f64 / self.time.as_secs_f64().max(1e-12) / 1e6
+    }
+}
+
+/// Render one frame through an already placed view (e.g. with lens distortion).
+pub fn render_view(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats) {
+    let (img, stats, _) = render_view_logged::<()>(scene, camera, view, settings, frame);
+    (img, stats)
+}
+
+/// Render one frame.
+pub fn render(
+    scene: &Scene,
+    camera: &CameraModel,
+    pose: &Pose,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats) {
+    let (img, stats, _) = render_logged::<()>(scene, camera, pose, settings, frame);
+    (img, stats)
+}
+
+/// Render one frame and hand every traced ray to a per-row `L` (benchmarks).
+pub fn render_logged<L: RayLog + Default + Send + Sync>(
+    scene: &Scene,
+    camera: &CameraModel,
+    pose: &Pose,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats, Vec<L>) {
+    let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
+    render_view_logged(scene, camera, &view, settings, frame)
+}
+
+fn render_view_logged<L: RayLog + Default + Send + Sync>(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats, Vec<L>) {
+    render_view_with(scene, camera, view, settings, frame, PrimaryVisibility::default())
+}
+
+/// Render one frame through `view`, choosing how primary hits are found, and hand every
+/// traced ray to a per-band `L` (benchmarks and tests).
+pub fn render_view_with<L: RayLog + Default + Send + Sync>(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+    primary: PrimaryVisibility,
+) -> (RadianceImage, RenderStats, Vec<L>) {
+    let mut buffers = FrameBuffers::default();
+    let (stats, logs) = render_view_impl(&mut buffers, scene, camera, view, settings, frame, primary, None);
+    (buffers.take_image(), stats, logs)
+}
+
+/// [`render_view_with`] into reused buffers: the image is `buffers.image()`. Once the
+/// buffers have grown to the frame's size this allocates nothing (the loop of `hilcam
+/// serve` and replay, through `FramePipeline`).
+pub fn render_view_into<L: RayLog + Default + Send + Sync>(
+    buffers: &mut FrameBuffers<L>,
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+    primary: PrimaryVisibility,
+) -> (RenderStats, Vec<L>) {
+    render_view_impl(buffers, scene, camera, view, settings, frame, primary, None)
+}
+
+/// Render one frame through `view` and say how many camera samples each pixel got
+/// (row-major, 0 where none was needed): with adaptive sampling, where the budget went.
+pub fn render_view_counted(
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+) -> (RadianceImage, RenderStats, Vec<u32>) {
+    let mut counts = vec![0; camera.width as usize * camera.height as usize];
+    let mut buffers = FrameBuffers::<()>::default();
+    let (stats, _) = render_view_impl(
+        &mut buffers,
+        scene,
+        camera,
+        view,
+        settings,
+        frame,
+        PrimaryVisibility::default(),
+        Some(&mut counts),
+    );
+    (buffers.take_image(), stats, counts)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_view_impl<L: RayLog + Default + Send + Sync>(
+    buffers: &mut FrameBuffers<L>,
+    scene: &Scene,
+    camera: &CameraModel,
+    view: &View,
+    settings: &RenderSettings,
+    frame: u64,
+    primary: PrimaryVisibility,
+    mut counts: Option<&mut Vec<u32>>,
+) -> (RenderStats, Vec<L>) {
+    let t0 = Instant::now();
+    buffers.reset_image(camera.width, camera.height, scene.background);
+    let FrameBuffers {
+        image: img,
+        written_rows,
+        fill: _,
+        raster: raster_buffers,
+        coverage: box_coverage,
+        bands: band_buffers,
+        stat,
+        silhouette: spans,
+        sobol,
+        independent,
+    } = buffers;
+    let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
+    let mut rays = RayCounts::default();
+    let mut logs = Vec::new();
+    let mut traced = 0u64;
+    let mut samples = 0u64;
+    let mut primary_rasterised = false;
+    if let Some(rect) = rect {
+        let ctx = PathContext::new(scene, view.sun, settings);
+        let silhouette = Silhouette::new_reusing(view, spans);
+        // Columns of a row that can see the target's bounds; the rest keep the background
+        // without costing a sample.
+        let span = |row: u32| -> (u32, u32) {
+            match &silhouette {
+                Some(s) => s.columns(row).map_or((0, 0), |(a, b)| (a.max(rect.col0), b.min(rect.col1))),
+                None => (rect.col0, rect.col1),
+            }
+        };
+        // Rasterising costs a pass over every triangle per frame (projection, binning) and
+        // saves part of each camera sample's traversal: with single-ray walks it paid from
+        // about two samples per triangle on (`hilcam bench render`, "primary hits").
+        // Neighbouring primary rays walked eight at a time (`Accel::intersect_packet`) cost
+        // less than the rasteriser's per-sample work alone, so where the tree walks
+        // packets, primary rays are traced (docs/performance.md).
+        let planned = (rect.row0..rect.row1)
+            .map(|r| {
+                let (a, b) = span(r);
+                u64::from(b.saturating_sub(a))
+            })
+            .sum::<u64>() as f64
+            * settings.spp.get();
+        let pays = planned >= (RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64) as f64;
+        let rasterise = match primary {
+            PrimaryVisibility::Auto => pays && !scene.accel.walks_packets(),
+            PrimaryVisibility::Raster => true,
+            PrimaryVisibility::Trace => false,
+        };
+        primary_rasterised = rasterise && raster_buffers.rebuild(scene, view, rect);
+        // Traced frames skip the pixels no leaf box projects onto.
+        let coverage = if primary_rasterised {
+            Some(&raster_buffers.coverage)
+        } else {
+            box_coverage.from_leaf_boxes(scene, view, rect).then_some(&*box_coverage)
+        };
+        let job = TileJob {
+            view,
+            ctx: &ctx,
+            raster: primary_rasterised.then_some(&*raster_buffers),
+            coverage,
+            seed: settings.seed,
+            frame,
+            width: camera.width as usize,
+        };
+        let spp = settings.spp.floor();
+        let adaptive = Adaptive::new(settings.spp, settings.adaptive);
+        let n_bands = (rect.row1 as usize).saturating_sub(rect.row0 as usize).div_ceil(BAND_ROWS);
+        if band_buffers.len() < n_bands {
+            band_buffers.resize_with(n_bands, Band::default);
+        }
+        let bands = &mut band_buffers[..n_bands];
+        *written_rows = rect.row0 as usize..rect.row1 as usize;
+        let frame_buffers = FrameParts { img, bands, stat };
+        match settings.sequence {
+            Sequence::Independent => render_bands(&job, frame_buffers, independent, rect, &span, spp, adaptive),
+            Sequence::Sobol => render_bands(&job, frame_buffers, sobol, rect, &span, spp, adaptive),
+        }
+        for band in band_buffers[..n_bands].iter_mut() {
+            rays.add(&band.rays);
+            traced += band.pixels.len() as u64;
+            samples += band.counts.iter().map(|&n| u64::from(n)).sum::<u64>();
+            if let Some(counts) = counts.as_deref_mut() {
+                for (&(row, col), &n) in band.pixels.iter().zip(&band.counts) {
+                    counts[row as usize * job.width + col as usize] = n;
+                }
+            }
+            logs.push(std::mem::take(&mut band.log));
+        }
+        if let Some(s) = silhouette {
+            s.recycle(spans);
+        }
+        if rays.nonfinite > 0 {
+            tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
+        }
+    }
+    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples };
+    (stats, logs)
+}
+
+/// Camera samples per triangle from which primary hits are rasterised rather than traced.
+const RASTER_SAMPLES_PER_TRIANGLE: u64 = 2;
+
+/// Rows per band: a band is one rayon task; its pixels are cut into tiles of a few
+/// columns × all its rows, so a tile is compact on the image.
+const BAND_ROWS: usize = 8;
+
+/// Camera samples traced in one call in the adaptive stage (bounds its buffers).
+const PASS_SAMPLES: usize = 16 * 1024;
+
+/// One band of rows during a frame: its pixels and their running sums. Its buffers are
+/// kept from frame to frame ([`FrameBuffers`]).
+pub(crate) struct Band<L> {
+    first_row: usize,
+    /// Pixels in tile order: blocks of `tile_cols` columns × all rows.
+    pixels: Vec<(u32, u32)>,
+    sums: Vec<f32>,
+    /// Pilot sums of squares (adaptive frames only).
+    sum_sq: Vec<f32>,
+    /// Samples per pixel.
+    counts: Vec<u32>,
+    /// Adaptive stage: each pixel's weight and frame pixel index.
+    weight: Vec<f32>,
+    index: Vec<u64>,
+    rays: RayCounts,
+    log: L,
+}
+
+impl<L: Default> Default for Band<L> {
+    fn default() -> Self {
+        Band {
+            first_row: 0,
+            pixels: Vec::new(),
+            sums: Vec::new(),
+            sum_sq: Vec::new(),
+            counts: Vec::new(),
+            weight: Vec::new(),
+            index: Vec::new(),
+            rays: RayCounts::default(),
+            log: L::default(),
+        }
+    }
+}
+
+/// The parts of [`FrameBuffers`] the bands write.
+struct FrameParts<'a, L> {
+    img: &'a mut RadianceImage,
+    bands: &'a mut [Band<L>],
+    stat: &'a mut Vec<[f32; 2]>,
+}
+
+impl<L> Band<L> {
+    /// Add sample value `v` to pixel `i` (and its square, in the pilot of an adaptive
+    /// frame); a non-finite value is dropped and counted.
+    fn add_sample(&mut self, i: usize, v: f32, square: bool) {
+        if !v.is_finite() {
+            self.rays.nonfinite += 1;
+            return;
+        }
+        self.sums[i] += v;
+        if square {
+            self.sum_sq[i] += v * v;
+        }
+    }
+}
+
+/// Render the rectangle's rows band by band (rayon over bands), each band pass by pass:
+/// `spp` samples in every pixel, or (`adaptive`) a pilot in every pixel and the rest of
+/// the budget where the pilot saw variance (or, `uniform`, evenly).
+fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
+    job: &TileJob,
+    parts: FrameParts<L>,
+    workers: &mut Workers<S>,
+    rect: PixelRect,
+    span: &(dyn Fn(u32) -> (u32, u32) + Sync),
+    spp: u32,
+    adaptive: Option<Adaptive>,
+) {
+    let FrameParts { img, bands, stat } = parts;
+    let w = job.width;
+    let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
+    let first_stage = adaptive.map_or(spp, |a| a.pilot);
+    let squares = adaptive.is_some_and(|a| !a.uniform);
+    workers.ensure();
+    let shared = &*workers;
+    bands.par_iter_mut().enumerate().for_each(|(b, band)| {
+        shared.with(|WorkerScratch { tile, pass, .. }| {
+            let first_row = row0 + b * BAND_ROWS;
+            let rows = first_row as u32..(first_row + BAND_ROWS).min(row1) as u32;
+            band.first_row = first_row;
+            band_pixels(job, rows, span, &mut band.pixels);
+            let n = band.pixels.len();
+            band.sums.clear();
+            band.sums.resize(n, 0.0);
+            band.sum_sq.clear();
+            if squares {
+                band.sum_sq.resize(n, 0.0);
+            }
+            band.counts.clear();
+            band.counts.resize(n, first_stage);
+            band.rays = RayCounts::default();
+            band.log = L::default();
+            for s in 0..first_stage {
+                pass.clear();
+                pass.extend(band.pixels.iter().map(|&(row, col)| CameraSample { row, col, index: s }));
+                let values = job.trace_pass(pass, tile, &mut band.rays, &mut band.log);
+                for (i, &v) in values.iter().enumerate() {
+                    band.add_sample(i, v, squares);
+                }
+            }
+        })
+    });
+    if let Some(plan) = adaptive {
+        add_adaptive_samples::<S, L>(job, bands, shared, stat, plan, img.height as usize);
+    }
+    workers.equalise();
+    img.data[row0 * w..row1 * w].par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
+        for ((&(row, col), &sum), &n) in band.pixels.iter().zip(&band.sums).zip(&band.counts) {
+            out[(row as usize - band.first_row) * w + col as usize] = sum * (1.0 / n as f32);
+        }
+    });
+}
+
+/// The second stage of an adaptive frame: share out the rest of the budget by what the
+/// pilot saw around each pixel (`adaptive`) and trace those samples.
+fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
+    job: &TileJob,
+    bands: &mut [Band<L>],
+    workers: &Workers<S>,
+    stat: &mut Vec<[f32; 2]>,
+    plan: Adaptive,
+    height: usize,
+) {
+    let w = job.width;
+    if plan.uniform {
+        // An even share of a fraction: no pilot statistics to read.
+        bands.par_iter_mut().for_each(|b| {
+            b.weight.clear();
+            b.weight.resize(b.pixels.len(), 0.0);
+        });
+    } else {
+        pilot_weights(job, bands, stat, plan, height);
+    }
+    let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
+    bands.par_iter_mut().for_each(|band| {
+        workers.with(|WorkerScratch { tile, pass, owner }| {
+            band.index.clear();
+            band.index.extend(band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)));
+            plan.counts_into(&shares, &band.weight, &band.index, job.seed, job.frame, &mut band.counts);
+            // Pixel by pixel (in the band's tile order), each pixel's extra samples one after
+            // the other: a packet of neighbouring paths is then mostly one pixel's, whose
+            // rays start together, and each pixel's samples are summed in index order.
+            pass.clear();
+            owner.clear();
+            for (i, (&(row, col), &n)) in band.pixels.iter().zip(&band.counts).enumerate() {
+                for s in plan.pilot..n {
+                    pass.push(CameraSample { row, col, index: s });
+                    owner.push(i as u32);
+                }
+            }
+            for (chunk, owners) in pass.chunks(PASS_SAMPLES).zip(owner.chunks(PASS_SAMPLES)) {
+                let values = job.trace_pass(chunk, tile, &mut band.rays, &mut band.log);
+                for (&i, &v) in owners.iter().zip(values) {
+                    band.add_sample(i as usize, v, false);
+                }
+            }
+        })
+    });
+}
+
+/// Each sampled pixel's weight for the second stage, from the pilot statistics of its
+/// neighbours (`Adaptive::weight`), into `band.weight`.
+fn pilot_weights<L: Send + Sync>(
+    job: &TileJob,
+    bands: &mut [Band<L>],
+    stat: &mut Vec<[f32; 2]>,
+    plan: Adaptive,
+    height: usize,
+) {
+    let w = job.width;
+    // The statistics of the sampled rows and the row on either side (what the weights
+    // read), not of the whole frame: the rest is background and is never read.
+    let first = bands.first().map_or(0, |b| b.first_row);
+    let (base, end) = (first.saturating_sub(1), (first + bands.len() * BAND_ROWS + 1).min(height));
+    let background = plan.background_statistic(job.ctx.scene.background);
+    // Every entry is written below; resizing keeps last frame's values only to overwrite
+    // them. The row on either side of the bands is background.
+    stat.resize((end - base) * w, background);
+    let inside = (first - base) * w..((first + bands.len() * BAND_ROWS).min(end) - base) * w;
+    stat[..inside.start].fill(background);
+    stat[inside.end..].fill(background);
+    // Bands own disjoint rows: each clears and writes its own while they are in cache
+    // (one pass over the statistics instead of a frame-wide fill and then a scatter).
+    stat[inside].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).for_each(|(mine, band)| {
+        mine.fill(background);
+        for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
+            mine[(row as usize - band.first_row) * w + col as usize] = plan.statistic(sum, sq);
+        }
+    });
+    let (stat, rows) = (&*stat, end - base);
+    bands.par_iter_mut().for_each(|b| {
+        b.weight.clear();
+        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, rows, r as usize - base, c as usize)));
+    });
+}
+
+/// A band's pixels that may see the target, in tile order: blocks of about
+/// `TILE_PATHS / BAND_ROWS` columns × all the band's rows, so a tile is compact.
+fn band_pixels(
+    job: &TileJob,
+    rows: std::ops::Range<u32>,
+    span: &(dyn Fn(u32) -> (u32, u32) + Sync),
+    pixels: &mut Vec<(u32, u32)>,
+) {
+    let tile_cols = (TILE_PATHS / BAND_ROWS).max(1) as u32;
+    let mut spans = [(0u32, 0u32); BAND_ROWS];
+    for (s, row) in spans.iter_mut().zip(rows.clone()) {
+        *s = span(row);
+    }
+    let spans = &spans[..rows.len()];
+    pixels.clear();
+    let c_min = spans.iter().filter(|s| s.0 < s.1).map(|s| s.0).min().unwrap_or(0);
+    let c_max = spans.iter().filter(|s| s.0 < s.1).map(|s| s.1).max().unwrap_or(0);
+    for c0 in (c_min..c_max).step_by(tile_cols as usize) {
+        let c1 = (c0 + tile_cols).min(c_max);
+        for (row, &(a, b)) in rows.clone().zip(spans) {
+            let cols = a.max(c0)..b.min(c1);
+            match job.coverage {
+                Some(c) => pixels.extend(cols.filter(|&col| c.may_hit(row, col)).map(|col| (row, col))),
+                None => pixels.extend(cols.map(|col| (row, col))),
+            }
+        }
+    }
+}

@@ -1,0 +1,543 @@
+//! Offline replay: every pose of a trajectory rendered through [`FramePipeline`] to image
+//! files plus one JSON line per frame ([`FrameRecord`], the recorder's format).
+//!
+//! - Frame index = pose seq = trajectory row index, so replayed frame k is exactly
+//!   `FramePipeline::frame(&samples[k].to_pose(k), settings, k)`: the same payload bytes
+//!   (and CRC) as the live frame from a fresh pipeline fed the same poses in order.
+//! - Resumable: each image is written under a temporary name and renamed
+//!   ([`crate::render::film::write_file_atomically`]), then its line is appended whole
+//!   ([`crate::sink::line_log`]); on start the done set is rebuilt from every
+//!   `frames*.jsonl` in the directory (a truncated last line is tolerated, and cut from
+//!   our own log). A full disk stops the run with [`ReplayError::DiskFull`] and leaves
+//!   no partial file; a stop request ([`replay_jobs_until`], the CLI's SIGINT/SIGTERM/
+//!   SIGHUP) ends it after the frame in hand with [`ReplayError::Interrupted`]. Either
+//!   way the same command resumes.
+//! - Sharding: shard K/N renders the selected frames whose position j has j mod N = K,
+//!   logging to `frames.shard-K-of-N.jsonl`; [`merge`] combines the logs.
+//! - Auto-exposure carries state from frame to frame, so a shard, a resumed run or
+//!   `every > 1` would not see the live exposure history: [`replay`] refuses them unless
+//!   the integration time is pinned ([`pin_integration_time`]).
+//! - Sessions: [`replay_jobs`] renders any list of [`FrameJob`]s — a recorded `serve`
+//!   session's frames ([`crate::session::frame_jobs`]) with their own poses, settings and
+//!   indices, each checked against the CRC that was streamed.
+//! - The directory's [`manifest`] pins scene, size and settings: a resume with others is refused.
+
+use crate::frame::{FrameFlags, FrameMeta, unix_ns_now};
+use crate::pipeline::FramePipeline;
+use crate::pose::trajectory::TrajectorySample;
+use crate::render::integrator::RenderSettings;
+use crate::scene::Scene;
+use crate::sensor::SensorError;
+use crate::sink::line_log::LineLog;
+use crate::sink::recorder::{FrameRecord, ImageFormat, frame_file_name, write_frame_image};
+use std::collections::{BTreeMap, HashSet};
+use std::path::{Path, PathBuf};
+
+/// Name of an unsharded replay's metadata log (the recorder's name).
+pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
+
+pub mod manifest;
+
+/// Errors of replay, sharding and merging; each names the file, line or variable.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}:{line}: not a frame record: {msg}")]
+    BadLine { path: PathBuf, line: usize, msg: String },
+    #[error("shard `{0}`: expected K/N with 0 ≤ K < N (e.g. 3/16)")]
+    BadShard(String),
+    #[error("environment variable {var}: {msg}")]
+    Env { var: &'static str, msg: String },
+    #[error(
+        "the sensor has auto-exposure, whose state runs from frame to frame; {what} would not reproduce the live \
+         exposures. Pin the integration time (--integration-s SECONDS) or render all frames in one run"
+    )]
+    AutoExposure { what: String },
+    #[error("--integration-s: the sensor has no [sensor.detector], so there is no integration time to pin")]
+    NoDetector,
+    #[error("--integration-s {0}: must be positive and finite")]
+    BadIntegration(f64),
+    #[error("--every must be ≥ 1")]
+    BadEvery,
+    #[error("{path}:{line}: frame {frame} was rendered at {found}, this run renders {expected}; use another --out")]
+    Mismatch { path: PathBuf, line: usize, frame: u64, found: String, expected: String },
+    #[error(
+        "{dir}: was rendered with {field} = {found}, this run has {field} = {expected}; resume with the same \
+         settings, use another --out, or delete {dir}/{} to accept",
+        manifest::MANIFEST_NAME
+    )]
+    ManifestMismatch { dir: PathBuf, field: &'static str, found: String, expected: String },
+    #[error("{path}: not a replay manifest: {msg}")]
+    BadManifest { path: PathBuf, msg: String },
+    #[error(
+        "frame {frame}: the re-rendered payload has CRC-32 {got:08x}, the session streamed {expected:08x}: the \
+         scene, camera or hilcam version differs from the live run (--no-verify writes the frames anyway)"
+    )]
+    NotIdentical { frame: u64, expected: u32, got: u32 },
+    #[error("frame {frame}: {source}")]
+    Sensor { frame: u64, source: SensorError },
+    #[error("frame {frame}: {path}: {msg}")]
+    Image { frame: u64, path: PathBuf, msg: String },
+    #[error(
+        "{dir}: disk full: frame {frame} ({file}) could not be written ({msg}); {done} of {selected} frames are \
+         complete there, none partial: free space and run the same command again to resume"
+    )]
+    DiskFull { dir: PathBuf, frame: u64, file: String, msg: String, done: u64, selected: u64 },
+    #[error(
+        "stopped by {signal}: {done} of {selected} frames are complete in {dir}{}; run the same command again to \
+         resume",
+        .last.map_or(String::new(), |k| format!(" (the last written: frame {k})"))
+    )]
+    Interrupted { signal: String, dir: PathBuf, done: u64, selected: u64, last: Option<u64> },
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReplayError + '_ {
+    move |source| ReplayError::Io { path: path.to_path_buf(), source }
+}
+
+/// Which of the selected frames this process renders: those at positions j ≡ index (mod count).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+/// Kubernetes Indexed Jobs give the index only; the shard count comes from this variable.
+pub const K8S_COUNT_VAR: &str = "HILCAM_SHARD_COUNT";
+
+impl Shard {
+    /// The whole job in one process.
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    /// Parse `K/N`.
+    pub fn parse(s: &str) -> Result<Shard, ReplayError> {
+        let bad = || ReplayError::BadShard(s.to_string());
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (k.trim().parse::<u64>().map_err(|_| bad())?, n.trim().parse::<u64>().map_err(|_| bad())?);
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The shard of a Slurm job array task (`SLURM_ARRAY_TASK_ID` − `SLURM_ARRAY_TASK_MIN`
+    /// of `SLURM_ARRAY_TASK_COUNT`; the array must be contiguous, step 1) or of a
+    /// Kubernetes Indexed Job pod (`JOB_COMPLETION_INDEX` of [`K8S_COUNT_VAR`]); `None`
+    /// when neither is set. `get` reads a variable (`std::env::var(..).ok()` in the CLI).
+    pub fn from_env(get: impl Fn(&str) -> Option<String>) -> Result<Option<Shard>, ReplayError> {
+        let num = |var: &'static str, required: bool| -> Result<Option<u64>, ReplayError> {
+            match get(var) {
+                None if required => Err(ReplayError::Env { var, msg: "not set".into() }),
+                None => Ok(None),
+                Some(v) => v
+                    .trim()
+                    .parse::<u64>()
+                    .map(Some)
+                    .map_err(|_| ReplayError::Env { var, msg: format!("`{v}` is not a non-negative integer") }),
+            }
+        };
+        if let Some(id) = num("SLURM_ARRAY_TASK_ID", false)? {
+            let count = num("SLURM_ARRAY_TASK_COUNT", true)?.unwrap_or(0);
+            let min = num("SLURM_ARRAY_TASK_MIN", false)?.unwrap_or(0);
+            if let Some(step) = num("SLURM_ARRAY_TASK_STEP", false)?.filter(|s| *s != 1) {
+                return Err(ReplayError::Env {
+                    var: "SLURM_ARRAY_TASK_STEP",
+                    msg: format!("is {step}; use a contiguous array (--array=0-{})", count.saturating_sub(1)),
+                });
+            }
+            if count == 0 {
+                return Err(ReplayError::Env { var: "SLURM_ARRAY_TASK_COUNT", msg: "is 0".into() });
+            }
+            let index = id.checked_sub(min).filter(|i| *i < count).ok_or_else(|| ReplayError::Env {
+                var: "SLURM_ARRAY_TASK_ID",
+                msg: format!("{id} is outside SLURM_ARRAY_TASK_MIN {min} .. MIN + SLURM_ARRAY_TASK_COUNT {count}"),
+            })?;
+            return Ok(Some(Shard { index, count }));
+        }
+        if let Some(index) = num("JOB_COMPLETION_INDEX", false)? {
+            let count = num(K8S_COUNT_VAR, true)?.unwrap_or(0);
+            if index >= count {
+                return Err(ReplayError::Env {
+                    var: "JOB_COMPLETION_INDEX",
+                    msg: format!("{index} must be below {K8S_COUNT_VAR} = {count} (set it to the Job's completions)"),
+                });
+            }
+            return Ok(Some(Shard { index, count }));
+        }
+        Ok(None)
+    }
+
+    /// Metadata log of this shard: `frames.jsonl`, or `frames.shard-K-of-N.jsonl`.
+    pub fn log_name(&self) -> String {
+        if self.count == 1 {
+            LOG_NAME.to_string()
+        } else {
+            format!("frames.shard-{}-of-{}.jsonl", self.index, self.count)
+        }
+    }
+}
+
+/// The frame indices a run renders, in order: every `every`-th row, then this shard's share.
+pub fn select_frames(n_rows: u64, every: u64, shard: Shard) -> Vec<u64> {
+    (0..n_rows)
+        .step_by(every.max(1) as usize)
+        .enumerate()
+        .filter(|(j, _)| *j as u64 % shard.count == shard.index)
+        .map(|(_, k)| k)
+        .collect()
+}
+
+/// Pin the scene's sensor to a fixed integration time and switch auto-exposure off, so
+/// any subset of frames renders independently of the others.
+pub fn pin_integration_time(scene: &mut Scene, seconds: f64) -> Result<(), ReplayError> {
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(ReplayError::BadIntegration(seconds));
+    }
+    let det = scene.sensor.detector.as_mut().ok_or(ReplayError::NoDetector)?;
+    det.integration_time_s = seconds;
+    scene.sensor.auto_exposure = None;
+    Ok(())
+}
+
+/// What to render and where.
+#[derive(Clone, Debug)]
+pub struct ReplayConfig {
+    pub out_dir: PathBuf,
+    pub format: ImageFormat,
+    pub settings: RenderSettings,
+    /// Render every `every`-th trajectory row (≥ 1).
+    pub every: u64,
+    pub shard: Shard,
+    /// What the poses come from (trajectory or session file), for the manifest.
+    pub source: String,
+    /// Which scene (path and content checksum), for the manifest.
+    pub scene: String,
+}
+
+/// Progress after each frame (rendered or skipped).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReplayStats {
+    /// Frames this run is responsible for.
+    pub selected: u64,
+    /// Rendered by this run.
+    pub rendered: u64,
+    /// Already done in the directory (resume).
+    pub skipped: u64,
+    /// Truncated trailing lines ignored while reading the logs.
+    pub truncated_lines: u64,
+}
+
+/// A frame log entry read back, with where it came from.
+struct Done {
+    rec: FrameRecord,
+    path: PathBuf,
+    line: usize,
+}
+
+/// All `frames*.jsonl` logs in `dir`, sorted by name.
+pub fn log_files(dir: &Path) -> Result<Vec<PathBuf>, ReplayError> {
+    let mut v = Vec::new();
+    let rd = match std::fs::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(v),
+        Err(e) => return Err(ReplayError::Io { path: dir.to_path_buf(), source: e }),
+    };
+    for e in rd {
+        let p = e.map_err(io(dir))?.path();
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.starts_with("frames") && name.ends_with(".jsonl") {
+            v.push(p);
+        }
+    }
+    v.sort();
+    Ok(v)
+}
+
+/// Parse a log. A last line without its newline that does not parse is a write cut short
+/// by a kill: it is skipped and counted; any other bad line is an error.
+fn read_log(path: &Path, truncated: &mut u64) -> Result<Vec<Done>, ReplayError> {
+    let text = std::fs::read_to_string(path).map_err(io(path))?;
+    let mut out = Vec::new();
+    let complete = text.ends_with('\n');
+    let lines: Vec<&str> = text.lines().collect();
+    for (i, l) in lines.iter().enumerate() {
+        if l.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<FrameRecord>(l) {
+            Ok(rec) => out.push(Done { rec, path: path.to_path_buf(), line: i + 1 }),
+            Err(_) if i + 1 == lines.len() && !complete => {
+                *truncated += 1;
+                tracing::warn!(file = %path.display(), line = i + 1, "ignoring a truncated last line");
+            }
+            Err(e) => return Err(ReplayError::BadLine { path: path.to_path_buf(), line: i + 1, msg: e.to_string() }),
+        }
+    }
+    Ok(out)
+}
+
+/// Cut a log back to its last newline so that appended lines start on a line of their own.
+fn trim_partial_line(path: &Path) -> Result<(), ReplayError> {
+    let Ok(bytes) = std::fs::read(path) else { return Ok(()) };
+    if bytes.is_empty() || bytes.ends_with(b"\n") {
+        return Ok(());
+    }
+    let keep = bytes.iter().rposition(|b| *b == b'\n').map_or(0, |p| p + 1);
+    let f = std::fs::OpenOptions::new().write(true).open(path).map_err(io(path))?;
+    f.set_len(keep as u64).map_err(io(path))
+}
+
+/// The frames already complete in `dir`: a log line whose image file exists and is not
+/// empty. A line rendered at another size or quality than this run gives that frame
+/// (`expected(k)`) is refused.
+fn done_frames(
+    dir: &Path,
+    w: u32,
+    h: u32,
+    expected: impl Fn(u64) -> RenderSettings,
+    stats: &mut ReplayStats,
+) -> Result<HashSet<u64>, ReplayError> {
+    let mut done = HashSet::new();
+    for log in log_files(dir)? {
+        for d in read_log(&log, &mut stats.truncated_lines)? {
+            let r = &d.rec;
+            let want = expected(r.frame_seq);
+            let (found, expected) = (
+                format!("{}x{} spp {} depth {}", r.width, r.height, r.spp, r.depth),
+                format!("{w}x{h} spp {} depth {}", want.spp, want.depth),
+            );
+            if found != expected {
+                return Err(ReplayError::Mismatch { path: d.path, line: d.line, frame: r.frame_seq, found, expected });
+            }
+            let complete = std::fs::metadata(dir.join(&r.file)).is_ok_and(|m| m.len() > 0);
+            if complete {
+                done.insert(r.frame_seq);
+            }
+        }
+    }
+    Ok(done)
+}
+
+/// One frame to render: its index (frame number and random-number domain), the pose and
+/// settings to render it with, the flags to log, and optionally the payload CRC it must
+/// reproduce (a session re-render checks every frame against what was streamed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameJob {
+    pub index: u64,
+    pub pose: crate::pose::Pose,
+    pub settings: RenderSettings,
+    pub flags: FrameFlags,
+    pub expect_crc32: Option<u32>,
+}
+
+/// The jobs of a trajectory: row k is frame k with pose seq k at `settings`.
+pub fn trajectory_jobs(samples: &[TrajectorySample], settings: &RenderSettings) -> Vec<FrameJob> {
+    (0..samples.len())
+        .map(|k| FrameJob {
+            index: k as u64,
+            pose: samples[k].to_pose(k as u32),
+            settings: *settings,
+            flags: FrameFlags::default(),
+            expect_crc32: None,
+        })
+        .collect()
+}
+
+/// Render the selected frames of `samples` through `pipeline` into `cfg.out_dir`,
+/// skipping frames already done; `progress` is called after every frame.
+pub fn replay(
+    pipeline: &mut FramePipeline,
+    samples: &[TrajectorySample],
+    cfg: &ReplayConfig,
+    progress: impl FnMut(&ReplayStats),
+) -> Result<ReplayStats, ReplayError> {
+    replay_jobs(pipeline, &trajectory_jobs(samples, &cfg.settings), cfg, progress)
+}
+
+/// Render the selected `jobs` (every `cfg.every`-th, then this shard's share, by
+/// position in `jobs`) into `cfg.out_dir`, skipping frames already done. `cfg.settings`
+/// goes into the directory's manifest (a resume with other settings is refused); each
+/// frame renders with its job's own settings.
+pub fn replay_jobs(
+    pipeline: &mut FramePipeline,
+    jobs: &[FrameJob],
+    cfg: &ReplayConfig,
+    progress: impl FnMut(&ReplayStats),
+) -> Result<ReplayStats, ReplayError> {
+    replay_jobs_until(pipeline, jobs, cfg, progress, || None)
+}
+
+/// [`replay_jobs`], asking `stop` before each frame: `Some(why)` ends the run there (the
+/// frames before it are complete and logged) with [`ReplayError::Interrupted`].
+pub fn replay_jobs_until(
+    pipeline: &mut FramePipeline,
+    jobs: &[FrameJob],
+    cfg: &ReplayConfig,
+    mut progress: impl FnMut(&ReplayStats),
+    stop: impl Fn() -> Option<String>,
+) -> Result<ReplayStats, ReplayError> {
+    if cfg.every == 0 {
+        return Err(ReplayError::BadEvery);
+    }
+    let dir = &cfg.out_dir;
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let (w, h) = (pipeline.camera().width, pipeline.camera().height);
+    let manifest = manifest::ReplayManifest::new(cfg, pipeline);
+    let has_manifest = manifest::check(dir, &manifest)?;
+    let mut stats = ReplayStats::default();
+    let log_path = dir.join(cfg.shard.log_name());
+    trim_partial_line(&log_path)?;
+    let by_index: std::collections::HashMap<u64, RenderSettings> = jobs.iter().map(|j| (j.index, j.settings)).collect();
+    let done = done_frames(dir, w, h, |k| by_index.get(&k).copied().unwrap_or(cfg.settings), &mut stats)?;
+    let positions = select_frames(jobs.len() as u64, cfg.every, cfg.shard);
+    stats.selected = positions.len() as u64;
+    let todo: Vec<&FrameJob> =
+        positions.iter().map(|&j| &jobs[j as usize]).filter(|job| !done.contains(&job.index)).collect();
+    stats.skipped = stats.selected - todo.len() as u64;
+    if pipeline.sensor().auto_exposure().is_some() && !todo.is_empty() {
+        let gap = jobs.iter().enumerate().find(|(j, job)| job.index != *j as u64).map(|(j, _)| j as u64);
+        let what = if cfg.shard.count > 1 {
+            format!("shard {}/{}", cfg.shard.index, cfg.shard.count)
+        } else if cfg.every > 1 {
+            format!("--every {}", cfg.every)
+        } else if stats.skipped > 0 || todo.first().map(|j| j.index) != Some(0) {
+            format!("resuming ({} of {} frames already in {})", stats.skipped, stats.selected, dir.display())
+        } else if let Some(k) = gap {
+            format!("a frame list with frame {k} missing")
+        } else {
+            String::new()
+        };
+        if !what.is_empty() {
+            return Err(ReplayError::AutoExposure { what });
+        }
+    }
+    if !has_manifest {
+        manifest::write(dir, &manifest)?;
+    }
+    let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
+    progress(&stats);
+    let mut last = None;
+    for job in todo {
+        let k = job.index;
+        if let Some(signal) = stop() {
+            let done = stats.skipped + stats.rendered;
+            return Err(ReplayError::Interrupted { signal, dir: dir.clone(), done, selected: stats.selected, last });
+        }
+        let f =
+            pipeline.frame(&job.pose, &job.settings, k).map_err(|source| ReplayError::Sensor { frame: k, source })?;
+        let payload = f.pixels.to_le_bytes();
+        let crc = crate::frame::CRC32.checksum(&payload);
+        if let Some(want) = job.expect_crc32
+            && want != crc
+        {
+            return Err(ReplayError::NotIdentical { frame: k, expected: want, got: crc });
+        }
+        let name = frame_file_name(k, cfg.format);
+        let path = dir.join(&name);
+        let done = stats.skipped + stats.rendered;
+        let disk_full = |msg: String| ReplayError::DiskFull {
+            dir: dir.clone(),
+            frame: k,
+            file: name.clone(),
+            msg,
+            done,
+            selected: stats.selected,
+        };
+        // Whole or not at all: a failed write leaves no file behind.
+        write_frame_image(&path, f.width, f.height, &f.pixels, cfg.format).map_err(|e| match e.is_disk_full() {
+            true => disk_full(e.to_string()),
+            false => ReplayError::Image { frame: k, path: path.clone(), msg: e.to_string() },
+        })?;
+        let mut meta = frame_meta(k, &job.pose, &f.pixels, w, h, &job.settings, f.integration_s);
+        meta.flags = job.flags;
+        let line =
+            serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");
+        if let Err(e) = log.append(&line) {
+            // The log must not miss a file that is present: take the image back out.
+            let _ = std::fs::remove_file(&path);
+            let msg = format!("{}: {e}", log_path.display());
+            return Err(if crate::render::film::is_disk_full(&e) { disk_full(msg) } else { io(&log_path)(e) });
+        }
+        last = Some(k);
+        stats.rendered += 1;
+        progress(&stats);
+    }
+    Ok(stats)
+}
+
+fn frame_meta(
+    k: u64,
+    pose: &crate::pose::Pose,
+    px: &crate::render::film::Pixels,
+    width: u32,
+    height: u32,
+    s: &RenderSettings,
+    integration_s: Option<f64>,
+) -> FrameMeta {
+    let bit_depth = match px {
+        crate::render::film::Pixels::Mono8(_) => 8,
+        crate::render::film::Pixels::Mono16 { bits, .. } => *bits,
+        crate::render::film::Pixels::Float32(_) => 32,
+    };
+    FrameMeta {
+        frame_seq: k,
+        pose_seq: pose.seq,
+        pose_t_ns: pose.t_ns,
+        pose_arrival_unix_ns: 0,
+        emit_unix_ns: unix_ns_now(),
+        width,
+        height,
+        format: px.format(),
+        bit_depth,
+        spp: s.spp,
+        depth: s.depth.min(u16::MAX as u32) as u16,
+        integration_s: integration_s.unwrap_or(0.0) as f32,
+        flags: FrameFlags::default(),
+    }
+}
+
+/// What [`merge`] wrote.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergeStats {
+    pub logs: usize,
+    pub frames: u64,
+    /// Frame indices missing between 0 and the highest one present, at the stride of the
+    /// indices present (the gcd, so a `--every K` run has no gaps).
+    pub gaps: Vec<u64>,
+}
+
+/// Merge every `frames*.jsonl` in `dir` into `frames.jsonl`, one line per frame in frame
+/// order (a frame logged twice, e.g. re-rendered after its file was lost, keeps its last
+/// line). Written to a temporary file and renamed; the shard logs are left in place.
+pub fn merge(dir: &Path) -> Result<MergeStats, ReplayError> {
+    let logs = log_files(dir)?;
+    let mut truncated = 0;
+    let mut by_frame = BTreeMap::new();
+    for log in &logs {
+        for d in read_log(log, &mut truncated)? {
+            by_frame.insert(d.rec.frame_seq, d.rec);
+        }
+    }
+    let tmp = dir.join(".frames.jsonl.merge");
+    let mut text = String::new();
+    for r in by_frame.values() {
+        text.push_str(&serde_json::to_string(r).expect("FrameRecord serialises"));
+        text.push('\n');
+    }
+    std::fs::write(&tmp, text).map_err(io(&tmp))?;
+    let out = dir.join(LOG_NAME);
+    std::fs::rename(&tmp, &out).map_err(io(&out))?;
+    // The stride of a `--every K` run: the gcd of the frame indices present.
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let step = by_frame.keys().fold(0, |g, k| gcd(g, *k)).max(1);
+    let last = by_frame.keys().next_back().copied();
+    let gaps =
+        last.map_or(Vec::new(), |l| (0..l).step_by(step as usize).filter(|k| !by_frame.contains_key(k)).collect());
+    Ok(MergeStats { logs: logs.len(), frames: by_frame.len() as u64, gaps })
+}

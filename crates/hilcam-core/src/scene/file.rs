@@ -1,0 +1,492 @@
+//! The TOML scene file. Every error names the file, and where it can the line and field.
+//!
+//! ```toml
+//! [[mesh]]
+//! obj = "plate.obj"            # relative to this file
+//! translate = [0.0, 0.0, 0.0]  # body frame, metres
+//! rotate_deg = [0.0, 0.0, 0.0] # about body X, then Y, then Z (fixed axes)
+//! scale = 1.0
+//!
+//! [materials.white_paint]      # MTL material name → BRDF
+//! model = "lambert"
+//! rho = 0.522
+//!
+//! [sun]
+//! irradiance = 593.1           # W/m² in the band
+//! [background]
+//! radiance = 0.0               # W·sr⁻¹·m⁻²
+//!
+//! camera_file = "../config/cameras/nav1024.toml"   # or an inline [camera] table
+//!
+//! [pose]                       # default pose (camera frame)
+//! position = [0.0, 0.0, 10.0]
+//! attitude = [1.0, 0.0, 0.0, 0.0]   # w, x, y, z: body → camera
+//! sun = [0.0, 0.0, -1.0]            # toward the sun
+//!
+//! [[wrap]]                     # optional: wrinkle a material's faces (MLI folds)
+//! material = "mli_gold"
+//! level = "medium"             # or e_plane = 0.968, var = 0.0077
+//! edge_m = 0.02
+//!
+//! [render]
+//! spp = 4
+//! depth = 2
+//! sampler = "cosine"
+//! seed = 0
+//! bvh = "bvh8"                 # the default; or "bvh4", "bvh2", "cwbvh"
+//! ```
+
+use super::limits;
+use super::obj::load_obj;
+use super::{Material, Scene, SceneParts};
+use crate::pose::Pose;
+use crate::render::bsdf::BsdfSpec;
+use crate::render::camera::CameraModel;
+use crate::render::geometry::{BvhLayout, TriMesh};
+use crate::render::integrator::{RenderSettings, SamplerKind, Spp};
+use crate::render::sampling::Sequence;
+use crate::scene::fold::{
+    FoldLevel, FoldTarget, MAX_WRAP_TRIANGLES, fit_for_edge, fit_panel_triangle_estimate, wrap_faces_report,
+    wrap_triangle_estimate,
+};
+use crate::sensor::{CameraPreset, SensorConfig};
+use glam::{DQuat, DVec3, EulerRot};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    /// toml's message already says "at line L, column C".
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}:{line}: {field}: {message}")]
+    Field { path: PathBuf, line: usize, field: String, message: String },
+    #[error("{path}: {field}: {message}")]
+    Missing { path: PathBuf, field: String, message: String },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    mesh: Vec<MeshEntry>,
+    #[serde(default)]
+    materials: BTreeMap<String, Spanned<BsdfSpec>>,
+    #[serde(default)]
+    sun: SunSection,
+    #[serde(default)]
+    background: BackgroundSection,
+    camera: Option<Spanned<CameraModel>>,
+    camera_file: Option<Spanned<PathBuf>>,
+    /// Optics and detector; replaces the camera file's `[sensor]` when given.
+    sensor: Option<Spanned<SensorConfig>>,
+    #[serde(default)]
+    pose: PoseSection,
+    #[serde(default)]
+    render: RenderSection,
+    /// Fold (wrinkle) every face of a material at load time.
+    #[serde(default)]
+    wrap: Vec<Spanned<WrapEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WrapEntry {
+    material: String,
+    /// slight | medium | severe (the paper's levels), or give e_plane and var.
+    level: Option<String>,
+    e_plane: Option<f64>,
+    var: Option<f64>,
+    /// Target edge length of the subdivided faces, metres.
+    #[serde(default = "default_edge")]
+    edge_m: Spanned<f32>,
+    #[serde(default)]
+    seed: u64,
+}
+
+fn default_edge() -> Spanned<f32> {
+    Spanned::new(0..0, 0.02)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshEntry {
+    obj: Spanned<PathBuf>,
+    #[serde(default = "zero3")]
+    translate: Spanned<[f64; 3]>,
+    #[serde(default = "zero3")]
+    rotate_deg: Spanned<[f64; 3]>,
+    #[serde(default = "one")]
+    scale: Spanned<f64>,
+    /// Use this scene material for every face, whatever the MTL says.
+    material: Option<Spanned<String>>,
+}
+
+fn zero3() -> Spanned<[f64; 3]> {
+    Spanned::new(0..0, [0.0; 3])
+}
+
+fn one() -> Spanned<f64> {
+    Spanned::new(0..0, 1.0)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SunSection {
+    #[serde(default = "default_irradiance")]
+    irradiance: Spanned<f64>,
+}
+
+impl Default for SunSection {
+    fn default() -> Self {
+        SunSection { irradiance: default_irradiance() }
+    }
+}
+
+fn default_irradiance() -> Spanned<f64> {
+    Spanned::new(0..0, super::SOLAR_BAND_IRRADIANCE)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BackgroundSection {
+    #[serde(default = "zero")]
+    radiance: Spanned<f64>,
+}
+
+impl Default for BackgroundSection {
+    fn default() -> Self {
+        BackgroundSection { radiance: zero() }
+    }
+}
+
+fn zero() -> Spanned<f64> {
+    Spanned::new(0..0, 0.0)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PoseSection {
+    position: Spanned<[f64; 3]>,
+    #[serde(default = "identity")]
+    attitude: Spanned<[f64; 4]>,
+    sun: Spanned<[f64; 3]>,
+}
+
+fn identity() -> Spanned<[f64; 4]> {
+    Spanned::new(0..0, [1.0, 0.0, 0.0, 0.0])
+}
+
+impl Default for PoseSection {
+    fn default() -> Self {
+        PoseSection {
+            position: Spanned::new(0..0, [0.0, 0.0, 10.0]),
+            attitude: identity(),
+            sun: Spanned::new(0..0, [0.0, 0.0, -1.0]),
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderSection {
+    #[serde(default = "default_spp")]
+    /// A number ≥ 1 (checked below, so that the error names `render.spp`).
+    spp: Spanned<f64>,
+    #[serde(default = "default_depth")]
+    depth: Spanned<u32>,
+    #[serde(default)]
+    sampler: SamplerKind,
+    #[serde(default)]
+    sequence: Sequence,
+    #[serde(default = "yes")]
+    roulette: bool,
+    #[serde(default = "yes")]
+    adaptive: bool,
+    #[serde(default)]
+    seed: u64,
+    #[serde(default)]
+    bvh: BvhLayout,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn default_spp() -> Spanned<f64> {
+    Spanned::new(0..0, RenderSettings::default().spp.get())
+}
+fn default_depth() -> Spanned<u32> {
+    Spanned::new(0..0, RenderSettings::default().depth)
+}
+
+impl Default for RenderSection {
+    fn default() -> Self {
+        RenderSection {
+            spp: default_spp(),
+            depth: default_depth(),
+            sampler: SamplerKind::default(),
+            sequence: Sequence::default(),
+            roulette: true,
+            adaptive: true,
+            seed: 0,
+            bvh: BvhLayout::default(),
+        }
+    }
+}
+
+/// 1-based line of a byte offset.
+fn line_of(src: &str, offset: usize) -> usize {
+    src[..offset.min(src.len())].bytes().filter(|b| *b == b'\n').count() + 1
+}
+
+/// Load and build a scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with_layout(path, None)
+}
+
+/// Load a scene file, overriding its BVH layout.
+pub fn load_with_layout(path: &Path, layout: Option<BvhLayout>) -> Result<Scene, SceneError> {
+    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let mut parts = parse(path, &src)?;
+    if let Some(l) = layout {
+        parts.layout = l;
+    }
+    Ok(Scene::build(parts))
+}
+
+/// Parse a scene file's text (`path` names it in errors and anchors relative paths).
+pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
+    let file: SceneFile =
+        toml::from_str(src).map_err(|e| SceneError::Parse { path: path.to_path_buf(), message: e.to_string() })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let field = |span: std::ops::Range<usize>, field: &str, message: String| SceneError::Field {
+        path: path.to_path_buf(),
+        line: line_of(src, span.start),
+        field: field.to_string(),
+        message,
+    };
+
+    // Materials, in name order (BTreeMap) so indices are stable.
+    let mut materials = Vec::new();
+    for (name, spec) in &file.materials {
+        let bsdf =
+            spec.get_ref().build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
+        materials.push(Material { name: name.clone(), bsdf });
+    }
+    let index_of = |name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
+
+    // Meshes, transformed into the body frame.
+    if file.mesh.is_empty() {
+        return Err(SceneError::Missing {
+            path: path.to_path_buf(),
+            field: "mesh".into(),
+            message: "a scene needs at least one [[mesh]]".into(),
+        });
+    }
+    let mut mesh = TriMesh::default();
+    for (k, entry) in file.mesh.iter().enumerate() {
+        let fname = format!("mesh[{k}].obj");
+        let obj_path = dir.join(entry.obj.get_ref());
+        let loaded = load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
+        let scale = *entry.scale.get_ref();
+        limits::in_range(scale, limits::SCALE, "")
+            .map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
+        let translate = *entry.translate.get_ref();
+        for v in translate {
+            limits::in_range(v, (-limits::TRANSLATE_M, limits::TRANSLATE_M), " m")
+                .map_err(|m| field(entry.translate.span(), &format!("mesh[{k}].translate"), m))?;
+        }
+        let rotate_deg = *entry.rotate_deg.get_ref();
+        for v in rotate_deg {
+            limits::in_range(v, (-limits::ROTATE_DEG, limits::ROTATE_DEG), "°")
+                .map_err(|m| field(entry.rotate_deg.span(), &format!("mesh[{k}].rotate_deg"), m))?;
+        }
+        // Map each MTL name to a scene material.
+        let mut map = Vec::new();
+        for name in &loaded.material_names {
+            let target = entry.material.as_ref().map(|m| m.get_ref().as_str()).unwrap_or(name);
+            match index_of(target) {
+                Some(i) => map.push(i),
+                None => {
+                    let (span, what) = match &entry.material {
+                        Some(m) => (m.span(), format!("mesh[{k}].material")),
+                        None => (entry.obj.span(), fname.clone()),
+                    };
+                    let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+                    return Err(field(
+                        span,
+                        &what,
+                        format!(
+                            "material `{target}` used by {} has no [materials.{target}] entry (scene has: {})",
+                            obj_path.display(),
+                            known.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        let [rx, ry, rz] = rotate_deg.map(f64::to_radians);
+        let rot = DQuat::from_euler(EulerRot::ZYX, rz, ry, rx);
+        let t = DVec3::from_array(translate);
+        let mut m = loaded.mesh;
+        for p in &mut m.positions {
+            *p = (rot * (p.as_dvec3() * scale) + t).as_vec3();
+        }
+        for mat in &mut m.material {
+            *mat = map[*mat as usize];
+        }
+        mesh.append(&m);
+    }
+
+    for (k, w) in file.wrap.iter().enumerate() {
+        let e = w.get_ref();
+        let fail = |m: String| field(w.span(), "wrap", m);
+        let edge_m = *e.edge_m.get_ref();
+        let edge_span = if e.edge_m.span().is_empty() { w.span() } else { e.edge_m.span() };
+        let Some(mat) = index_of(&e.material) else {
+            return Err(fail(format!("material `{}` is not in [materials]", e.material)));
+        };
+        let target = match (&e.level, e.e_plane, e.var) {
+            (Some(l), None, None) => l.parse::<FoldLevel>().map_err(|x| fail(x.to_string()))?.target(),
+            (None, Some(e_plane), Some(var)) => FoldTarget { e_plane, var },
+            _ => return Err(fail("give either level or both e_plane and var".into())),
+        };
+        // Bound the subdivision before doing it (the fit subdivides a test panel too).
+        let would_make = wrap_triangle_estimate(&mesh, &[mat], edge_m) + fit_panel_triangle_estimate(edge_m);
+        if !(edge_m.is_finite() && edge_m > 0.0 && would_make <= MAX_WRAP_TRIANGLES as f64) {
+            return Err(field(
+                edge_span,
+                &format!("wrap[{k}].edge_m"),
+                format!(
+                    "{edge_m} m would subdivide into {would_make:.3e} triangles (limit {MAX_WRAP_TRIANGLES}); \
+                     use a larger edge_m"
+                ),
+            ));
+        }
+        let fit = fit_for_edge(target, e.seed, edge_m).map_err(|x| fail(x.to_string()))?;
+        let (wrapped, report) = wrap_faces_report(&mesh, &[mat], &fit.params, e.seed, edge_m);
+        tracing::info!(material = %e.material, e_plane = fit.e_plane, var = fit.var, triangles = wrapped.indices.len(), ?report, "folded");
+        mesh = wrapped;
+    }
+
+    // Camera: inline table or a camera file's [camera] (and [sensor]) tables.
+    let (camera, file_sensor) = match (&file.camera, &file.camera_file) {
+        (Some(c), None) => (c.get_ref().clone(), SensorConfig::default()),
+        (None, Some(f)) => {
+            let preset = load_camera_file(&dir.join(f.get_ref())).map_err(|m| field(f.span(), "camera_file", m))?;
+            (preset.camera, preset.sensor)
+        }
+        (Some(c), Some(_)) => {
+            return Err(field(c.span(), "camera", "give either [camera] or camera_file, not both".into()));
+        }
+        (None, None) => {
+            return Err(SceneError::Missing {
+                path: path.to_path_buf(),
+                field: "camera".into(),
+                message: "give a [camera] table or camera_file".into(),
+            });
+        }
+    };
+    let sensor = match &file.sensor {
+        Some(s) => s.get_ref().clone(),
+        None => file_sensor,
+    };
+    if let Err(e) = sensor.validate(&camera) {
+        let span =
+            file.sensor.as_ref().map(|s| s.span()).or(file.camera_file.as_ref().map(|f| f.span())).unwrap_or(0..0);
+        return Err(field(span, "sensor", e.to_string()));
+    }
+    validate_camera(&camera).map_err(|(f, m)| match &file.camera {
+        Some(c) => field(c.span(), &format!("camera.{f}"), m),
+        None => SceneError::Missing { path: path.to_path_buf(), field: format!("camera.{f}"), message: m },
+    })?;
+
+    let pose = pose_from(&file.pose).map_err(|(span, f, m)| field(span, &f, m))?;
+    let irradiance = *file.sun.irradiance.get_ref();
+    limits::in_range(irradiance, limits::IRRADIANCE_W_M2, " W/m²")
+        .map_err(|m| field(file.sun.irradiance.span(), "sun.irradiance", m))?;
+    let background = *file.background.radiance.get_ref();
+    limits::in_range(background, limits::BACKGROUND_W_SR_M2, " W·sr⁻¹·m⁻²")
+        .map_err(|m| field(file.background.radiance.span(), "background.radiance", m))?;
+    let r = &file.render;
+    let render = RenderSettings {
+        spp: Spp::try_from(*r.spp.get_ref()).map_err(|e| field(r.spp.span(), "render.spp", e.to_string()))?,
+        depth: *r.depth.get_ref(),
+        sampler: r.sampler,
+        sequence: r.sequence,
+        roulette: r.roulette,
+        adaptive: r.adaptive,
+        seed: r.seed,
+    };
+    if !(1..=limits::MAX_DEPTH).contains(&render.depth) {
+        return Err(field(
+            r.depth.span(),
+            "render.depth",
+            format!("must be in 1..={} (1 = direct sunlight only), got {}", limits::MAX_DEPTH, render.depth),
+        ));
+    }
+    Ok(SceneParts {
+        mesh,
+        materials,
+        sun_irradiance: irradiance,
+        background,
+        camera,
+        sensor,
+        pose,
+        render,
+        layout: r.bvh,
+    })
+}
+
+/// Read a camera file: its `[camera]` table and optional `[sensor]` table.
+pub fn load_camera_file(path: &Path) -> Result<CameraPreset, String> {
+    let preset = CameraPreset::load(path).map_err(|e| e.to_string())?;
+    validate_camera(&preset.camera).map_err(|(f, m)| format!("{}: camera.{f}: {m}", path.display()))?;
+    Ok(preset)
+}
+
+/// Size within [`crate::render::camera::MAX_SIDE_PX`] per side, pitch and focal length finite and
+/// in their ranges, the principal point finite and within one image size of the centre.
+pub fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
+    c.check_size()?;
+    limits::in_range(c.pitch_um, limits::PITCH_UM, " µm").map_err(|m| ("pitch_um", m))?;
+    limits::in_range(c.focal_mm, limits::FOCAL_MM, " mm").map_err(|m| ("focal_mm", m))?;
+    let bound = f64::from(c.width.max(c.height));
+    for v in c.principal_point_px {
+        limits::in_range(v, (-bound, bound), " px (one image size)").map_err(|m| ("principal_point_px", m))?;
+    }
+    Ok(())
+}
+
+type FieldErr = (std::ops::Range<usize>, String, String);
+
+fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
+    let [w, x, y, z] = *p.attitude.get_ref();
+    let pose = Pose {
+        position: DVec3::from_array(*p.position.get_ref()),
+        attitude: DQuat::from_xyzw(x, y, z, w),
+        sun_dir: DVec3::from_array(*p.sun.get_ref()),
+        ..Pose::ahead(0.0)
+    };
+    limits::gate_pose(&pose).map_err(|e| {
+        let span = match e.field {
+            "pose.attitude" => p.attitude.span(),
+            "pose.sun" => p.sun.span(),
+            _ => p.position.span(),
+        };
+        (span, e.field.to_string(), e.message)
+    })
+}
+
+/// One of the names a scene file uses for a setting (`cosine`, `sobol`, `bvh8`, `png`, …),
+/// parsed the way the scene file parses it, so the command line takes the same words; the
+/// error lists the names allowed.
+pub fn parse_name<T: serde::de::DeserializeOwned>(name: &str) -> Result<T, String> {
+    use serde::de::IntoDeserializer;
+    T::deserialize(IntoDeserializer::<serde::de::value::Error>::into_deserializer(name)).map_err(|e| e.to_string())
+}

@@ -1,0 +1,151 @@
+//! The physical ranges a scene's numbers must lie in, and the pose gate for the scene's
+//! `[pose]` and `hilcam render --pose`. Every range is documented in README's scene-file
+//! section; a value outside one is refused naming the field, the value and the range.
+
+use crate::pose::Pose;
+use crate::pose::validate::{PoseLimits, Rejection, check_pose};
+use crate::render::camera::view::unit_or_none;
+use glam::DVec3;
+
+/// Sun band irradiance, W/m²: 0 (no sun) up to 1e6 (about 700× the solar constant at
+/// 1 AU, i.e. closer to the sun than any mission flies); products with it stay finite in f32.
+pub const IRRADIANCE_W_M2: (f64, f64) = (0.0, 1.0e6);
+/// Background (sky) radiance, W·sr⁻¹·m⁻²: 0 up to 1e6.
+pub const BACKGROUND_W_SR_M2: (f64, f64) = (0.0, 1.0e6);
+/// Mesh translation, each component, metres.
+pub const TRANSLATE_M: f64 = 1.0e5;
+/// Mesh rotation, each Euler angle, degrees.
+pub const ROTATE_DEG: f64 = 360.0;
+/// Mesh scale factor (dimensionless: OBJ units to metres).
+pub const SCALE: (f64, f64) = (1.0e-6, 1.0e6);
+/// OBJ vertex coordinate, each component, OBJ units (before `scale`).
+pub const OBJ_COORD: f64 = 1.0e6;
+/// Pixel pitch, µm (after `--width` rescaling too).
+pub const PITCH_UM: (f64, f64) = (0.01, 1.0e5);
+/// Focal length, mm.
+pub const FOCAL_MM: (f64, f64) = (0.01, 1.0e5);
+/// Path depth (surface interactions per path).
+pub const MAX_DEPTH: u32 = 1024;
+
+/// `Ok` when `v` is finite and in `lo..=hi`; else a message with the value, the range and
+/// `unit`.
+pub fn in_range(v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<(), String> {
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(format!("must be a finite number in [{lo}, {hi}]{unit}, got {v:?}"))
+    }
+}
+
+/// A pose refused by [`gate_pose`]: the field (`pose.position`, `pose.attitude`,
+/// `pose.sun`) and the message (the gate's reason and the offending value).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseRefusal {
+    pub field: &'static str,
+    pub message: String,
+}
+
+/// The live pose gate ([`check_pose`] with [`PoseLimits::default`]) for a pose written by
+/// hand. The sun is a direction of any non-zero finite length: it is normalised first,
+/// robustly (a huge vector is scaled by its largest component before squaring). The
+/// attitude is not: a quaternion whose norm is not within the gate's tolerance of 1 is
+/// refused, as it is on the wire.
+///
+/// The accepted pose is normalised as a loaded scene always was (`DQuat::normalize`,
+/// `DVec3::normalize`), so frames keep their bytes.
+pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
+    let refuse = |field, message: String| Err(PoseRefusal { field, message });
+    let Some(sun) = unit_or_none(p.sun_dir) else {
+        let why = if p.sun_dir.is_finite() { "direction is zero" } else { "non-finite value" };
+        return refuse("pose.sun", format!("{why} (got {})", fmt3(p.sun_dir)));
+    };
+    let lim = PoseLimits::default();
+    let candidate = Pose { sun_dir: sun, ..*p };
+    match check_pose(&candidate, &lim) {
+        Ok(_) => Ok(Pose { attitude: p.attitude.normalize(), sun_dir: sun, ..*p }),
+        Err(r) => {
+            let q = p.attitude;
+            // Scaled, so that a range beyond ~1e154 m prints as itself rather than inf.
+            let big = p.position.abs().max_element();
+            let range = if big > 0.0 { big * (p.position / big).length() } else { 0.0 };
+            let (field, detail) = match r {
+                Rejection::NonFinite if !p.position.is_finite() => ("pose.position", fmt3(p.position)),
+                Rejection::NonFinite if !q.is_finite() => ("pose.attitude", fmt_q(p)),
+                Rejection::NonFinite => ("pose.velocity", String::new()),
+                Rejection::QuaternionNorm => (
+                    "pose.attitude",
+                    format!("norm {}, tolerance {:e}; attitude {}", q.length(), lim.norm_tolerance, fmt_q(p)),
+                ),
+                Rejection::SunNorm => ("pose.sun", fmt3(p.sun_dir)),
+                Rejection::TooClose | Rejection::TooFar => (
+                    "pose.position",
+                    format!("range {range:e} m, limits {} … {:e} m", lim.min_range_m, lim.max_range_m),
+                ),
+                Rejection::RateLimit | Rejection::TimeBackwards => ("pose", String::new()),
+            };
+            let message = if detail.is_empty() { r.to_string() } else { format!("{r} ({detail})") };
+            refuse(field, message)
+        }
+    }
+}
+
+fn fmt3(v: DVec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
+}
+
+fn fmt_q(p: &Pose) -> String {
+    let q = p.attitude;
+    format!("[{}, {}, {}, {}]", q.w, q.x, q.y, q.z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DQuat;
+
+    #[test]
+    fn the_gate_names_the_field_and_the_reason() {
+        let ok = Pose::ahead(10.0);
+        assert!(gate_pose(&ok).is_ok());
+        let e = gate_pose(&Pose { attitude: DQuat::from_xyzw(0.0, 0.0, 0.0, 2.0), ..ok }).unwrap_err();
+        assert_eq!(e.field, "pose.attitude");
+        assert!(e.message.contains("quaternion norm outside tolerance") && e.message.contains("norm 2"), "{e:?}");
+        let e = gate_pose(&Pose { attitude: DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), ..ok }).unwrap_err();
+        assert_eq!(e.field, "pose.attitude");
+        let e = gate_pose(&Pose { sun_dir: DVec3::ZERO, ..ok }).unwrap_err();
+        assert_eq!(e.field, "pose.sun");
+        let e = gate_pose(&Pose { position: DVec3::new(0.0, 0.0, 1e200), ..ok }).unwrap_err();
+        assert!(e.field == "pose.position" && e.message.contains("range above maximum"), "{e:?}");
+        let e = gate_pose(&Pose { position: DVec3::new(f64::NAN, 0.0, 1.0), ..ok }).unwrap_err();
+        assert!(e.field == "pose.position" && e.message.contains("non-finite"), "{e:?}");
+    }
+
+    #[test]
+    fn a_huge_sun_direction_is_normalised_robustly() {
+        let p = Pose { sun_dir: DVec3::new(1e300, 0.0, -1e300), ..Pose::ahead(10.0) };
+        let g = gate_pose(&p).unwrap();
+        assert!((g.sun_dir - DVec3::new(1.0, 0.0, -1.0).normalize()).length() < 1e-15, "{}", g.sun_dir);
+        let p = Pose { sun_dir: DVec3::new(1e-320, 0.0, 0.0), ..Pose::ahead(10.0) };
+        assert_eq!(gate_pose(&p).unwrap().sun_dir, DVec3::X);
+    }
+}
+
+/// [`CameraModel::scaled`] for sizes a user typed (`--width`/`--height`): each given side
+/// and the size it implies must lie in `1..=MAX_SIDE_PX`, and the scaled camera must pass
+/// the scene file's camera checks; the error names the flag and the limit.
+pub fn checked_scaled_camera(
+    c: &crate::render::camera::CameraModel,
+    width: Option<u32>,
+    height: Option<u32>,
+) -> Result<crate::render::camera::CameraModel, String> {
+    for (flag, v) in [("--width", width), ("--height", height)] {
+        if let Some(v) = v {
+            crate::render::camera::check_side(v).map_err(|m| format!("{flag}: {m}"))?;
+        }
+    }
+    let scaled = c.scaled(width, height);
+    let named = |(field, m): (&str, String)| format!("--width/--height: the scaled camera's {field} {m}");
+    scaled.check_size().map_err(named)?;
+    crate::scene::file::validate_camera(&scaled).map_err(named)?;
+    Ok(scaled)
+}

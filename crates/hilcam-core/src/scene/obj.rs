@@ -1,0 +1,97 @@
+//! OBJ/MTL loading with tobj: triangles plus the MTL material name of each.
+
+use crate::render::geometry::TriMesh;
+use glam::Vec3;
+use std::path::Path;
+
+/// Triangles of one OBJ file; `material` indexes `material_names`. Faces without a
+/// material get the name `default`.
+pub struct ObjMesh {
+    pub mesh: TriMesh,
+    pub material_names: Vec<String>,
+}
+
+/// Load an OBJ file; the error names the file (and the line, for a bad vertex).
+pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
+    load_obj_unnamed(path).map_err(|m| format!("{}{m}", path.display()))
+}
+
+/// Largest vertex coordinate accepted, OBJ units (see `scene::limits::OBJ_COORD`).
+const MAX_COORD: f64 = crate::scene::limits::OBJ_COORD;
+
+/// Every `v` line's coordinates finite and within ±[`MAX_COORD`] (tobj reads them as f32,
+/// so `1e39` would become infinite and `nan` would pass, making triangles vanish).
+fn check_vertices(text: &str) -> Result<(), String> {
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("v") {
+            continue;
+        }
+        for (axis, word) in ["x", "y", "z"].iter().zip(words) {
+            let ok = word.parse::<f64>().is_ok_and(|v| v.is_finite() && v.abs() <= MAX_COORD);
+            if !ok {
+                return Err(format!(
+                    ":{}: v: vertex {axis} `{word}` must be a finite number within ±{MAX_COORD:e}",
+                    i + 1
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!(": {e}"))?;
+    check_vertices(&text)?;
+    let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| format!(": {e}"))?;
+    // A missing or broken .mtl still loads the geometry; the names come from `usemtl`
+    // only through the material list, so without it every face is `default`.
+    let mtl: Vec<String> = match materials {
+        Ok(m) => m.into_iter().map(|m| m.name).collect(),
+        Err(e) => {
+            if models.iter().any(|m| m.mesh.material_id.is_some()) {
+                return Err(format!(": its material library could not be read: {e}"));
+            }
+            Vec::new()
+        }
+    };
+    let mut names: Vec<String> = Vec::new();
+    let mut out = TriMesh::default();
+    for model in &models {
+        let m = &model.mesh;
+        let name = m.material_id.and_then(|i| mtl.get(i)).cloned().unwrap_or_else(|| "default".to_string());
+        let mat = match names.iter().position(|n| *n == name) {
+            Some(i) => i,
+            None => {
+                names.push(name);
+                names.len() - 1
+            }
+        } as u32;
+        let base = out.positions.len() as u32;
+        out.positions.extend(m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])));
+        for t in m.indices.chunks_exact(3) {
+            out.indices.push([t[0] + base, t[1] + base, t[2] + base]);
+            out.material.push(mat);
+        }
+    }
+    if out.indices.is_empty() {
+        return Err(": no triangles".to_string());
+    }
+    Ok(ObjMesh { mesh: out, material_names: names })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_vertices;
+
+    #[test]
+    fn bad_vertices_are_named_by_line_and_axis() {
+        assert!(check_vertices("# c\nv 0 0 0\nv 1 2 3\nvn 0 0 nan\nf 1 2 3\n").is_ok());
+        for (bad, axis) in [("nan", "x"), ("inf", "x"), ("1e39", "x")] {
+            let e = check_vertices(&format!("v 0 0 0\nv {bad} 0 0\n")).unwrap_err();
+            assert!(e.starts_with(":2: v: vertex") && e.contains(axis) && e.contains(bad), "{e}");
+        }
+        assert!(check_vertices("v 0 0 -inf\n").unwrap_err().contains("vertex z"));
+        assert!(check_vertices("v 0 0 zz\n").unwrap_err().contains("`zz`"));
+    }
+}

@@ -1,0 +1,369 @@
+//! The camera sensor: entrance-pupil radiance → focal-plane irradiance → electrons →
+//! digital numbers. `docs/sensor.md` gives the formulas and the config reference.
+//!
+//! Each effect is switched on by the camera preset's `[sensor]` table and is off
+//! otherwise; with everything off a frame is the input radiance (× `radiance_scale`).
+//!
+//! - [`config`]: `SensorConfig` (serde) and `CameraPreset` (`[camera]` + `[sensor]`).
+//! - [`optics`]: transmittance, cos⁴ vignetting, the photon budget.
+//! - [`psf`]: Gaussian and Airy kernels, energy-preserving convolution.
+//! - [`detector`]: QE, dark current, fixed pattern, shot noise, full well, read noise.
+//! - [`noise`]: seeded normal and Poisson variates keyed by (frame seed, pixel).
+//! - [`adc`]: gain, offset, bit depth, clipping.
+//! - [`exposure`]: auto-exposure state across frames.
+//! - [`ptc`]: photon-transfer measurement (gain and read noise from flat fields).
+//!
+//! ```
+//! use crate::render::camera::CameraModel;
+//! use crate::render::film::{Pixels, RadianceImage};
+//! use crate::sensor::{Sensor, SensorConfig};
+//! let cam = CameraModel { width: 4, height: 2, pitch_um: 5.5, focal_mm: 16.0,
+//!                         principal_point_px: [0.0, 0.0] };
+//! let sensor = Sensor::new(&cam, &SensorConfig::default()).unwrap();
+//! let out = sensor.apply(&RadianceImage::new(4, 2, 3.5), 7).unwrap();
+//! assert_eq!(out.pixels, Pixels::Float32(vec![3.5; 8]));
+//! ```
+
+pub mod adc;
+pub mod config;
+pub mod detector;
+pub mod exposure;
+pub mod noise;
+pub mod optics;
+pub mod psf;
+pub mod ptc;
+
+pub use config::{CameraPreset, OutputKind, SensorConfig};
+pub use exposure::{AutoExposure, ExposureUpdate};
+
+use crate::render::camera::CameraModel;
+use crate::render::film::{Pixels, RadianceImage};
+use adc::{Adc, Conversion};
+use detector::Detector;
+use rayon::prelude::*;
+use std::path::PathBuf;
+
+/// Errors from loading, validating or applying a sensor model.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    /// A config value is out of range or inconsistent; `field` is its TOML path.
+    #[error("{field}: {message}")]
+    Invalid { field: String, message: String },
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    /// TOML syntax or schema error (the message carries line and column).
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("radiance image is {got_w}×{got_h} but the camera is {want_w}×{want_h}")]
+    SizeMismatch { got_w: u32, got_h: u32, want_w: u32, want_h: u32 },
+}
+
+/// A validated sensor model for one camera, ready to convert frames.
+#[derive(Clone, Debug)]
+pub struct Sensor {
+    camera: CameraModel,
+    cfg: SensorConfig,
+    output: OutputKind,
+    radiance_scale: f64,
+    /// (horizontal, vertical) passes of a separable kernel, or one 2D kernel.
+    psf: Vec<psf::Kernel>,
+    /// Photo-electrons per second per unit radiance (None without a detector).
+    e_per_radiance_s: Option<f64>,
+    adc: Option<Adc>,
+    fixed_pattern: Option<detector::FixedPattern>,
+}
+
+/// One converted frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorOutput {
+    pub pixels: Pixels,
+    /// Integration time used, s (None without a detector).
+    pub integration_time_s: Option<f64>,
+    pub stats: FrameStats,
+}
+
+/// Per-frame counters, so that saturation and clipping are never silent.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Mean expected (noise-free) charge per pixel including dark charge, e⁻; with no
+    /// detector, the mean scaled radiance.
+    pub mean_expected_e: f64,
+    /// Largest expected charge of any pixel, e⁻.
+    pub max_expected_e: f64,
+    /// Mean collected charge after shot noise and the full-well clip, e⁻.
+    pub mean_collected_e: f64,
+    /// Pixels whose well was full.
+    pub full_well_pixels: u64,
+    /// Pixels clipped at DN 0.
+    pub adc_low_clipped: u64,
+    /// Pixels at the ADC maximum.
+    pub adc_high_clipped: u64,
+    /// Mean output DN (0 for float output).
+    pub mean_dn: f64,
+}
+
+/// Per-row partial sums; reduced in row order so the totals are thread-count independent.
+#[derive(Clone, Copy, Default)]
+struct RowStats {
+    expected: f64,
+    max_expected: f64,
+    collected: f64,
+    full: u64,
+    low: u64,
+    high: u64,
+    dn: f64,
+}
+
+impl Sensor {
+    /// Validate `cfg` for `camera` and precompute kernels and the photon budget.
+    ///
+    /// # Errors
+    /// [`SensorError::Invalid`] naming the offending field.
+    pub fn new(camera: &CameraModel, cfg: &SensorConfig) -> Result<Sensor, SensorError> {
+        if camera.width == 0 || camera.height == 0 {
+            return Err(SensorError::Invalid {
+                field: "camera.width".into(),
+                message: "the camera has no pixels".into(),
+            });
+        }
+        if !(camera.pitch_um > 0.0 && camera.focal_mm > 0.0) {
+            return Err(SensorError::Invalid {
+                field: "camera.pitch_um".into(),
+                message: "pitch_um and focal_mm must be > 0".into(),
+            });
+        }
+        cfg.validate(camera)?;
+        let output = cfg.output_kind();
+        let psf = match &cfg.optics.psf {
+            None => vec![],
+            Some(config::PsfConfig::Gaussian { sigma_px }) => {
+                let (h, v) = psf::Kernel::gaussian(*sigma_px);
+                vec![h, v]
+            }
+            Some(config::PsfConfig::Airy { wavelength_um, radius_px }) => {
+                let n = cfg.f_number(camera).expect("validated");
+                let wl: Vec<f64> = match (wavelength_um, &cfg.band) {
+                    (Some(w), _) => vec![*w],
+                    (None, Some(b)) => {
+                        (0..16).map(|i| b.min_um + (i as f64 + 0.5) * (b.max_um - b.min_um) / 16.0).collect()
+                    }
+                    (None, None) => unreachable!("validated"),
+                };
+                vec![psf::Kernel::airy(n, camera.pitch_um, &wl, *radius_px)]
+            }
+        };
+        if cfg.detector.is_some() && output == OutputKind::Float32 {
+            tracing::warn!(
+                "sensor: output = \"float32\" sends radiance; [sensor.detector] and [sensor.adc] are not applied"
+            );
+        }
+        Ok(Sensor {
+            camera: camera.clone(),
+            cfg: cfg.clone(),
+            output,
+            radiance_scale: cfg.radiance_scale.unwrap_or(1.0),
+            psf,
+            e_per_radiance_s: optics::electrons_per_radiance_second(cfg, camera),
+            adc: cfg.adc.as_ref().map(Adc::new),
+            fixed_pattern: cfg.detector.as_ref().and_then(|d| {
+                (d.prnu.unwrap_or(0.0) > 0.0 || d.dsnu_e_per_s.unwrap_or(0.0) > 0.0)
+                    .then(|| detector::FixedPattern::new(d.fpn_seed, camera.width as usize * camera.height as usize))
+            }),
+        })
+    }
+
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    pub fn config(&self) -> &SensorConfig {
+        &self.cfg
+    }
+
+    /// The output kind (float radiance or DN).
+    pub fn output(&self) -> OutputKind {
+        self.output
+    }
+
+    /// The ADC bit depth for DN output.
+    pub fn bits(&self) -> Option<u8> {
+        match self.output {
+            OutputKind::Dn => self.adc.map(|a| a.bits),
+            OutputKind::Float32 => None,
+        }
+    }
+
+    /// Photo-electrons per second per unit post-optics radiance (None without a detector).
+    pub fn electrons_per_radiance_second(&self) -> Option<f64> {
+        self.e_per_radiance_s
+    }
+
+    /// A fresh auto-exposure state for a stream of frames (None unless configured).
+    pub fn auto_exposure(&self) -> Option<AutoExposure> {
+        let ae = self.cfg.auto_exposure.as_ref()?;
+        let det = self.cfg.detector.as_ref()?;
+        Some(AutoExposure::new(ae, self.adc?, det.full_well_e, det.integration_time_s))
+    }
+
+    /// The image-space optics alone: transmittance, cos⁴ vignetting, then the PSF.
+    /// Returns the input unchanged (bit for bit) when none is configured.
+    pub fn optics(&self, img: &RadianceImage) -> Result<RadianceImage, SensorError> {
+        self.check_size(img)?;
+        let o = &self.cfg.optics;
+        let mut out = img.clone();
+        let tau = o.transmittance.unwrap_or(1.0);
+        if tau != 1.0 || o.cos4 {
+            let w = img.width as usize;
+            let cam = &self.camera;
+            out.data.par_chunks_mut(w).enumerate().for_each(|(row, line)| {
+                for (col, v) in line.iter_mut().enumerate() {
+                    let mut f = tau;
+                    if o.cos4 {
+                        f *= optics::cos4(cam, col as u32, row as u32);
+                    }
+                    *v = (*v as f64 * f) as f32;
+                }
+            });
+        }
+        for k in &self.psf {
+            out.data = psf::convolve(&out.data, img.width as usize, img.height as usize, k);
+        }
+        Ok(out)
+    }
+
+    /// Convert one frame at the configured integration time. Deterministic in
+    /// `frame_seed`; parallel, with the same bytes whatever the thread count.
+    pub fn apply(&self, img: &RadianceImage, frame_seed: u64) -> Result<SensorOutput, SensorError> {
+        let t = self.cfg.detector.as_ref().map(|d| d.integration_time_s);
+        self.apply_with_integration(img, frame_seed, t.unwrap_or(0.0))
+    }
+
+    /// Convert one frame with the integration time an auto-exposure state holds, then
+    /// update that state from the result (the next frame gets the new time).
+    pub fn apply_auto(
+        &self,
+        img: &RadianceImage,
+        frame_seed: u64,
+        ae: &mut AutoExposure,
+    ) -> Result<(SensorOutput, ExposureUpdate), SensorError> {
+        let out = self.apply_with_integration(img, frame_seed, ae.integration_time_s())?;
+        let upd = ae.update(&out.pixels);
+        Ok((out, upd))
+    }
+
+    /// Convert one frame at integration time `t_s` (ignored without a detector).
+    pub fn apply_with_integration(
+        &self,
+        img: &RadianceImage,
+        frame_seed: u64,
+        t_s: f64,
+    ) -> Result<SensorOutput, SensorError> {
+        let rad = self.optics(img)?;
+        let w = img.width as usize;
+        if self.output == OutputKind::Float32 {
+            let s = self.radiance_scale;
+            let data: Vec<f32> =
+                if s == 1.0 { rad.data } else { rad.data.par_iter().map(|v| (*v as f64 * s) as f32).collect() };
+            let sum: f64 =
+                data.par_chunks(w).map(|r| r.iter().map(|v| *v as f64).sum::<f64>()).collect::<Vec<_>>().iter().sum();
+            let max = data.iter().fold(0.0f64, |m, v| m.max(*v as f64));
+            let mean = sum / data.len() as f64;
+            return Ok(SensorOutput {
+                pixels: Pixels::Float32(data),
+                integration_time_s: None,
+                stats: FrameStats {
+                    mean_expected_e: mean,
+                    max_expected_e: max,
+                    mean_collected_e: mean,
+                    ..Default::default()
+                },
+            });
+        }
+        let adc = self.adc.expect("validated: DN output has an ADC");
+        let det = match (&self.cfg.detector, self.e_per_radiance_s) {
+            (Some(d), Some(k)) => Some(Detector::new(d, k, t_s, self.fixed_pattern.clone())),
+            _ => None,
+        };
+        let scale = self.radiance_scale;
+        let n = rad.data.len();
+        let mut dn = vec![0u16; n];
+        let rows: Vec<RowStats> = dn
+            .par_chunks_mut(w)
+            .zip(rad.data.par_chunks(w))
+            .enumerate()
+            .map(|(row, (out, src))| {
+                let mut st = RowStats::default();
+                for (col, (o, l)) in out.iter_mut().zip(src).enumerate() {
+                    let pixel = (row * w + col) as u64;
+                    let (expected, collected, full, read) = match &det {
+                        Some(d) => {
+                            let e = d.expected(*l as f64, pixel);
+                            let c = d.sample(e, &mut noise::frame_rng(frame_seed, pixel));
+                            (c.expected_e, c.collected_e, c.full, c.read_e)
+                        }
+                        None => {
+                            let e = *l as f64 * scale;
+                            (e, e, false, e)
+                        }
+                    };
+                    let conv = adc.convert(read);
+                    match conv {
+                        Conversion::InRange(_) => {}
+                        Conversion::ClippedLow => st.low += 1,
+                        Conversion::ClippedHigh(_) => st.high += 1,
+                    }
+                    let v = conv.dn();
+                    *o = v as u16;
+                    st.expected += expected;
+                    st.max_expected = st.max_expected.max(expected);
+                    st.collected += collected;
+                    st.full += full as u64;
+                    st.dn += v as f64;
+                }
+                st
+            })
+            .collect();
+        let mut s = FrameStats::default();
+        for r in &rows {
+            s.mean_expected_e += r.expected;
+            s.max_expected_e = s.max_expected_e.max(r.max_expected);
+            s.mean_collected_e += r.collected;
+            s.full_well_pixels += r.full;
+            s.adc_low_clipped += r.low;
+            s.adc_high_clipped += r.high;
+            s.mean_dn += r.dn;
+        }
+        s.mean_expected_e /= n as f64;
+        s.mean_collected_e /= n as f64;
+        s.mean_dn /= n as f64;
+        if s.full_well_pixels > 0 || s.adc_high_clipped > 0 || s.adc_low_clipped > 0 {
+            tracing::debug!(
+                full_well = s.full_well_pixels,
+                adc_high = s.adc_high_clipped,
+                adc_low = s.adc_low_clipped,
+                "sensor: saturated or clipped pixels"
+            );
+        }
+        let pixels = if adc.bits == 8 {
+            Pixels::Mono8(dn.into_iter().map(|v| v as u8).collect())
+        } else {
+            Pixels::Mono16 { data: dn, bits: adc.bits }
+        };
+        Ok(SensorOutput { pixels, integration_time_s: det.as_ref().map(|_| t_s), stats: s })
+    }
+
+    fn check_size(&self, img: &RadianceImage) -> Result<(), SensorError> {
+        if img.width != self.camera.width
+            || img.height != self.camera.height
+            || img.data.len() != img.width as usize * img.height as usize
+        {
+            return Err(SensorError::SizeMismatch {
+                got_w: img.width,
+                got_h: img.height,
+                want_w: self.camera.width,
+                want_h: self.camera.height,
+            });
+        }
+        Ok(())
+    }
+}

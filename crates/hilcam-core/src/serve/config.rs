@@ -1,0 +1,350 @@
+//! The `hilcam serve` configuration file (TOML), documented key by key in
+//! `docs/serve-config.md`. Errors name the file and field; toml's own errors add the line
+//! and column.
+//!
+//! ```toml
+//! scene = "../scenes/satellite.toml"   # relative to this file
+//! width = 512                          # optional: scaled camera (same field of view)
+//!
+//! [input]                              # where poses come from
+//! kind = "serial"                      # serial | slcan | socketcan | trajectory | none
+//! device = "/dev/ttyUSB0"              # serial / slcan
+//! baud = 921600
+//! # iface = "can0"                     # socketcan
+//! # can_base = 0x300                   # CAN base id
+//! # bitrate = 1000000                  # slcan: the adapter's CAN bit rate, bit/s
+//! # file = "../scenes/trajectories/flyaround.csv"   # trajectory: real-time replay
+//! # speed = 1.0                        # trajectory: time scale
+//!
+//! [trigger]
+//! mode = "rate"                        # pose | rate | external
+//! rate_hz = 10.0
+//! extrapolate = true                   # rate mode: move poses to the exposure mid-time
+//!
+//! [governor]
+//! policy = "fixed-rate"                # fixed-quality | fixed-rate
+//! budget_ms = 100.0                    # default: 1000 / rate_hz (rate mode) or 100
+//!
+//! [render]                             # overrides of the scene's [render]
+//! spp = 4
+//! depth = 2
+//!
+//! [stream]
+//! listen = "127.0.0.1:5600"
+//! queue_depth = 2
+//! max_clients = 32                     # more connections are refused
+//! evict_after_s = 5.0                  # disconnect a client whose queue stayed full this
+//!                                      # long (stopped reading); 0 = never; default 5
+//!
+//! [record]                             # optional
+//! dir = "frames"                       # recorder sink: every frame as an image file
+//! format = "png"                       # png | tiff | exr | pfm
+//! session = "run1.session.jsonl"       # session file: poses received, frames rendered
+//!                                      # (docs/session.md; never overwritten)
+//!
+//! [metrics]
+//! listen = "127.0.0.1:9100"            # optional Prometheus endpoint
+//! print_interval_s = 5.0
+//!
+//! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
+//! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address
+//! packet_size = 1500                   # also stream_port, serial, model, resend_ring, zip_xml
+//! ```
+
+use super::governor::Policy;
+use super::scheduler::TriggerMode;
+use crate::render::integrator::SamplerKind;
+use crate::sink::ImageFormat;
+use serde::Deserialize;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: {field}: {message}")]
+    Field { path: PathBuf, field: &'static str, message: String },
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServeConfig {
+    pub scene: PathBuf,
+    pub width: Option<u32>,
+    #[serde(default)]
+    pub input: InputConfig,
+    #[serde(default)]
+    pub trigger: TriggerConfig,
+    #[serde(default)]
+    pub governor: GovernorConfig,
+    #[serde(default)]
+    pub render: RenderOverrides,
+    #[serde(default)]
+    pub stream: StreamSection,
+    pub record: Option<RecordSection>,
+    #[serde(default)]
+    pub metrics: MetricsSection,
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[output]`: frame outputs beside the TCP stream.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// `[output.gige]`: also be a GigE Vision camera (docs/gige.md).
+    pub gige: Option<crate::sink::gige::GigeConfig>,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InputKind {
+    Serial,
+    Slcan,
+    Socketcan,
+    /// Poses from a trajectory file at its recorded timing (× `speed`), through the same
+    /// path as live poses: real-time replay without a dynamics simulator.
+    Trajectory,
+    #[default]
+    None,
+}
+
+impl InputKind {
+    /// The config spelling (`serial`, …).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            InputKind::Serial => "serial",
+            InputKind::Slcan => "slcan",
+            InputKind::Socketcan => "socketcan",
+            InputKind::Trajectory => "trajectory",
+            InputKind::None => "none",
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputConfig {
+    #[serde(default)]
+    pub kind: InputKind,
+    pub device: Option<String>,
+    pub baud: Option<u32>,
+    pub iface: Option<String>,
+    pub can_base: Option<u32>,
+    #[serde(default)]
+    pub can_extended: bool,
+    pub bitrate: Option<u32>,
+    /// `trajectory` input: the CSV file (relative to the config file).
+    pub file: Option<PathBuf>,
+    /// `trajectory` input: simulation seconds per wall second (default 1).
+    pub speed: Option<f64>,
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TriggerConfig {
+    #[serde(default)]
+    pub mode: TriggerMode,
+    pub rate_hz: Option<f64>,
+    #[serde(default)]
+    pub extrapolate: bool,
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GovernorConfig {
+    #[serde(default)]
+    pub policy: Policy,
+    pub budget_ms: Option<f64>,
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderOverrides {
+    /// Samples per pixel, ≥ 1 (a fraction such as 1.5 is allowed).
+    pub spp: Option<crate::render::integrator::Spp>,
+    pub depth: Option<u32>,
+    pub sampler: Option<SamplerKind>,
+    pub seed: Option<u64>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StreamSection {
+    #[serde(default = "default_listen")]
+    pub listen: SocketAddr,
+    #[serde(default = "default_queue")]
+    pub queue_depth: usize,
+    #[serde(default = "default_max_clients")]
+    pub max_clients: usize,
+    /// Seconds a client's queue may stay full before it is disconnected; 0 = never.
+    #[serde(default = "default_evict_after_s")]
+    pub evict_after_s: f64,
+}
+
+impl Default for StreamSection {
+    fn default() -> Self {
+        StreamSection {
+            listen: default_listen(),
+            queue_depth: default_queue(),
+            max_clients: default_max_clients(),
+            evict_after_s: default_evict_after_s(),
+        }
+    }
+}
+
+impl StreamSection {
+    /// `evict_after_s` for [`crate::sink::StreamConfig::evict_after`] (None: never).
+    pub fn evict_after(&self) -> Option<std::time::Duration> {
+        (self.evict_after_s > 0.0).then(|| std::time::Duration::from_secs_f64(self.evict_after_s))
+    }
+}
+
+fn default_evict_after_s() -> f64 {
+    crate::sink::tcp::DEFAULT_EVICT_AFTER.as_secs_f64()
+}
+
+fn default_listen() -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], 5600))
+}
+fn default_queue() -> usize {
+    2
+}
+fn default_max_clients() -> usize {
+    32
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordSection {
+    /// Recorder sink: frames as image files in this directory.
+    pub dir: Option<PathBuf>,
+    /// Session file (JSON lines) to create; re-render with `hilcam replay --session`.
+    pub session: Option<PathBuf>,
+    #[serde(default = "default_format")]
+    pub format: ImageFormat,
+}
+
+fn default_format() -> ImageFormat {
+    ImageFormat::Png
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MetricsSection {
+    pub listen: Option<SocketAddr>,
+    #[serde(default = "default_interval")]
+    pub print_interval_s: f64,
+}
+
+impl Default for MetricsSection {
+    fn default() -> Self {
+        MetricsSection { listen: None, print_interval_s: default_interval() }
+    }
+}
+
+fn default_interval() -> f64 {
+    5.0
+}
+
+impl ServeConfig {
+    /// Read, parse and validate; relative paths are resolved against the file's folder.
+    pub fn load(path: &Path) -> Result<ServeConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { path: path.into(), source })?;
+        let mut cfg: ServeConfig =
+            toml::from_str(&text).map_err(|e| ConfigError::Parse { path: path.into(), message: e.to_string() })?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        cfg.scene = dir.join(&cfg.scene);
+        if let Some(f) = &mut cfg.input.file {
+            *f = dir.join(&*f);
+        }
+        if let Some(r) = &mut cfg.record {
+            r.dir = r.dir.as_ref().map(|d| dir.join(d));
+            r.session = r.session.as_ref().map(|s| dir.join(s));
+        }
+        cfg.validate().map_err(|(field, message)| ConfigError::Field { path: path.into(), field, message })?;
+        Ok(cfg)
+    }
+
+    /// Field-level checks that serde cannot express.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if let Some(w) = self.width {
+            crate::render::camera::check_side(w).map_err(|m| ("width", m))?;
+        }
+        let i = &self.input;
+        match i.kind {
+            InputKind::Serial | InputKind::Slcan if i.device.is_none() => {
+                return Err(("input.device", "a serial or slcan input needs `device`".into()));
+            }
+            InputKind::Socketcan if i.iface.is_none() => {
+                return Err(("input.iface", "a socketcan input needs `iface`".into()));
+            }
+            InputKind::Trajectory if i.file.is_none() => {
+                return Err(("input.file", "a trajectory input needs `file`".into()));
+            }
+            _ if i.speed.is_some_and(|v| !(v.is_finite() && v > 0.0)) => {
+                return Err(("input.speed", "must be a positive number".into()));
+            }
+            _ => {}
+        }
+        if let Some(b) = i.baud
+            && !(1..=4_000_000).contains(&b)
+        {
+            return Err(("input.baud", format!("must be 1..=4000000, got {b}")));
+        }
+        if let Some(b) = i.bitrate
+            && crate::pose::slcan::bitrate_code(b).is_none()
+        {
+            return Err((
+                "input.bitrate",
+                format!(
+                    "{b} bit/s is not an slcan rate (10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000, 1000000)"
+                ),
+            ));
+        }
+        match (self.trigger.mode, self.trigger.rate_hz) {
+            (TriggerMode::Rate, None) => return Err(("trigger.rate_hz", "rate mode needs rate_hz".into())),
+            (_, Some(r)) if !(r.is_finite() && r > 0.0 && r <= 10_000.0) => {
+                return Err(("trigger.rate_hz", format!("must be in (0, 10000], got {r}")));
+            }
+            _ => {}
+        }
+        if let Some(b) = self.governor.budget_ms
+            && !(b.is_finite() && b > 0.0)
+        {
+            return Err(("governor.budget_ms", format!("must be positive, got {b}")));
+        }
+        if self.render.depth == Some(0) {
+            return Err(("render.depth", "must be at least 1".into()));
+        }
+        if self.stream.queue_depth == 0 {
+            return Err(("stream.queue_depth", "must be at least 1".into()));
+        }
+        let e = self.stream.evict_after_s;
+        if !(e.is_finite() && (0.0..=86_400.0).contains(&e)) {
+            return Err(("stream.evict_after_s", format!("must be 0 (never) or up to 86400 seconds, got {e}")));
+        }
+        if let Some(r) = &self.record
+            && r.dir.is_none()
+            && r.session.is_none()
+        {
+            return Err(("record", "needs `dir` (frames as images) or `session` (session file), or both".into()));
+        }
+        if self.width == Some(0) {
+            return Err(("width", "must be at least 1".into()));
+        }
+        if !(self.metrics.print_interval_s.is_finite() && self.metrics.print_interval_s > 0.0) {
+            return Err(("metrics.print_interval_s", "must be positive".into()));
+        }
+        Ok(())
+    }
+
+    /// The frame budget: explicit, else one frame period, else 100 ms.
+    pub fn budget(&self) -> std::time::Duration {
+        let ms = self.governor.budget_ms.or(self.trigger.rate_hz.map(|r| 1000.0 / r)).unwrap_or(100.0);
+        std::time::Duration::from_secs_f64(ms / 1e3)
+    }
+}

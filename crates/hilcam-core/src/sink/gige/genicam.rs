@@ -1,0 +1,277 @@
+//! The GenICam XML that describes the camera to a GigE Vision client: standard
+//! (SFNC) feature names over the registers of `registers.rs`, ranges from the camera
+//! description. Pure text generation; the device serves it from memory at
+//! [`registers::XML_BASE`](super::registers::XML_BASE).
+
+use super::chunk::META_CHUNK_ID;
+use super::registers::{self as reg, CameraDescription, DeviceIdentity};
+use std::fmt::Write;
+
+/// Register access of a generated node.
+#[derive(Clone, Copy)]
+enum Access {
+    Ro,
+    Rw,
+    Wo,
+}
+
+impl Access {
+    fn as_str(self) -> &'static str {
+        match self {
+            Access::Ro => "RO",
+            Access::Rw => "RW",
+            Access::Wo => "WO",
+        }
+    }
+}
+
+fn int_reg(x: &mut String, name: &str, address: u32, len: u32, access: Access, port: &str) {
+    let _ = writeln!(
+        x,
+        "<IntReg Name=\"{name}\"><Address>{address:#x}</Address><Length>{len}</Length>\
+         <AccessMode>{}</AccessMode><pPort>{port}</pPort><Cachable>NoCache</Cachable>\
+         <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></IntReg>",
+        access.as_str()
+    );
+}
+
+/// An Integer feature over its own register, with a range.
+fn integer(x: &mut String, name: &str, address: u32, access: Access, min: u64, max: u64, inc: u64) {
+    let _ = writeln!(
+        x,
+        "<Integer Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue>\
+         <Min>{min}</Min><Max>{max}</Max><Inc>{inc}</Inc></Integer>"
+    );
+    int_reg(x, &format!("{name}Reg"), address, 4, access, "Device");
+}
+
+fn float(x: &mut String, name: &str, address: u32, min: f32, max: f32, unit: &str) {
+    let _ = write!(
+        x,
+        "<Float Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue>\
+         <Min>{min}</Min><Max>{max}</Max><Unit>{unit}</Unit></Float>\n\
+         <FloatReg Name=\"{name}Reg\"><Address>{address:#x}</Address><Length>4</Length>\
+         <AccessMode>RW</AccessMode><pPort>Device</pPort><Cachable>NoCache</Cachable>\
+         <Endianess>BigEndian</Endianess></FloatReg>\n"
+    );
+}
+
+fn enumeration(x: &mut String, name: &str, address: u32, entries: &[(&str, u32)]) {
+    let _ = write!(x, "<Enumeration Name=\"{name}\" NameSpace=\"Standard\">");
+    for (entry, value) in entries {
+        let _ = write!(x, "<EnumEntry Name=\"{entry}\"><Value>{value}</Value></EnumEntry>");
+    }
+    let _ = writeln!(x, "<pValue>{name}Reg</pValue></Enumeration>");
+    int_reg(x, &format!("{name}Reg"), address, 4, Access::Rw, "Device");
+}
+
+fn command(x: &mut String, name: &str, address: u32, value: u32) {
+    let _ = writeln!(
+        x,
+        "<Command Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue>\
+         <CommandValue>{value}</CommandValue></Command>"
+    );
+    int_reg(x, &format!("{name}Reg"), address, 4, Access::Wo, "Device");
+}
+
+fn string_reg(x: &mut String, name: &str, address: u32, len: u32) {
+    let _ = writeln!(
+        x,
+        "<StringReg Name=\"{name}\" NameSpace=\"Standard\"><Address>{address:#x}</Address>\
+         <Length>{len}</Length><AccessMode>RO</AccessMode><pPort>Device</pPort></StringReg>"
+    );
+}
+
+fn category(x: &mut String, name: &str, features: &[&str]) {
+    let _ = write!(x, "<Category Name=\"{name}\" NameSpace=\"Standard\">");
+    for f in features {
+        let _ = write!(x, "<pFeature>{f}</pFeature>");
+    }
+    let _ = writeln!(x, "</Category>");
+}
+
+/// Chunk features: the metadata chunk's fields (offsets from `chunk.rs`).
+const CHUNK_FIELDS: [(&str, u32, u32); 7] = [
+    ("ChunkFrameSequence", 0, 8),
+    ("ChunkPoseSequence", 8, 4),
+    ("ChunkFlags", 12, 4),
+    ("ChunkPoseTime", 16, 8),
+    ("ChunkPoseArrival", 24, 8),
+    ("ChunkSamplesPerPixelMilli", 40, 4),
+    ("ChunkExposureTimeNs", 48, 8),
+];
+
+/// The whole XML file.
+pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
+    let mut x = String::with_capacity(16 * 1024);
+    let _ = writeln!(x, "<?xml version=\"1.0\" encoding=\"utf-8\"?>");
+    let _ = writeln!(
+        x,
+        "<RegisterDescription ModelName=\"{}\" VendorName=\"{}\" ToolTip=\"hilcam: a simulated camera\" \
+         StandardNameSpace=\"GEV\" SchemaMajorVersion=\"1\" SchemaMinorVersion=\"1\" SchemaSubMinorVersion=\"0\" \
+         MajorVersion=\"1\" MinorVersion=\"0\" SubMinorVersion=\"0\" \
+         ProductGuid=\"6a1c6b4e-5c2d-4d8a-9d54-68696c63616d\" VersionGuid=\"6a1c6b4e-5c2d-4d8a-9d54-000000000001\" \
+         xmlns=\"http://www.genicam.org/GenApi/Version_1_1\" \
+         xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" \
+         xsi:schemaLocation=\"http://www.genicam.org/GenApi/Version_1_1 http://www.genicam.org/GenApi/GenApiSchema_Version_1_1.xsd\">",
+        xml_escape(&id.model),
+        xml_escape(&id.manufacturer)
+    );
+    category(
+        &mut x,
+        "Root",
+        &["DeviceControl", "ImageFormatControl", "AcquisitionControl", "TransportLayerControl", "ChunkDataControl"],
+    );
+    category(&mut x, "DeviceControl", &["DeviceVendorName", "DeviceModelName", "DeviceVersion", "DeviceSerialNumber"]);
+    category(
+        &mut x,
+        "ImageFormatControl",
+        &["SensorWidth", "SensorHeight", "Width", "Height", "OffsetX", "OffsetY", "PixelFormat"],
+    );
+    category(
+        &mut x,
+        "AcquisitionControl",
+        &[
+            "AcquisitionMode",
+            "AcquisitionStart",
+            "AcquisitionStop",
+            "AcquisitionFrameRate",
+            "TriggerSelector",
+            "TriggerMode",
+            "TriggerSource",
+            "TriggerSoftware",
+            "ExposureTime",
+            "ExposureAuto",
+        ],
+    );
+    category(
+        &mut x,
+        "TransportLayerControl",
+        &[
+            "PayloadSize",
+            "GevTimestampTickFrequency",
+            "GevTimestampControlLatch",
+            "GevTimestampValue",
+            "GevSCPSPacketSize",
+            "GevSCPD",
+            "GevHeartbeatTimeout",
+        ],
+    );
+    let mut chunk_features = vec!["ChunkModeActive"];
+    chunk_features.extend(CHUNK_FIELDS.iter().map(|f| f.0));
+    category(&mut x, "ChunkDataControl", &chunk_features);
+
+    string_reg(&mut x, "DeviceVendorName", reg::MANUFACTURER_NAME, 32);
+    string_reg(&mut x, "DeviceModelName", reg::MODEL_NAME, 32);
+    string_reg(&mut x, "DeviceVersion", reg::DEVICE_VERSION, 32);
+    string_reg(&mut x, "DeviceSerialNumber", reg::SERIAL_NUMBER, 16);
+
+    let (sw, sh) = (u64::from(cam.sensor_width), u64::from(cam.sensor_height));
+    integer(&mut x, "SensorWidth", reg::SENSOR_WIDTH, Access::Ro, sw, sw, 1);
+    integer(&mut x, "SensorHeight", reg::SENSOR_HEIGHT, Access::Ro, sh, sh, 1);
+    integer(&mut x, "Width", reg::WIDTH, Access::Rw, 1, sw, 1);
+    integer(&mut x, "Height", reg::HEIGHT, Access::Rw, 1, sh, 1);
+    integer(&mut x, "OffsetX", reg::OFFSET_X, Access::Rw, 0, sw - 1, 1);
+    integer(&mut x, "OffsetY", reg::OFFSET_Y, Access::Rw, 0, sh - 1, 1);
+    let formats: Vec<(&str, u32)> = cam.pixel_formats().iter().map(|f| (f.name(), f.pfnc())).collect();
+    enumeration(&mut x, "PixelFormat", reg::PIXEL_FORMAT, &formats);
+    integer(&mut x, "PayloadSize", reg::PAYLOAD_SIZE, Access::Ro, 0, u64::from(u32::MAX), 1);
+
+    enumeration(&mut x, "AcquisitionMode", reg::ACQUISITION_MODE, &[("Continuous", 0), ("SingleFrame", 1)]);
+    command(&mut x, "AcquisitionStart", reg::ACQUISITION_START, 1);
+    command(&mut x, "AcquisitionStop", reg::ACQUISITION_STOP, 1);
+    float(&mut x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, reg::FRAME_RATE_MAX, "Hz");
+    enumeration(&mut x, "TriggerSelector", reg::TRIGGER_SELECTOR, &[("FrameStart", 0)]);
+    enumeration(&mut x, "TriggerMode", reg::TRIGGER_MODE, &[("Off", 0), ("On", 1)]);
+    enumeration(&mut x, "TriggerSource", reg::TRIGGER_SOURCE, &[("Software", 0)]);
+    command(&mut x, "TriggerSoftware", reg::TRIGGER_SOFTWARE, 1);
+    float(&mut x, "ExposureTime", reg::EXPOSURE_TIME, cam.exposure_min_us, cam.exposure_max_us, "us");
+    enumeration(&mut x, "ExposureAuto", reg::EXPOSURE_AUTO, &[("Off", 0), ("Continuous", 2)]);
+
+    let _ = writeln!(
+        x,
+        "<Integer Name=\"GevTimestampTickFrequency\" NameSpace=\"Standard\"><pValue>GevTimestampTickFrequencyReg</pValue></Integer>"
+    );
+    int_reg(&mut x, "GevTimestampTickFrequencyReg", reg::TICK_FREQ_HIGH, 8, Access::Ro, "Device");
+    command(&mut x, "GevTimestampControlLatch", reg::TIMESTAMP_CONTROL, reg::TIMESTAMP_LATCH);
+    let _ = writeln!(
+        x,
+        "<Integer Name=\"GevTimestampValue\" NameSpace=\"Standard\"><pValue>GevTimestampValueReg</pValue></Integer>"
+    );
+    int_reg(&mut x, "GevTimestampValueReg", reg::TIMESTAMP_VALUE_HIGH, 8, Access::Ro, "Device");
+    let _ = writeln!(
+        x,
+        "<Integer Name=\"GevSCPSPacketSize\" NameSpace=\"Standard\"><pValue>GevSCPSPacketSizeReg</pValue>\
+         <Min>{}</Min><Max>{}</Max><Inc>{}</Inc></Integer>\n\
+         <MaskedIntReg Name=\"GevSCPSPacketSizeReg\"><Address>{:#x}</Address><Length>4</Length>\
+         <AccessMode>RW</AccessMode><pPort>Device</pPort><Cachable>NoCache</Cachable>\
+         <LSB>31</LSB><MSB>16</MSB><Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></MaskedIntReg>",
+        reg::PACKET_SIZE_MIN,
+        reg::PACKET_SIZE_MAX,
+        reg::PACKET_SIZE_INC,
+        reg::SCPS0
+    );
+    integer(&mut x, "GevSCPD", reg::SCPD0, Access::Rw, 0, u64::from(u32::MAX), 1);
+    integer(
+        &mut x,
+        "GevHeartbeatTimeout",
+        reg::HEARTBEAT_TIMEOUT,
+        Access::Rw,
+        u64::from(reg::HEARTBEAT_MIN_MS),
+        u64::from(reg::HEARTBEAT_MAX_MS),
+        1,
+    );
+
+    let _ = writeln!(
+        x,
+        "<Boolean Name=\"ChunkModeActive\" NameSpace=\"Standard\"><pValue>ChunkModeActiveReg</pValue>\
+         <OnValue>1</OnValue><OffValue>0</OffValue></Boolean>"
+    );
+    int_reg(&mut x, "ChunkModeActiveReg", reg::CHUNK_MODE_ACTIVE, 4, Access::Rw, "Device");
+    let _ = writeln!(x, "<Port Name=\"HilcamChunkPort\"><ChunkID>{META_CHUNK_ID:08X}</ChunkID></Port>");
+    for (name, offset, len) in CHUNK_FIELDS {
+        let _ = writeln!(
+            x,
+            "<Integer Name=\"{name}\"><pValue>{name}Reg</pValue></Integer>\
+             <IntReg Name=\"{name}Reg\"><Address>{offset:#x}</Address><Length>{len}</Length>\
+             <AccessMode>RO</AccessMode><pPort>HilcamChunkPort</pPort><Cachable>NoCache</Cachable>\
+             <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></IntReg>"
+        );
+    }
+    let _ = writeln!(x, "<Port Name=\"Device\" NameSpace=\"Standard\"/>");
+    let _ = writeln!(x, "</RegisterDescription>");
+    x
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sink::gige::registers::tests::{camera, registers};
+
+    #[test]
+    fn xml_names_the_standard_features_and_offers_the_adc_depth() {
+        let r = registers();
+        let x = xml(&r.identity, &camera());
+        for f in [
+            "\"Width\"",
+            "\"SensorHeight\"",
+            "\"Mono12\"",
+            "\"TriggerSoftware\"",
+            "\"ExposureTime\"",
+            "\"GevTimestampTickFrequency\"",
+            "\"GevTimestampControlLatch\"",
+            "\"AcquisitionFrameRate\"",
+            "\"ChunkPoseSequence\"",
+        ] {
+            assert!(x.contains(f), "{f} missing");
+        }
+        assert!(!x.contains("Mono10"), "a 12-bit ADC offers Mono12, not Mono10");
+        assert!(x.contains("<Max>64</Max>"));
+        assert_eq!(x.matches("<RegisterDescription").count(), 1);
+        assert!(x.trim_end().ends_with("</RegisterDescription>"));
+    }
+}

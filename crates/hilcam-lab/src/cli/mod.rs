@@ -1,0 +1,7 @@
+//! The lab's subcommands of `hilcam` (arguments and `run`), one file each.
+
+pub mod bench;
+pub mod bench_trade;
+pub mod brdf;
+pub mod fold;
+pub mod model;
