@@ -9,9 +9,10 @@ use hilcam_core::link::InputEvent;
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::Pose;
 use hilcam_core::render::film::Pixels;
+use hilcam_core::replay::session_jobs;
 use hilcam_core::serve::config::ServeConfig;
 use hilcam_core::serve::{Embed, run};
-use hilcam_core::session::{Session, frame_jobs};
+use hilcam_core::session::Session;
 use hilcam_core::sink::recorder::FrameRecord;
 use serve_common::*;
 use std::path::Path;
@@ -144,7 +145,7 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
     let scene = Arc::new(hilcam_core::scene::load(&cfg.scene).unwrap());
     let camera = scene.camera.scaled(cfg.width, None);
     let mut pipeline = FramePipeline::new(scene, camera).unwrap();
-    for (job, f) in frame_jobs(&s, true).iter().zip(&streamed) {
+    for (job, f) in session_jobs(&s, true).iter().zip(&streamed) {
         let again = pipeline.frame(&job.pose, &job.settings, job.index).unwrap();
         assert_eq!(again.pixels.to_le_bytes(), f.pixels.to_le_bytes(), "frame {}", job.index);
     }

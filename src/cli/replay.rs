@@ -12,13 +12,14 @@ use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::trajectory::Trajectory;
 use hilcam_core::pose::validate::{PoseLimits, check_pose, describe};
 use hilcam_core::render::integrator::SamplerKind;
+use hilcam_core::replay::session_jobs;
 use hilcam_core::replay::{
     FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs_until, trajectory_jobs,
 };
 use hilcam_core::scene::file::parse_name;
 use hilcam_core::scene::limits::checked_scaled_camera;
 use hilcam_core::serve::config::ServeConfig;
-use hilcam_core::session::{Session, frame_jobs};
+use hilcam_core::session::Session;
 use hilcam_core::sink::recorder::ImageFormat;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -143,7 +144,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
 fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyhow::Result<()> {
     let session = Session::load(path)?;
     let h = &session.header;
-    let jobs = frame_jobs(&session, !a.no_verify);
+    let jobs = session_jobs(&session, !a.no_verify);
     // The recorded poses passed the gate when they arrived; a file edited since must pass
     // it again (rendered as recorded, so the streamed CRCs still check).
     let limits = PoseLimits::default();

@@ -14,7 +14,7 @@
 use super::lens_coverage::{self, IdealCells};
 use super::visibility::{floor_i32, ideal_region, slab_x_extent};
 use crate::render::camera::{PixelRect, View};
-use crate::scene::Scene;
+use crate::render::target::Target;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -38,7 +38,7 @@ pub struct Coverage {
 /// sample, for a triangle no nearer than `z_min` (camera frame): the f32 rounding of its
 /// origin and direction is a few 1e-7 of the target's size at most; 40× that, seen from
 /// `z_min`, plus 1e-3 px.
-pub(super) fn ray_margin(scene: &Scene, view: &View, z_min: f64) -> f64 {
+pub(super) fn ray_margin(scene: &Target, view: &View, z_min: f64) -> f64 {
     4e-6 * scene.bounds.radius * view.focal_px() / z_min + 1e-3
 }
 
@@ -85,7 +85,7 @@ impl Coverage {
     /// a box in front of the camera projects inside the rectangle of its corners' images.
     /// False (and the coverage must not be used) when a box reaches the camera plane or
     /// the lens's ideal region is unbounded.
-    pub fn from_leaf_boxes(&mut self, scene: &Scene, view: &View, rect: PixelRect) -> bool {
+    pub fn from_leaf_boxes(&mut self, scene: &Target, view: &View, rect: PixelRect) -> bool {
         let accel = &scene.accel;
         let leaves = accel.leaves();
         let Some((x_lo, x_hi, y_lo, y_hi)) = ideal_region(view, rect) else { return false };

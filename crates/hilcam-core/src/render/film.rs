@@ -4,9 +4,55 @@
 //! `.png` (8- or 16-bit) and `.tif`/`.tiff` (16-bit) hold integer pixels. A float image
 //! written to an integer format is a *preview*, scaled so that `scale` maps to full white.
 
-use crate::frame::PixelFormat;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+/// How the payload's pixels are encoded (little-endian, row-major, no padding).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PixelFormat {
+    Mono8,
+    /// 16-bit container; the sensor's bit depth (10/12/16) is in the metadata.
+    Mono16,
+    /// Entrance-pupil radiance, W·sr⁻¹·m⁻², f32.
+    Float32,
+}
+
+impl PixelFormat {
+    /// The wire code (header byte 56).
+    pub fn code(self) -> u8 {
+        match self {
+            PixelFormat::Mono8 => 1,
+            PixelFormat::Mono16 => 2,
+            PixelFormat::Float32 => 3,
+        }
+    }
+
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(PixelFormat::Mono8),
+            2 => Some(PixelFormat::Mono16),
+            3 => Some(PixelFormat::Float32),
+            _ => None,
+        }
+    }
+
+    pub fn bytes_per_pixel(self) -> usize {
+        match self {
+            PixelFormat::Mono8 => 1,
+            PixelFormat::Mono16 => 2,
+            PixelFormat::Float32 => 4,
+        }
+    }
+
+    /// Significant bit depths a header may carry for this format.
+    pub(crate) fn valid_bits(self, bits: u8) -> bool {
+        match self {
+            PixelFormat::Mono8 => (1..=8).contains(&bits),
+            PixelFormat::Mono16 => (1..=16).contains(&bits),
+            PixelFormat::Float32 => bits == 32,
+        }
+    }
+}
 
 /// A single-channel float image, row-major, `data[row * width + col]`.
 #[derive(Clone, Debug, PartialEq)]

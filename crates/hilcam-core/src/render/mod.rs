@@ -13,7 +13,7 @@ use crate::render::camera::{CameraModel, PixelRect, Silhouette, View};
 use crate::render::film::RadianceImage;
 use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::render::sampling::{PerSample, Sequence};
-use crate::scene::Scene;
+use crate::render::target::Target;
 use adaptive::Adaptive;
 pub use buffers::FrameBuffers;
 use buffers::{WorkerScratch, Workers};
@@ -29,6 +29,7 @@ pub mod geometry;
 pub mod integrator;
 mod lens_coverage;
 pub mod sampling;
+pub mod target;
 mod tile;
 pub mod visibility;
 use rayon::prelude::*;
@@ -76,7 +77,7 @@ impl RenderStats {
 
 /// Render one frame through an already placed view (e.g. with lens distortion).
 pub fn render_view(
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     view: &View,
     settings: &RenderSettings,
@@ -88,7 +89,7 @@ pub fn render_view(
 
 /// Render one frame.
 pub fn render(
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     pose: &Pose,
     settings: &RenderSettings,
@@ -100,7 +101,7 @@ pub fn render(
 
 /// Render one frame and hand every traced ray to a per-row `L` (benchmarks).
 pub fn render_logged<L: RayLog + Default + Send + Sync>(
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     pose: &Pose,
     settings: &RenderSettings,
@@ -111,7 +112,7 @@ pub fn render_logged<L: RayLog + Default + Send + Sync>(
 }
 
 fn render_view_logged<L: RayLog + Default + Send + Sync>(
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     view: &View,
     settings: &RenderSettings,
@@ -123,7 +124,7 @@ fn render_view_logged<L: RayLog + Default + Send + Sync>(
 /// Render one frame through `view`, choosing how primary hits are found, and hand every
 /// traced ray to a per-band `L` (benchmarks and tests).
 pub fn render_view_with<L: RayLog + Default + Send + Sync>(
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     view: &View,
     settings: &RenderSettings,
@@ -140,7 +141,7 @@ pub fn render_view_with<L: RayLog + Default + Send + Sync>(
 /// serve` and replay, through `FramePipeline`).
 pub fn render_view_into<L: RayLog + Default + Send + Sync>(
     buffers: &mut FrameBuffers<L>,
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     view: &View,
     settings: &RenderSettings,
@@ -153,7 +154,7 @@ pub fn render_view_into<L: RayLog + Default + Send + Sync>(
 /// Render one frame through `view` and say how many camera samples each pixel got
 /// (row-major, 0 where none was needed): with adaptive sampling, where the budget went.
 pub fn render_view_counted(
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     view: &View,
     settings: &RenderSettings,
@@ -177,7 +178,7 @@ pub fn render_view_counted(
 #[allow(clippy::too_many_arguments)]
 fn render_view_impl<L: RayLog + Default + Send + Sync>(
     buffers: &mut FrameBuffers<L>,
-    scene: &Scene,
+    scene: &Target,
     camera: &CameraModel,
     view: &View,
     settings: &RenderSettings,

@@ -18,7 +18,7 @@
 use super::coverage::{Coverage, ray_margin, set_bits, triangle_row_cells};
 use crate::render::camera::{PixelRect, View};
 use crate::render::geometry::{Accel, Hit, Ray, TestRay};
-use crate::scene::Scene;
+use crate::render::target::Target;
 use rayon::prelude::*;
 
 /// Ideal-image rows per bucket of the per-frame triangle binning (the renderer's bands are
@@ -147,7 +147,7 @@ impl PrimaryRaster {
     /// `rect`. `None` when rasterising would not be exact or would not pay: a vertex at or
     /// behind the camera plane (camera among the triangles), or a lens whose ideal image
     /// of the rectangle is unbounded.
-    pub fn new(scene: &Scene, view: &View, rect: PixelRect) -> Option<PrimaryRaster> {
+    pub fn new(scene: &Target, view: &View, rect: PixelRect) -> Option<PrimaryRaster> {
         let mut raster = PrimaryRaster::default();
         raster.rebuild(scene, view, rect).then_some(raster)
     }
@@ -155,7 +155,7 @@ impl PrimaryRaster {
     /// [`PrimaryRaster::new`] into this raster's buffers (no allocation once they have
     /// grown to the frame's size); false where `new` gives `None`, and the raster must then
     /// not be used.
-    pub fn rebuild(&mut self, scene: &Scene, view: &View, rect: PixelRect) -> bool {
+    pub fn rebuild(&mut self, scene: &Target, view: &View, rect: PixelRect) -> bool {
         let mesh = &scene.mesh;
         let accel = &scene.accel;
         if accel.is_empty() {

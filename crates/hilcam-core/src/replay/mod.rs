@@ -18,7 +18,7 @@
 //!   `every > 1` would not see the live exposure history: [`replay`] refuses them unless
 //!   the integration time is pinned ([`pin_integration_time`]).
 //! - Sessions: [`replay_jobs`] renders any list of [`FrameJob`]s — a recorded `serve`
-//!   session's frames ([`crate::session::frame_jobs`]) with their own poses, settings and
+//!   session's frames ([`session_jobs`]) with their own poses, settings and
 //!   indices, each checked against the CRC that was streamed.
 //! - The directory's [`manifest`] pins scene, size and settings: a resume with others is refused.
 
@@ -340,6 +340,22 @@ pub fn trajectory_jobs(samples: &[TrajectorySample], settings: &RenderSettings) 
             settings: *settings,
             flags: FrameFlags::default(),
             expect_crc32: None,
+        })
+        .collect()
+}
+
+/// The session's streamed frames as replay jobs: same index, pose, settings and flags,
+/// and the streamed payload CRC to check the re-render against (`verify`).
+pub fn session_jobs(session: &crate::session::Session, verify: bool) -> Vec<FrameJob> {
+    session
+        .frames
+        .iter()
+        .map(|f| FrameJob {
+            index: f.index,
+            pose: f.pose.to_pose(),
+            settings: f.settings.to_settings(),
+            flags: FrameFlags(f.flags),
+            expect_crc32: verify.then_some(f.payload_crc32),
         })
         .collect()
 }

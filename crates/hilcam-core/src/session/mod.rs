@@ -11,11 +11,9 @@
 
 pub mod writer;
 
-use crate::frame::FrameFlags;
 use crate::pose::Pose;
 use crate::render::integrator::{RenderSettings, SamplerKind};
 use crate::render::sampling::Sequence;
-use crate::replay::FrameJob;
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -363,25 +361,10 @@ fn placeholder_header() -> SessionHeader {
     }
 }
 
-/// The session's streamed frames as replay jobs: same index, pose, settings and flags,
-/// and the streamed payload CRC to check the re-render against (`verify`).
-pub fn frame_jobs(session: &Session, verify: bool) -> Vec<FrameJob> {
-    session
-        .frames
-        .iter()
-        .map(|f| FrameJob {
-            index: f.index,
-            pose: f.pose.to_pose(),
-            settings: f.settings.to_settings(),
-            flags: FrameFlags(f.flags),
-            expect_crc32: verify.then_some(f.payload_crc32),
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frame::FrameFlags;
 
     fn pose() -> Pose {
         Pose {
@@ -442,10 +425,9 @@ mod tests {
         assert_eq!((s.poses.len(), s.frames.len(), s.failed.len(), s.end.is_some()), (1, 1, 1, true));
         assert_eq!(bits(&s.poses[0].pose.to_pose()), bits(&p), "every f64 bit survives");
         assert_eq!(s.poses[0].pose.to_pose(), p);
-        let job = &frame_jobs(&s, true)[0];
-        assert_eq!((job.index, job.pose, job.expect_crc32), (3, p, Some(0xdead_beef)));
-        assert_eq!(job.settings.seed, u64::MAX);
-        assert!(frame_jobs(&s, false)[0].expect_crc32.is_none());
+        let f = &s.frames[0];
+        assert_eq!((f.index, f.pose.to_pose(), f.payload_crc32), (3, p, 0xdead_beef));
+        assert_eq!(f.settings.to_settings().seed, u64::MAX);
         assert_eq!(s.frame_gaps(), vec![0, 1, 2]);
     }
 

@@ -10,7 +10,7 @@ use crate::render::geometry::{Hit, Ray, SunShadow};
 use crate::render::sampling::{
     Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
 };
-use crate::scene::Scene;
+use crate::render::target::Target;
 use glam::Vec3;
 use serde::Deserialize;
 use std::sync::Arc;
@@ -143,7 +143,7 @@ pub struct Scatter {
 
 /// Per-frame constants of the estimator.
 pub struct PathContext<'a> {
-    pub scene: &'a Scene,
+    pub scene: &'a Target,
     /// Unit vector toward the sun, render frame.
     pub sun: Vec3,
     pub depth: u32,
@@ -156,7 +156,7 @@ pub struct PathContext<'a> {
 }
 
 impl<'a> PathContext<'a> {
-    pub fn new(scene: &'a Scene, sun: Vec3, settings: &RenderSettings) -> Self {
+    pub fn new(scene: &'a Target, sun: Vec3, settings: &RenderSettings) -> Self {
         let indirect = settings.depth > 1 && scene.any_reflective();
         PathContext {
             scene,
