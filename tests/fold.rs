@@ -332,9 +332,9 @@ mod satellite {
     fn shipped_model_regenerates_byte_identically() {
         let m = sat::satellite(&medium(), 1, 0.02).unwrap();
         let mut obj = Vec::new();
-        fold::obj::write_obj(&mut obj, &m, &MATERIALS, Some("satellite.mtl"), "jason_like").unwrap();
+        hilcam_lab::obj::write_obj(&mut obj, &m, &MATERIALS, Some("satellite.mtl"), "jason_like").unwrap();
         let mut mtl = Vec::new();
-        fold::obj::write_mtl(&mut mtl, &sat::mtl_entries()).unwrap();
+        hilcam_lab::obj::write_mtl(&mut mtl, &sat::mtl_entries()).unwrap();
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/satellite");
         let shipped_obj = std::fs::read(dir.join("satellite.obj")).unwrap();
         if shipped_obj != obj {

@@ -5,4 +5,6 @@
 pub mod bench;
 pub mod cli;
 pub mod model;
+pub mod obj;
 pub mod plot;
+pub mod preview;

@@ -71,9 +71,9 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
     let plane = fold::generate_plane(target, a.seed)?;
     let elapsed = t0.elapsed();
     let name = format!("fold_plane_seed{}", a.seed);
-    fold::obj::write_obj_file(&a.out, &plane.mesh, &["fold"], None, &name)?;
+    crate::obj::write_obj_file(&a.out, &plane.mesh, &["fold"], None, &name)?;
     if let Some(p) = &a.preview {
-        fold::preview::preview_png(&plane.mesh, 1024, p)?;
+        crate::preview::preview_png(&plane.mesh, 1024, p)?;
     }
     let p = &plane.fit.params;
     println!(
@@ -105,7 +105,7 @@ fn parse_normal(s: &str) -> anyhow::Result<DVec3> {
 
 fn measure(a: MeasureArgs) -> anyhow::Result<()> {
     let normal = parse_normal(&a.normal)?;
-    let mesh = fold::obj::read_obj(&a.mesh)?;
+    let mesh = crate::obj::read_obj(&a.mesh)?;
     let stats = fold::measure(&mesh, normal)?;
     println!("{} (normal {:?})", a.mesh.display(), normal.normalize().to_array());
     print!("{}", stats.report());

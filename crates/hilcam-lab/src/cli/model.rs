@@ -56,8 +56,8 @@ fn write_satellite(a: SatelliteArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let obj = a.out.join("satellite.obj");
     let mtl = a.out.join("satellite.mtl");
-    fold::obj::write_obj_file(&obj, &mesh, &MATERIALS, Some("satellite.mtl"), "jason_like")?;
-    fold::obj::write_mtl_file(&mtl, &satellite::mtl_entries())?;
+    crate::obj::write_obj_file(&obj, &mesh, &MATERIALS, Some("satellite.mtl"), "jason_like")?;
+    crate::obj::write_mtl_file(&mtl, &satellite::mtl_entries())?;
     println!(
         "wrote {} ({} vertices, {} triangles) and {}",
         obj.display(),
@@ -105,8 +105,8 @@ fn side_faces(mesh: &hilcam_core::render::geometry::TriMesh, n: DVec3) -> hilcam
 
 /// Oblique whole-satellite view and a close-up of the +X bus side, sun from +X+Y+Z.
 fn write_previews(mesh: &hilcam_core::render::geometry::TriMesh, dir: &std::path::Path) -> anyhow::Result<()> {
+    use crate::preview::{View, preview_view};
     use glam::Vec3;
-    use hilcam_core::scene::fold::preview::{View, preview_view};
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let albedo = [0.9, 1.0, 0.35, 0.6, 1.0, 0.8];
     let light = Vec3::new(0.8, 0.35, 0.5).normalize();

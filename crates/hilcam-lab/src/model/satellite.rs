@@ -15,9 +15,9 @@
 //!   ring (`metal`) below the bus.
 
 use super::prims::{Place, cuboid, cylinder, dish, strut};
+use crate::obj::MtlEntry;
 use glam::Vec3;
 use hilcam_core::render::geometry::TriMesh;
-use hilcam_core::scene::fold::obj::MtlEntry;
 use hilcam_core::scene::fold::{FoldError, FoldParams, wrap_faces_report};
 
 pub const MLI_GOLD: u32 = 0;

@@ -12,16 +12,15 @@
 //! - [`fit`]: the deterministic 2-D Newton fit of (slope, density) to a target.
 //! - [`generate`]: a fold plane at a level (or any target) for a seed.
 //! - [`wrap`]: folds applied to the faces of a [`crate::render::geometry::TriMesh`] by material.
-//! - [`obj`]: a minimal, deterministic OBJ/MTL writer.
-//! - [`preview`]: a shaded orthographic PNG of a height-field mesh (for the docs).
+//!
+//! Writing planes to OBJ files and preview pictures is the lab's (`hilcam-lab`: `obj`,
+//! `preview`).
 
 pub mod disk;
 pub mod field;
 pub mod fit;
 pub mod generate;
 pub mod measure;
-pub mod obj;
-pub mod preview;
 pub mod wrap;
 
 pub use field::{FoldField, FoldParams};

@@ -4,9 +4,9 @@
 //! index order (`usemtl name`), 1-based indices. The output is a pure function of the mesh,
 //! so regenerating a model gives byte-identical files.
 
-use super::FoldError;
-use crate::render::geometry::TriMesh;
 use glam::Vec3;
+use hilcam_core::render::geometry::TriMesh;
+use hilcam_core::scene::fold::FoldError;
 use std::io::Write;
 use std::path::Path;
 

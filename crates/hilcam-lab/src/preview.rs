@@ -3,9 +3,9 @@
 //! Flat-shaded triangles (two-sided, a fixed light) with a z-buffer, so that crease
 //! flanks show as light/dark bands.
 
-use super::FoldError;
-use crate::render::geometry::TriMesh;
 use glam::Vec3;
+use hilcam_core::render::geometry::TriMesh;
+use hilcam_core::scene::fold::FoldError;
 
 /// An orthographic view: looking along `dir` with `up` roughly up, `half` metres from the
 /// centre to the image edge.
@@ -52,7 +52,7 @@ pub fn preview_view(
     let mut depth = vec![f32::INFINITY; (size * size) as usize];
     let mut img = image::GrayImage::from_pixel(size, size, image::Luma([0]));
     for (i, t) in mesh.indices.iter().enumerate() {
-        let n = super::measure::normal_f64(mesh, i).normalize_or_zero();
+        let n = hilcam_core::scene::fold::measure::normal_f64(mesh, i).normalize_or_zero();
         let n = if n.dot(d.as_dvec3()) > 0.0 { -n } else { n }; // two-sided
         let lit = n.dot(view.light.as_dvec3()).max(0.0);
         let a = albedo.get(mesh.material[i] as usize).copied().unwrap_or(1.0);
