@@ -47,3 +47,14 @@ fi
 # lets the stable toolchain use them). HILCAM_FUZZ_SECONDS=0 skips, with a note.
 scripts/fuzz.sh "${HILCAM_FUZZ_SECONDS:-10}"
 # ---------------------------------------------------------------------------
+
+# The bench build: the binary without the lab (--no-default-features) builds, and its
+# command line has no lab subcommand.
+cargo build --quiet --no-default-features --bin hilcam
+if target/debug/hilcam bench --help >/dev/null 2>&1; then
+  echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
+  exit 1
+fi
+target/debug/hilcam serve --help >/dev/null
+echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands absent"
+

@@ -1,6 +1,6 @@
 //! The physical ranges a scene's numbers must lie in, and the pose gate for the scene's
-//! `[pose]` and `hilcam render --pose`. Every range is documented in README's scene-file
-//! section; a value outside one is refused naming the field, the value and the range.
+//! `[pose]` and `hilcam render --pose`. Every range is documented in docs/scene.md ("Accepted ranges and
+//! refusals"); a value outside one is refused naming the field, the value and the range.
 
 use crate::pose::Pose;
 use crate::pose::validate::{PoseLimits, Rejection, check_pose};
