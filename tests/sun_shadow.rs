@@ -1,21 +1,21 @@
-//! The sun-aligned shadow grid (`geometry::sun_shadow`) against the brute-force any-hit
+//! The lab's sun-aligned shadow grid (`hilcam_lab::sun_shadow`) against the brute-force any-hit
 //! test over every triangle (`geometry::bvh::brute_force::occluded`, the same obvhs
 //! triangle test): identical answers on shadow rays logged from real renders of the
 //! shipped satellite (its own sun, grazing on the solar wings, exactly in their plane,
 //! along body axes), on origins of those renders with exact axis directions, and on
-//! random triangle soups at millimetre and 10 km scales; and a render with the grid
-//! gives the same image bytes as one through the BVH alone.
+//! random triangle soups at millimetre and 10 km scales.
 
 use glam::{DVec3, Vec3};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::geometry::bvh::brute_force;
-use hilcam_core::render::geometry::{Ray, SunShadow, TriMesh};
+use hilcam_core::render::geometry::{Ray, TriMesh};
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
-use hilcam_core::render::sampling::{Rng, Sequence};
-use hilcam_core::render::{render, render_logged};
+use hilcam_core::render::render_logged;
+use hilcam_core::render::sampling::Rng;
 use hilcam_core::scene::Scene;
+use hilcam_lab::sun_shadow::SunShadow;
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
@@ -212,65 +212,4 @@ fn rays_the_grid_does_not_answer_fall_back() {
     // A finite tmax is honoured exactly like the brute-force test.
     let r = Ray { origin: o, dir: s, tmax: 0.5 };
     assert_eq!(grid.occluded(&r), Some(brute_force::occluded(&scene.mesh, &r)));
-}
-
-#[test]
-fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
-    // Its own scene: switching the grid off must not race with other tests.
-    let scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
-    let cam = small_camera(&scene, 80);
-    let mut turned = scene.pose;
-    turned.attitude = glam::DQuat::from_rotation_y(0.4) * turned.attitude;
-    let bits =
-        |img: &hilcam_core::render::film::RadianceImage| img.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
-    for (pose, sequence) in
-        [(scene.pose, Sequence::Sobol), (turned, Sequence::Independent), (scene.pose, Sequence::Sobol)]
-    {
-        let settings = RenderSettings {
-            spp: Spp::whole(3),
-            depth: 4,
-            sampler: SamplerKind::Brdf,
-            sequence,
-            roulette: true,
-            adaptive: true,
-            seed: 11,
-        };
-        let sun = hilcam_core::render::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds).sun;
-        scene.sun_shadow.set_enabled(false);
-        let (bvh, s0) = render(&scene, &cam, &pose, &settings, 5);
-        assert!(s0.rays.shadow > 1000, "too few shadow rays to compare: {}", s0.rays.shadow);
-        scene.sun_shadow.set_enabled(true);
-        // The first frame with a new sun uses the BVH, the second builds and uses the grid.
-        let (first, s1) = render(&scene, &cam, &pose, &settings, 5);
-        let (second, s2) = render(&scene, &cam, &pose, &settings, 5);
-        let built = scene.sun_shadow.built_for().unwrap();
-        assert_eq!(built.to_array().map(f32::to_bits), sun.to_array().map(f32::to_bits));
-        assert_eq!((s0.rays, s0.rays), (s1.rays, s2.rays));
-        assert_eq!(bits(&bvh), bits(&first));
-        assert_eq!(bits(&bvh), bits(&second), "image bytes differ with the grid");
-    }
-}
-
-#[test]
-fn the_cache_builds_on_the_second_request_and_reuses() {
-    let scene = satellite_small_soup();
-    let (a, b) = (Vec3::new(0.2, 0.3, 0.9).normalize(), Vec3::new(-0.5, 0.1, 0.8).normalize());
-    let cache = hilcam_core::render::geometry::SunShadowCache::default();
-    assert!(cache.get(&scene, a).is_none() && cache.get(&scene, a).is_none(), "off by default");
-    cache.set_enabled(true);
-    assert!(cache.get(&scene, a).is_none(), "first request: BVH");
-    let g1 = cache.get(&scene, a).expect("second request builds");
-    let g2 = cache.get(&scene, a).unwrap();
-    assert!(std::sync::Arc::ptr_eq(&g1, &g2), "same sun reuses");
-    assert!(cache.get(&scene, b).is_none());
-    drop((g1, g2));
-    let g3 = cache.get(&scene, b).unwrap();
-    assert_eq!(g3.dir(), b);
-    cache.set_eager(true);
-    assert_eq!(cache.get(&scene, a).unwrap().dir(), a, "eager builds at once");
-}
-
-fn satellite_small_soup() -> TriMesh {
-    let mut rng = Rng::from_state(7);
-    soup(&mut rng, 1.0, Vec3::Z, 60)
 }

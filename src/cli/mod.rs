@@ -17,7 +17,7 @@ use hilcam_lab::cli::{bench, brdf, fold, model};
 #[derive(Parser, Debug)]
 #[command(name = "hilcam", version, about = "Hardware-in-the-loop camera simulator for spacecraft navigation")]
 pub struct Cli {
-    /// Log filter (tracing env-filter syntax), e.g. `info`, `hilcam=debug`.
+    /// Log filter (tracing env-filter syntax), e.g. `info`, `hilcam_core=debug`.
     #[arg(long, global = true, default_value = "info", env = "HILCAM_LOG")]
     pub log: String,
     #[command(subcommand)]
@@ -35,7 +35,7 @@ pub enum Command {
     /// Benchmarks: ratios measured side by side in one run.
     #[cfg(feature = "lab")]
     Bench(bench::BenchArgs),
-    /// Print the version and exit (placeholder until real subcommands land).
+    /// Print the version and exit.
     Version,
     /// Apply a camera preset's sensor model to a radiance image (.pfm).
     Sensor(sensor::SensorArgs),

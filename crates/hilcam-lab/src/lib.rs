@@ -8,3 +8,4 @@ pub mod model;
 pub mod obj;
 pub mod plot;
 pub mod preview;
+pub mod sun_shadow;

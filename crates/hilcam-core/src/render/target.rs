@@ -4,7 +4,7 @@
 
 use crate::render::bsdf::Bsdf;
 use crate::render::camera::TargetBounds;
-use crate::render::geometry::{Accel, BvhLayout, SunShadowCache, TriMesh};
+use crate::render::geometry::{Accel, BvhLayout, TriMesh};
 use glam::{DVec3, Vec3};
 
 /// A named material and its BRDF.
@@ -29,9 +29,6 @@ pub struct Target {
     pub sun_irradiance: f32,
     /// Radiance of rays that escape, W·sr⁻¹·m⁻².
     pub background: f32,
-    /// Shadow-ray structure for the current sun direction (off by default; built when a
-    /// sun direction repeats, rebuilt when it moves in the render frame).
-    pub sun_shadow: SunShadowCache,
 }
 
 impl Target {
@@ -68,7 +65,6 @@ impl Target {
             bounds: TargetBounds { centre: DVec3::ZERO, radius, min: min - 1e-6, max: max + 1e-6 },
             sun_irradiance: sun_irradiance as f32,
             background: background as f32,
-            sun_shadow: SunShadowCache::default(),
         }
     }
 

@@ -98,6 +98,26 @@ fn fmt_q(p: &Pose) -> String {
     format!("[{}, {}, {}, {}]", q.w, q.x, q.y, q.z)
 }
 
+/// [`CameraModel::scaled`] for sizes a user typed (`--width`/`--height`): each given side
+/// and the size it implies must lie in `1..=MAX_SIDE_PX`, and the scaled camera must pass
+/// the scene file's camera checks; the error names the flag and the limit.
+pub fn checked_scaled_camera(
+    c: &crate::render::camera::CameraModel,
+    width: Option<u32>,
+    height: Option<u32>,
+) -> Result<crate::render::camera::CameraModel, String> {
+    for (flag, v) in [("--width", width), ("--height", height)] {
+        if let Some(v) = v {
+            crate::render::camera::check_side(v).map_err(|m| format!("{flag}: {m}"))?;
+        }
+    }
+    let scaled = c.scaled(width, height);
+    let named = |(field, m): (&str, String)| format!("--width/--height: the scaled camera's {field} {m}");
+    scaled.check_size().map_err(named)?;
+    crate::scene::file::validate_camera(&scaled).map_err(named)?;
+    Ok(scaled)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -128,24 +148,4 @@ mod tests {
         let p = Pose { sun_dir: DVec3::new(1e-320, 0.0, 0.0), ..Pose::ahead(10.0) };
         assert_eq!(gate_pose(&p).unwrap().sun_dir, DVec3::X);
     }
-}
-
-/// [`CameraModel::scaled`] for sizes a user typed (`--width`/`--height`): each given side
-/// and the size it implies must lie in `1..=MAX_SIDE_PX`, and the scaled camera must pass
-/// the scene file's camera checks; the error names the flag and the limit.
-pub fn checked_scaled_camera(
-    c: &crate::render::camera::CameraModel,
-    width: Option<u32>,
-    height: Option<u32>,
-) -> Result<crate::render::camera::CameraModel, String> {
-    for (flag, v) in [("--width", width), ("--height", height)] {
-        if let Some(v) = v {
-            crate::render::camera::check_side(v).map_err(|m| format!("{flag}: {m}"))?;
-        }
-    }
-    let scaled = c.scaled(width, height);
-    let named = |(field, m): (&str, String)| format!("--width/--height: the scaled camera's {field} {m}");
-    scaled.check_size().map_err(named)?;
-    crate::scene::file::validate_camera(&scaled).map_err(named)?;
-    Ok(scaled)
 }

@@ -7,10 +7,11 @@
 //! machine load.
 
 use super::median;
+use crate::sun_shadow::SunShadow;
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::camera::View;
-use hilcam_core::render::geometry::{Ray, SunShadow};
+use hilcam_core::render::geometry::Ray;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings};
 use hilcam_core::render::{PrimaryVisibility, render, render_logged, render_view_with};
 use hilcam_core::scene::Scene;
@@ -38,9 +39,6 @@ pub struct RenderBenchRow {
     /// Rebuilding it in place for another direction (buffers reused), milliseconds.
     pub grid_rebuild_ms: f64,
     pub grid_entries: usize,
-    /// Frame time with the sun grid on (`frame_s`: the defaults, shadow rays through the
-    /// BVH).
-    pub frame_grid_s: f64,
     /// Frame times with every primary ray traced through the BVH (in packets where the tree
     /// walks them), and with all rasterised (`frame_s`: the default, `auto`).
     pub frame_traced_s: f64,
@@ -129,8 +127,7 @@ pub fn measure(
     rounds: usize,
     label: &str,
 ) -> RenderBenchRow {
-    // The defaults (sun grid off, primary hits as `auto` finds them) with every ray recorded.
-    scene.sun_shadow.set_enabled(false);
+    // The defaults (primary hits as `auto` finds them) with every ray recorded.
     let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
     let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();
     // Every ray the renderer traced must be re-traced, or the ratio compares different work.
@@ -139,17 +136,13 @@ pub fn measure(
     let with = |p| render_view_with::<()>(scene, camera, &view, settings, 0, p).1;
     let traced_pixels_traced = with(PrimaryVisibility::Trace).traced_pixels;
     let traced_pixels_raster = with(PrimaryVisibility::Raster).traced_pixels;
-    // Alternating: the defaults, the raw re-trace, the sun grid on (built by the first of
-    // these frames, the sun repeats), every primary ray traced, all rasterised.
-    let (mut t_render, mut t_raw, mut t_render_grid) = (Vec::new(), Vec::new(), Vec::new());
+    // Alternating: the defaults, the raw re-trace, every primary ray traced, all rasterised.
+    let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
     let (mut t_render_traced, mut t_render_raster) = (Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
         let (_, s) = render(scene, camera, pose, settings, 0);
         t_render.push(s.time.as_secs_f64());
         t_raw.push(trace_raw(scene, &logs));
-        scene.sun_shadow.set_enabled(true);
-        t_render_grid.push(render(scene, camera, pose, settings, 0).1.time.as_secs_f64());
-        scene.sun_shadow.set_enabled(false);
         t_render_traced.push(with(PrimaryVisibility::Trace).time.as_secs_f64());
         t_render_raster.push(with(PrimaryVisibility::Raster).time.as_secs_f64());
     }
@@ -186,7 +179,6 @@ pub fn measure(
         grid_build_ms: median(t_build) * 1e3,
         grid_rebuild_ms: median(t_rebuild) * 1e3,
         grid_entries: grid.stats.entries,
-        frame_grid_s: median(t_render_grid),
         frame_traced_s: median(t_render_traced),
         frame_raster_s: median(t_render_raster),
         traced_pixels_traced,
@@ -222,7 +214,7 @@ pub fn print_table(rows: &[RenderBenchRow]) {
 /// The shadow-ray table: sun grid against the BVH on the same recorded rays.
 pub fn print_shadow_table(rows: &[RenderBenchRow]) {
     println!(
-        "{:<28} {:>10} {:>10} {:>9} {:>7} {:>9} {:>10} {:>8} {:>9} {:>9} {:>12} {:>11}",
+        "{:<28} {:>10} {:>10} {:>9} {:>7} {:>9} {:>10} {:>8} {:>9} {:>9} {:>11}",
         "shadow rays",
         "rays",
         "grid Mr/s",
@@ -233,12 +225,11 @@ pub fn print_shadow_table(rows: &[RenderBenchRow]) {
         "entries",
         "reads/ray",
         "tests/ray",
-        "frame ms grid",
-        "frame ms BVH"
+        "frame ms"
     );
     for r in rows {
         println!(
-            "{:<28} {:>10} {:>10.2} {:>9.2} {:>6.2}x {:>9.1} {:>10.1} {:>8} {:>9.2} {:>9.2} {:>12.1} {:>11.1}",
+            "{:<28} {:>10} {:>10.2} {:>9.2} {:>6.2}x {:>9.1} {:>10.1} {:>8} {:>9.2} {:>9.2} {:>11.1}",
             r.label,
             r.shadow_rays,
             r.grid_mrays,
@@ -249,7 +240,6 @@ pub fn print_shadow_table(rows: &[RenderBenchRow]) {
             r.grid_entries,
             r.grid_reads,
             r.grid_tests,
-            r.frame_grid_s * 1e3,
             r.frame_s * 1e3
         );
     }

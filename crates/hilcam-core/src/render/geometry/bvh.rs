@@ -1,5 +1,5 @@
 //! The acceleration structure: obvhs BVHs over the scene's triangles. Only this module
-//! and `sun_shadow` (which must run the very same triangle test) import obvhs.
+//! (and the lab's `sun_shadow`, which must run the very same triangle test) import obvhs.
 //!
 //! Four layouts: obvhs's binary BVH2 (fastest on coherent primary rays), its 8-wide
 //! compressed CWBVH, our SSE 4-wide `bvh4` collapsed from the BVH2 (~11 % faster than the

@@ -7,9 +7,7 @@ pub mod closest_packet;
 mod lane_triangle;
 pub mod mesh;
 pub mod shadow_packet;
-pub mod sun_shadow;
 mod wide;
 
 pub use bvh::{Accel, BvhLayout, Hit, Ray, TestRay};
 pub use mesh::TriMesh;
-pub use sun_shadow::{SunShadow, SunShadowCache};

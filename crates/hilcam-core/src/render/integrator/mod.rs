@@ -6,14 +6,13 @@
 //! (depth 1 = direct only; Mitsuba's `max_depth` = depth + 1). Surfaces are two-sided:
 //! the shading normal is flipped to face the incoming ray. Shading uses face normals.
 
-use crate::render::geometry::{Hit, Ray, SunShadow};
+use crate::render::geometry::{Hit, Ray};
 use crate::render::sampling::{
     Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
 };
 use crate::render::target::Target;
 use glam::Vec3;
 use serde::Deserialize;
-use std::sync::Arc;
 
 mod spp;
 pub use spp::{Spp, SppError};
@@ -151,8 +150,6 @@ pub struct PathContext<'a> {
     /// False when no bounce can carry energy (depth 1 or all materials black).
     pub indirect: bool,
     pub roulette: bool,
-    /// Occlusion structure for rays toward `sun` (`None`: shadow rays use the BVH).
-    pub sun_shadow: Option<Arc<SunShadow>>,
 }
 
 impl<'a> PathContext<'a> {
@@ -165,27 +162,19 @@ impl<'a> PathContext<'a> {
             sampler: settings.sampler,
             indirect,
             roulette: settings.roulette,
-            sun_shadow: scene.sun_shadow.get(&scene.mesh, sun),
         }
     }
 
-    /// Whether anything blocks `ray` (a shadow ray): through the sun structure when the ray
-    /// runs along `sun`, otherwise through the BVH; the same answer either way.
+    /// Whether anything blocks `ray` (a shadow ray).
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        match self.sun_shadow.as_ref().and_then(|s| s.occluded(ray)) {
-            Some(b) => b,
-            None => self.scene.accel.occluded(ray),
-        }
+        self.scene.accel.occluded(ray)
     }
 
     /// [`PathContext::occluded`] for up to eight shadow rays toward the sun at once (bit
     /// `i`: ray `i` is blocked); the same answers.
     #[inline]
     pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
-        if self.sun_shadow.is_some() {
-            return crate::render::geometry::shadow_packet::one_by_one(rays, |r| self.occluded(r));
-        }
         self.scene.accel.occluded_packet(rays)
     }
 

@@ -5,7 +5,9 @@
 //! largest origin depth at which they can be hit, so the scan stops early). Each entry also
 //! carries its region's box and the triangle's plane (an origin in front of it gives
 //! `t < 0`), so most candidates are rejected without reading the triangle.
-//! [`SunShadowCache`] keeps the structure for the current sun on the `Scene`.
+//! A lab structure: measured against the 8-wide BVH, which now answers shadow rays faster
+//! (docs/performance.md), it is not part of the renderer; `hilcam bench render` keeps
+//! comparing the two on a frame's recorded shadow rays.
 //!
 //! Exactness. A query runs obvhs's own triangle test (`RtTriangle::intersect`, the same
 //! stored triangles and the same `Ray` the BVH passes it) on its candidates, and any-hit
@@ -25,12 +27,12 @@
 //! outside the gridded region, and rays whose direction is not bit-identical to `s`,
 //! return `None` so the caller uses the BVH.
 
-use super::{Ray, TriMesh};
 use glam::{DVec2, DVec3, Vec3, Vec3A};
+use hilcam_core::render::geometry::{Ray, TriMesh};
 use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use std::time::{Duration, Instant};
 
 /// f32 unit roundoff, 2⁻²⁴.
@@ -548,80 +550,4 @@ fn round_down_f32(x: f64) -> f32 {
 fn round_up_f32(x: f64) -> f32 {
     let k = x as f32;
     if f64::from(k) < x { k.next_up() } else { k }
-}
-
-/// The structure for the current sun direction, cached on the scene: frames with the
-/// same sun (bit-identical direction) reuse it; a new direction rebuilds it, in place when
-/// no frame still holds the old one.
-///
-/// Off by default ([`Self::set_enabled`]): on the shipped satellite the grid re-traces a
-/// frame's shadow rays 1.3× faster than the BVH, but inside a frame it saves nothing
-/// measurable (its 30 MB compete with the BVH for the caches) and a build costs ~50 ms
-/// (docs/performance.md). When on, a direction is built for only when it is asked for a
-/// second time in a row, so a sun that moves every frame keeps using the BVH and a sun
-/// that stays put pays the build once; [`Self::set_eager`] builds on the first request.
-pub struct SunShadowCache {
-    slot: Mutex<CacheSlot>,
-    enabled: AtomicBool,
-    eager: AtomicBool,
-}
-
-#[derive(Default)]
-struct CacheSlot {
-    built: Option<Arc<SunShadow>>,
-    /// The last direction asked for without a structure being built.
-    last_request: Option<[u32; 3]>,
-}
-
-impl Default for SunShadowCache {
-    fn default() -> Self {
-        SunShadowCache {
-            slot: Mutex::new(CacheSlot::default()),
-            enabled: AtomicBool::new(false),
-            eager: AtomicBool::new(false),
-        }
-    }
-}
-
-impl SunShadowCache {
-    /// The structure for rays along `dir`, built if due; `None` when disabled, not (yet)
-    /// built for `dir`, or `dir` is not a usable direction (callers then use the BVH).
-    pub fn get(&self, mesh: &TriMesh, dir: Vec3) -> Option<Arc<SunShadow>> {
-        if !self.enabled.load(Ordering::Relaxed) || !dir.is_finite() || dir == Vec3::ZERO {
-            return None;
-        }
-        let bits = dir.to_array().map(f32::to_bits);
-        let mut slot = self.slot.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(s) = slot.built.as_ref().filter(|s| s.dir.to_array().map(f32::to_bits) == bits) {
-            return Some(s.clone());
-        }
-        if !self.eager.load(Ordering::Relaxed) && slot.last_request != Some(bits) {
-            slot.last_request = Some(bits);
-            return None;
-        }
-        slot.last_request = None;
-        match slot.built.as_mut() {
-            Some(s) => match Arc::get_mut(s) {
-                Some(m) => m.rebuild(dir),
-                None => *s = Arc::new(SunShadow::build(mesh, dir)),
-            },
-            None => slot.built = Some(Arc::new(SunShadow::build(mesh, dir))),
-        }
-        slot.built.clone()
-    }
-
-    /// The direction the cached structure answers for, if one is built.
-    pub fn built_for(&self) -> Option<Vec3> {
-        self.slot.lock().unwrap_or_else(|e| e.into_inner()).built.as_ref().map(|s| s.dir)
-    }
-
-    /// Use the structure (on) or send every shadow ray through the BVH (off, the default).
-    pub fn set_enabled(&self, on: bool) {
-        self.enabled.store(on, Ordering::Relaxed);
-    }
-
-    /// Build on the first request for a direction instead of the second.
-    pub fn set_eager(&self, on: bool) {
-        self.eager.store(on, Ordering::Relaxed);
-    }
 }
