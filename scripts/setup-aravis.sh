@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs (once) Debian's Aravis command-line tools and Python bindings, the
-# third-party GigE Vision client the tests in tests/gige.rs drive: arv-tool-0.8,
+# third-party GigE Vision client the tests in tests/serve/gige.rs drive: arv-tool-0.8,
 # arv-camera-test-0.8 and `gi.repository.Aravis` for /usr/bin/python3.
 # Idempotent: does nothing when all three are there. Needs root (apt-get).
 set -euo pipefail

@@ -27,7 +27,7 @@ else
 fi
 # ---------------------------------------------------------------------------
 
-# GigE Vision (tests/gige.rs): a real third-party client, Debian's Aravis tools and
+# GigE Vision (tests/serve/gige.rs): a real third-party client, Debian's Aravis tools and
 # its Python bindings.
 scripts/setup-aravis.sh
 

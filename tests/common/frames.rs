@@ -1,5 +1,5 @@
-//! The frame of docs/protocol.md's worked example (tests/stream.rs checks its bytes
-//! against a literal, tests/docs_protocol.rs against the page).
+//! The frame of docs/protocol.md's worked example (tests/serve/stream.rs checks its bytes
+//! against a literal, tests/pose/docs_protocol.rs against the page).
 
 use hilcam_core::frame::{Frame, FrameFlags, FrameMeta, PixelFormat};
 use hilcam_core::render::film::Pixels;

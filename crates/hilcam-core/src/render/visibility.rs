@@ -9,7 +9,7 @@
 //! traced. The closest of those hits is the BVH's closest hit: the boxes only decide which
 //! triangles are tried, and every triangle a ray can hit is tried. (Two triangles hit at
 //! bit-identical distances — a sample exactly on a shared edge — may be resolved in a
-//! different order than the traversal's; `tests/primary_raster.rs` measures that.)
+//! different order than the traversal's; `tests/render/primary_raster.rs` measures that.)
 //!
 //! Through a distorting lens the samples' ideal image points are where the lens model
 //! sends them, so the same binning holds; samples whose ideal point falls outside the

@@ -48,7 +48,7 @@ pub fn normal_pair(rng: &mut Rng) -> (f64, f64) {
 /// at and above it, by a normal approximation with a skewness correction.
 ///
 /// At the threshold the approximation's CDF differs from the exact Poisson CDF by less
-/// than 0.005 (tested in `tests/sensor.rs`), and the error shrinks as 1/λ above it.
+/// than 0.005 (tested in `tests/render/sensor.rs`), and the error shrinks as 1/λ above it.
 /// Its mean is exact; rounding adds 1/12 and the skew term 1/18 to the variance, so the
 /// normal's variance is reduced by 5/36 to keep the sampled variance at λ.
 pub const POISSON_EXACT_BELOW: f64 = 30.0;

@@ -16,7 +16,7 @@
 //! min/max order (`_mm_max_ps(x, acc)` returns `acc` when `x` is NaN, as `f32::max`
 //! ignores NaN). Clamping the direction (Embree's `rcp_safe`, obvhs's `safe_inverse`)
 //! would instead make the face plane an exit at `t = 0` for one sign of zero and cull
-//! the box (obvhs's `Bvh2` misses such a hit; see `tests/bvh_wide.rs`'s axis rays). Not
+//! the box (obvhs's `Bvh2` misses such a hit; see `tests/render/bvh_wide.rs`'s axis rays). Not
 //! covered: a tiny non-zero component with the origin exactly on a face, where the
 //! triangle test's rounding could accept a point just outside the box.
 

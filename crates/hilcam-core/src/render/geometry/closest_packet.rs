@@ -15,7 +15,7 @@
 //! hit is replaced only by a strictly smaller `t`, as obvhs's. So each lane's `t` is the
 //! brute-force minimum bit for bit. Only which of several triangles tied at exactly the
 //! same `t` is reported may differ from the single-ray walk (the visit order differs);
-//! `tests/closest_packet.rs` counts such ties.
+//! `tests/render/closest_packet.rs` counts such ties.
 
 use super::shadow_packet::{PACKET, avx2};
 use super::wide::Node;

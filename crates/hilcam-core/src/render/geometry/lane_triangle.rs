@@ -4,7 +4,7 @@
 //! `RtTriangle::intersect` on that ray. So the operations are the scalar test's, in its
 //! order, through glam's SSE `cross` and `dot3` (`dot3` is `(x·x' + y·y') + z·z'`), with
 //! obvhs's sign-bit rule; products commute bit for bit, sums and differences are kept in
-//! their order (`tests/shadow_packet.rs` and `tests/closest_packet.rs` check it, and fail
+//! their order (`tests/render/shadow_packet.rs` and `tests/render/closest_packet.rs` check it, and fail
 //! when `w = 1 − (u + v)` replaces `(1 − u) − v`).
 
 #![cfg(target_arch = "x86_64")]

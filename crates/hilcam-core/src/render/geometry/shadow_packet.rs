@@ -10,7 +10,7 @@
 //! test as `bvh4` (same operations in the same order per lane, so it culls no box holding a
 //! triangle the triangle test accepts), and the triangle test is obvhs's
 //! `RtTriangle::intersect` lane by lane (`lane_triangle`, shared with `closest_packet`),
-//! so every (ray, triangle) pair gets the same yes/no (`tests/shadow_packet.rs` checks the
+//! so every (ray, triangle) pair gets the same yes/no (`tests/render/shadow_packet.rs` checks the
 //! walk against brute force and against single rays).
 
 use super::wide::Node;

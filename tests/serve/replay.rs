@@ -2,7 +2,7 @@
 //! sharding (frames and environment), auto-exposure handling, and bit-identity with
 //! frames rendered live through `FramePipeline::frame`.
 
-mod common;
+use crate::common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam_core::frame::CRC32;

@@ -2,7 +2,7 @@
 //! a closed-loop run with governor-degraded and extrapolated frames is recorded, then
 //! `hilcam replay --session` re-renders every streamed frame byte for byte.
 
-mod serve_common;
+use crate::serve_common;
 use glam::DVec3;
 use hilcam_core::frame::{CRC32, Frame, FrameFlags};
 use hilcam_core::link::InputEvent;

@@ -7,7 +7,7 @@
 //! (127.0.0.21 …) on that port. Aravis must be installed (`scripts/setup-aravis.sh`);
 //! the tests that need it fail, loudly, when it is not.
 
-mod serve_common;
+use crate::serve_common;
 use hilcam_core::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, PixelFormat};
 use hilcam_core::metrics::Registry;
 use hilcam_core::render::film::Pixels;

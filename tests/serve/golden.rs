@@ -3,11 +3,11 @@
 //! and compared with `tests/golden/frames.txt`. A refactor that should not change what
 //! hilcam outputs proves it here; a change that does is visible in the diff of that file.
 //!
-//! After an intended output change: `HILCAM_BLESS=1 cargo test --test golden` rewrites the
-//! file (commit it with the reason). Frames are pure functions of their inputs, so the
-//! checksums hold for any thread count on one kind of machine.
+//! After an intended output change: `HILCAM_BLESS=1 cargo test --test serve golden::`
+//! rewrites the file (commit it with the reason). Frames are pure functions of their
+//! inputs, so the checksums hold for any thread count on one kind of machine.
 
-mod serve_common;
+use crate::serve_common;
 use hilcam_core::frame::CRC32;
 use hilcam_core::link::InputEvent;
 use hilcam_core::pipeline::FramePipeline;

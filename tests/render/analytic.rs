@@ -1,6 +1,6 @@
 //! The renderer against answers computed independently (radiometry, projection).
 
-mod common;
+use crate::common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam_core::pose::Pose;

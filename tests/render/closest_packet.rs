@@ -11,7 +11,7 @@ use hilcam_core::render::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
 use hilcam_core::render::sampling::Rng;
 use obvhs::{ray::Ray as ObRay, rt_triangle::RtTriangle};
 
-mod common;
+use crate::common;
 use common::soup::{random_vec, soup, surface_point};
 
 const PACKET: usize = hilcam_core::render::geometry::shadow_packet::PACKET;

@@ -9,7 +9,7 @@ use hilcam_core::render::geometry::shadow_packet::{PACKET, avx2};
 use hilcam_core::render::geometry::{Accel, BvhLayout, Ray, TriMesh};
 use hilcam_core::render::sampling::Rng;
 
-mod common;
+use crate::common;
 use common::soup::{random_vec, soup, surface_point};
 
 /// Directions shared by a packet: oblique, along the axes, with `-0.0` components.

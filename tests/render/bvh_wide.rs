@@ -10,7 +10,7 @@ use hilcam_core::render::geometry::bvh::brute_force;
 use hilcam_core::render::geometry::{Accel, BvhLayout, Hit, Ray, TriMesh};
 use hilcam_core::render::sampling::Rng;
 
-mod common;
+use crate::common;
 use common::soup::{random_vec, soup, surface_point};
 
 /// The test rays for a soup: from outside, from inside, axis-aligned (zero and negative-zero

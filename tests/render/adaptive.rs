@@ -6,7 +6,7 @@
 //! own pilot samples decide its count (instead of only its neighbours') made the V scene
 //! come out 11 % dark (98.1 vs 109.8 ± 0.27) and the sky plate fail as well.
 
-mod common;
+use crate::common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam_core::pose::Pose;

@@ -1,7 +1,7 @@
 //! Frame header codec, TCP stream server, reference client, Python client, recorder.
 //! Network tests bind 127.0.0.1:0; nothing asserts on elapsed time.
 
-mod common;
+use crate::common;
 use common::frames::example_frame;
 use hilcam_core::frame::*;
 use hilcam_core::metrics::Registry;

@@ -1,7 +1,7 @@
 //! Stability at the extremes (issue 7): every output finite, every expectation checked
 //! against an independent computation.
 
-mod common;
+use crate::common;
 use common::scenes::*;
 use glam::{DQuat, DVec3, Vec3};
 use hilcam_core::pose::Pose;

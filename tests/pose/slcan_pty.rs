@@ -1,7 +1,7 @@
 //! slcan over pseudo-terminals: the receiver talking to a scripted "adapter",
 //! hilcam's own slcan sender, and the python-can slcan interface.
 
-mod pose_common;
+use crate::pose_common;
 
 use hilcam_core::link::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
 use hilcam_core::link::serial::SerialConfig;

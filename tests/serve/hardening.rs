@@ -4,7 +4,7 @@
 //! The full-disk tests mount a small tmpfs, which needs root (as in CI); if the mount
 //! fails they fail, saying why.
 
-mod serve_common;
+use crate::serve_common;
 use hilcam_core::link::InputEvent;
 use hilcam_core::serve::config::{GovernorConfig, InputConfig, ServeConfig, TriggerConfig};
 use hilcam_core::serve::scheduler::TriggerMode;

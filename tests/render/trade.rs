@@ -1,7 +1,7 @@
 //! `hilcam bench trade` logic (issue 7 item 4): the error metric against an analytic
 //! case, the Pareto front, and a tiny measured grid.
 
-mod common;
+use crate::common;
 use common::scenes::*;
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::Pose;

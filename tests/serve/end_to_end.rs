@@ -1,7 +1,7 @@
 //! `hilcam serve` end to end: poses over a real pty or an in-process channel, frames over
 //! loopback TCP, checked against independent answers.
 
-mod serve_common;
+use crate::serve_common;
 use glam::{DMat3, DQuat, DVec3};
 use hilcam_core::frame::{Frame, FrameFlags};
 use hilcam_core::link::InputEvent;

@@ -1,7 +1,7 @@
 //! Every worked example in docs/protocol.md, read from the page itself and checked byte
 //! for byte against hilcam's encoders: the documentation cannot drift from the program.
 
-mod common;
+use crate::common;
 use hilcam_core::pose::can::{self, CanIds};
 use hilcam_core::pose::{Message, Pose, serial, slcan};
 

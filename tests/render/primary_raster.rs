@@ -3,7 +3,7 @@
 //! near and far, rotated, with and without the navigation camera's lens distortion; and
 //! the fall-back to tracing when the camera is among the triangles.
 
-mod common;
+use crate::common;
 use glam::{DQuat, DVec3};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::{CameraModel, View};

@@ -2,7 +2,7 @@
 //! writes, garbage between frames, bad poses, unplug and replug, and the
 //! pyserial example and `hilcam send --serial` as senders.
 
-mod pose_common;
+use crate::pose_common;
 
 use glam::DVec3;
 use hilcam_core::link::serial::{SerialConfig, open_port, run_serial};

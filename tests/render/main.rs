@@ -1,0 +1,24 @@
+//! The renderer's integration tests, one binary (each binary links the whole crate, so
+//! one link instead of one per file): geometry and BVHs, BSDFs and samplers, the pixel
+//! loop, shadows and silhouettes, fold surfaces, the sensor model.
+//! `cargo test --test render`; one file: `cargo test --test render bvh_wide::`.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod adaptive;
+mod analytic;
+mod bsdf;
+mod bvh;
+mod bvh_wide;
+mod closest_packet;
+mod extremes;
+mod fold;
+mod mis;
+mod primary_raster;
+mod sensor;
+mod shadow_packet;
+mod silhouette;
+mod sun_shadow;
+mod trade;
+mod waves;

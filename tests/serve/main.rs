@@ -1,0 +1,18 @@
+//! `hilcam serve` and what it feeds, one binary (each binary links the whole crate): the
+//! server end to end, its configs and hardening, the frame stream, metrics, sessions,
+//! offline replay, GigE Vision, and the golden bytes of every shipped scene.
+//! `cargo test --test serve`; one file: `cargo test --test serve golden::`.
+
+#[path = "../common/mod.rs"]
+mod common;
+mod serve_common;
+
+mod cli;
+mod end_to_end;
+mod gige;
+mod golden;
+mod hardening;
+mod metrics;
+mod replay;
+mod session;
+mod stream;
