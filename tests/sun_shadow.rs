@@ -14,7 +14,7 @@ use hilcam_core::render::geometry::{Ray, SunShadow, TriMesh};
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
 use hilcam_core::render::sampling::{Rng, Sequence};
-use hilcam_core::render::{render, render_logged};
+use hilcam_core::render::{FrameBuffers, RenderOptions, render, render_into};
 use hilcam_core::scene::Scene;
 use rayon::prelude::*;
 use std::sync::OnceLock;
@@ -47,10 +47,11 @@ fn logged_shadow_rays(scene: &Scene, pose: &Pose, sun_body: DVec3, w: u32) -> (V
         roulette: false,
         ..Default::default()
     };
-    let (_, stats, logs) = render_logged::<RecordedRays>(scene, &cam, &pose, &settings, 3);
-    let rays: Vec<Ray> = logs.into_iter().flat_map(|l| l.shadow).collect();
+    let view = scene.view(&cam, &pose);
+    let mut buffers = FrameBuffers::<RecordedRays>::default();
+    let stats = render_into(&mut buffers, scene, &view, &RenderOptions::new(settings, 3));
+    let rays: Vec<Ray> = buffers.take_ray_logs().into_iter().flat_map(|l| l.shadow).collect();
     assert_eq!(rays.len() as u64, stats.rays.shadow);
-    let view = hilcam_core::render::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds);
     (view.sun, rays)
 }
 
@@ -235,14 +236,14 @@ fn render_with_the_grid_has_the_same_bytes_as_through_the_bvh() {
             adaptive: true,
             seed: 11,
         };
-        let sun = hilcam_core::render::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds).sun;
+        let sun = scene.view(&cam, &pose).sun;
         scene.sun_shadow.set_enabled(false);
-        let (bvh, s0) = render(&scene, &cam, &pose, &settings, 5);
+        let (bvh, s0) = render(&scene, &scene.view(&cam, &pose), &RenderOptions::new(settings, 5));
         assert!(s0.rays.shadow > 1000, "too few shadow rays to compare: {}", s0.rays.shadow);
         scene.sun_shadow.set_enabled(true);
         // The first frame with a new sun uses the BVH, the second builds and uses the grid.
-        let (first, s1) = render(&scene, &cam, &pose, &settings, 5);
-        let (second, s2) = render(&scene, &cam, &pose, &settings, 5);
+        let (first, s1) = render(&scene, &scene.view(&cam, &pose), &RenderOptions::new(settings, 5));
+        let (second, s2) = render(&scene, &scene.view(&cam, &pose), &RenderOptions::new(settings, 5));
         let built = scene.sun_shadow.built_for().unwrap();
         assert_eq!(built.to_array().map(f32::to_bits), sun.to_array().map(f32::to_bits));
         assert_eq!((s0.rays, s0.rays), (s1.rays, s2.rays));

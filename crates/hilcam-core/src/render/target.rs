@@ -2,8 +2,9 @@
 //! the sun's band irradiance and the background. Nothing here depends on the camera, the
 //! sensor or the pose; a scene file adds those ([`crate::scene::Scene`]).
 
+use crate::pose::Pose;
 use crate::render::bsdf::Bsdf;
-use crate::render::camera::TargetBounds;
+use crate::render::camera::{CameraModel, TargetBounds, View};
 use crate::render::geometry::{Accel, BvhLayout, SunShadowCache, TriMesh};
 use glam::{DVec3, Vec3};
 
@@ -70,6 +71,11 @@ impl Target {
             background: background as f32,
             sun_shadow: SunShadowCache::default(),
         }
+    }
+
+    /// The target as `camera` sees it at `pose` (an ideal lens).
+    pub fn view(&self, camera: &CameraModel, pose: &Pose) -> View {
+        View::new(camera, pose, self.frame_origin_body, self.bounds)
     }
 
     /// Material of triangle `tri`.

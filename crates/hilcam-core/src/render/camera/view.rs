@@ -89,6 +89,11 @@ impl View {
         }
     }
 
+    /// The image's width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
     /// The same view through a distorting lens (identity coefficients are ignored).
     pub fn with_distortion(mut self, d: Option<Distortion>) -> View {
         self.distortion = d.filter(|d| !d.is_identity());
