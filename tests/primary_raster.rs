@@ -1,4 +1,4 @@
-//! Rasterised primary visibility (`render::visibility`) against tracing every primary ray
+//! Rasterised primary visibility (`render::cull::visibility`) against tracing every primary ray
 //! through the BVH: the same image bytes and the same rays, on the shipped satellite, from
 //! near and far, rotated, with and without the navigation camera's lens distortion; and
 //! the fall-back to tracing when the camera is among the triangles.
@@ -7,12 +7,12 @@ mod common;
 use glam::{DQuat, DVec3};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::{CameraModel, View};
-use hilcam_core::render::coverage::Coverage;
+use hilcam_core::render::cull::coverage::Coverage;
+use hilcam_core::render::cull::visibility::{PrimaryRaster, RasterScratch};
 use hilcam_core::render::geometry::bvh::brute_force;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
 use hilcam_core::render::sampling::{PerSample, Sequence, SobolStream};
-use hilcam_core::render::visibility::{PrimaryRaster, RasterScratch};
 use hilcam_core::render::{PrimaryVisibility, RenderOptions, RenderStats, render};
 use hilcam_core::scene::Scene;
 

@@ -8,10 +8,10 @@
 //! and refilled: rendering allocates nothing (`tests/zero_alloc.rs` counts).
 
 use super::Band;
-use super::coverage::Coverage;
+use super::cull::SilhouetteBuffers;
+use super::cull::coverage::Coverage;
+use super::cull::visibility::PrimaryRaster;
 use super::tile::{CameraSample, Scratch};
-use super::visibility::PrimaryRaster;
-use crate::render::camera::SilhouetteBuffers;
 use crate::render::film::RadianceImage;
 use crate::render::sampling::{Rng, SobolStream};
 use std::sync::Mutex;
@@ -24,7 +24,7 @@ pub struct FrameBuffers<L = ()> {
     pub(super) written_rows: std::ops::Range<usize>,
     pub(super) fill: f32,
     pub(super) raster: PrimaryRaster,
-    /// The pixels a traced frame samples (`coverage::Coverage::from_leaf_boxes`).
+    /// The pixels a traced frame samples (`cull::coverage::Coverage::from_leaf_boxes`).
     pub(super) coverage: Coverage,
     /// One per band of rows; a frame uses the first `rows / BAND_ROWS` (the rest keep their
     /// capacity for larger frames).

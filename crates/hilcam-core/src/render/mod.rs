@@ -3,13 +3,14 @@
 //!
 //! Synchronous and pure; rayon parallelises over bands of rows, each band is traced tile
 //! by tile in waves (`tile`). Only pixels whose area can see the target's bounds are
-//! sampled (per-row spans, `camera::Silhouette`; the rest get the background radiance
+//! sampled (per-row spans, `cull::Silhouette`; the rest get the background radiance
 //! without any work), so a far, small target costs in proportion to the pixels it
 //! covers. Every random
 //! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
 //! whatever the thread count.
 
-use crate::render::camera::{PixelRect, Silhouette, View};
+use crate::render::camera::{PixelRect, View};
+use crate::render::cull::Silhouette;
 use crate::render::film::RadianceImage;
 use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::render::sampling::{PerSample, Sequence};
@@ -23,15 +24,13 @@ pub mod adaptive;
 pub mod bsdf;
 mod buffers;
 pub mod camera;
-pub mod coverage;
+pub mod cull;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
-mod lens_coverage;
 pub mod sampling;
 pub mod target;
 mod tile;
-pub mod visibility;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -44,16 +43,16 @@ pub struct RenderStats {
     /// the target is out of view).
     pub traced_pixels: u64,
     pub rect: Option<PixelRect>,
-    /// True when the primary hits were rasterised (`visibility`), false when traced.
+    /// True when the primary hits were rasterised (`cull::visibility`), false when traced.
     pub primary_rasterised: bool,
     /// Camera samples traced (`spp` × traced pixels on average; per pixel it varies
     /// when sampling is adaptive).
     pub samples: u64,
 }
 
-/// How primary hits are found. Both give the same hits (see `visibility`,
+/// How primary hits are found. Both give the same hits (see `cull::visibility`,
 /// `geometry::closest_packet`); both skip the pixels that cannot see a triangle
-/// (`coverage`), each by its own conservative rule, so a uniform frame has the same bytes
+/// (`cull::coverage`), each by its own conservative rule, so a uniform frame has the same bytes
 /// either way, and an adaptive one (whose budget is spp × sampled pixels) nearly so.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]

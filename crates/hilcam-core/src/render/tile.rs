@@ -2,7 +2,7 @@
 //!
 //! A pass is one camera sample (index `s`) in every pixel of the band, cut into tiles of
 //! [`TILE_PATHS`] paths. Traced camera rays are set up tile by tile, just before the tile
-//! runs; the rasteriser (`visibility`), when it applies, needs the whole pass's rays at
+//! runs; the rasteriser (`cull::visibility`), when it applies, needs the whole pass's rays at
 //! once and finds all its primary hits first. A tile's paths advance one interaction at a
 //! time: all closest-hit rays, then all shading, then all shadow rays (parallel, toward
 //! the one sun direction, from neighbouring points). Tracing one sample to the end before
@@ -15,7 +15,7 @@
 //! and each pixel sums its samples in index order, so the image has the same bytes as
 //! tracing sample by sample.
 
-use super::visibility::{PrimaryRaster, RasterScratch};
+use super::cull::visibility::{PrimaryRaster, RasterScratch};
 use crate::render::camera::View;
 use crate::render::geometry::shadow_packet::PACKET;
 use crate::render::geometry::{Hit, Ray};
@@ -111,7 +111,7 @@ pub struct TileJob<'a> {
     /// Rasterised primary visibility for this frame, when it applies.
     pub raster: Option<&'a PrimaryRaster>,
     /// The pixels that may see a triangle (the rest are not sampled), when known.
-    pub coverage: Option<&'a super::coverage::Coverage>,
+    pub coverage: Option<&'a super::cull::coverage::Coverage>,
     pub seed: u64,
     pub frame: u64,
     pub width: usize,
