@@ -11,7 +11,7 @@ use super::Band;
 use super::cull::SilhouetteBuffers;
 use super::cull::coverage::Coverage;
 use super::cull::visibility::PrimaryRaster;
-use super::tile::{CameraSample, Scratch};
+use super::integrator::waves::{CameraSample, Scratch};
 use crate::render::film::RadianceImage;
 use crate::render::sampling::{Rng, SobolStream};
 use std::sync::Mutex;

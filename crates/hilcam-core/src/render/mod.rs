@@ -2,7 +2,7 @@
 //! [`render_into`] (reused buffers, what the pipeline calls) and [`render`] (a new image).
 //!
 //! Synchronous and pure; rayon parallelises over bands of rows, each band is traced tile
-//! by tile in waves (`tile`). Only pixels whose area can see the target's bounds are
+//! by tile in waves (`integrator::waves`). Only pixels whose area can see the target's bounds are
 //! sampled (per-row spans, `cull::Silhouette`; the rest get the background radiance
 //! without any work), so a far, small target costs in proportion to the pixels it
 //! covers. Every random
@@ -18,7 +18,7 @@ use crate::render::target::Target;
 use adaptive::Adaptive;
 pub use buffers::FrameBuffers;
 use buffers::{WorkerScratch, Workers};
-use tile::{CameraSample, TILE_PATHS, TileJob};
+use integrator::waves::{CameraSample, TILE_PATHS, TileJob};
 
 pub mod adaptive;
 pub mod bsdf;
@@ -30,7 +30,6 @@ pub mod geometry;
 pub mod integrator;
 pub mod sampling;
 pub mod target;
-mod tile;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 

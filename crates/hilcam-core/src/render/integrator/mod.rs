@@ -16,6 +16,8 @@ use serde::Deserialize;
 use std::sync::Arc;
 
 mod spp;
+/// The same estimator run for many camera samples at once, in waves.
+pub(in crate::render) mod waves;
 pub use spp::{Spp, SppError};
 
 /// How indirect directions are drawn.
