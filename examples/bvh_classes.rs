@@ -36,8 +36,10 @@ fn main() -> anyhow::Result<()> {
         roulette: false,
         ..Default::default()
     };
-    let (_, _, logs) =
-        hilcam_core::render::render_logged::<RecordedRays>(&scene, &scene.camera, &scene.pose, &settings, 0);
+    let mut buffers = hilcam_core::render::FrameBuffers::<RecordedRays>::default();
+    let options = hilcam_core::render::RenderOptions::new(settings, 0);
+    hilcam_core::render::render_into(&mut buffers, &scene, &scene.view(&scene.camera, &scene.pose), &options);
+    let logs = buffers.take_ray_logs();
     let closest: Vec<Ray> = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow: Vec<Ray> = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
     println!("{} closest-hit rays, {} shadow rays (spp {spp}, depth {depth})", closest.len(), shadow.len());

@@ -1,4 +1,4 @@
-//! Rendering into reused buffers (`render_view_into`, what `FramePipeline::frame` does in
+//! Rendering into reused buffers (`render_into`, what `FramePipeline::frame` does in
 //! `hilcam serve` and replay) allocates nothing once the buffers have grown to the frame's
 //! size, and reuse never carries anything from one frame into the next.
 //!
@@ -12,7 +12,7 @@ use hilcam_core::render::camera::View;
 use hilcam_core::render::integrator::RenderSettings;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::sampling::Sequence;
-use hilcam_core::render::{FrameBuffers, PrimaryVisibility, render_view_into, render_view_with};
+use hilcam_core::render::{FrameBuffers, PrimaryVisibility, RenderOptions, render, render_into};
 use hilcam_core::scene::Scene;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
@@ -97,7 +97,7 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
     for primary in [PrimaryVisibility::Raster, PrimaryVisibility::Trace] {
         let fresh: Vec<Vec<f32>> = cases
             .iter()
-            .map(|&(v, s)| render_view_with::<()>(&scene, &camera, &views[v], &settings[s], 3, primary).0.data)
+            .map(|&(v, s)| render(&scene, &views[v], &RenderOptions::new(settings[s], 3).with_primary(primary)).0.data)
             .collect();
 
         // Called from outside a pool (as `hilcam serve`'s render thread does), rayon queues
@@ -109,7 +109,7 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
             let mut buffers = FrameBuffers::<()>::default();
             let all_frames = |buffers: &mut FrameBuffers| {
                 for &(v, s) in &cases {
-                    render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, primary);
+                    render_into(buffers, &scene, &views[v], &RenderOptions::new(settings[s], 3).with_primary(primary));
                 }
             };
             all_frames(&mut buffers);
@@ -127,7 +127,7 @@ fn frames_into_reused_buffers_allocate_nothing_and_match_fresh_frames() {
         pool.install(|| {
             let mut buffers = FrameBuffers::<()>::default();
             let frame = |v: usize, s: usize, buffers: &mut FrameBuffers| {
-                render_view_into(buffers, &scene, &camera, &views[v], &settings[s], 3, primary).0
+                render_into(buffers, &scene, &views[v], &RenderOptions::new(settings[s], 3).with_primary(primary))
             };
             // Warm-up: every case once grows the buffers to the largest frame (and shows
             // that the counter sees the renderer's allocations).
@@ -169,7 +169,7 @@ fn sensor_stage_allocates_per_frame_not_per_row() {
         let sensor = hilcam_core::sensor::Sensor::new(&camera, &scene.sensor).unwrap();
         let view = View::new(&camera, &scene.pose, scene.frame_origin_body, scene.bounds);
         let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..RenderSettings::default() };
-        let (img, _, _) = render_view_with::<()>(&scene, &camera, &view, &settings, 3, PrimaryVisibility::Raster);
+        let (img, _) = render(&scene, &view, &RenderOptions::new(settings, 3).with_primary(PrimaryVisibility::Raster));
         // A single-thread pool: rayon's own job bookkeeping is not what is counted.
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         pool.install(|| {
@@ -196,14 +196,14 @@ fn reused_buffers_follow_a_change_of_background() {
     let camera = scaled_camera(&dark, 96, 96, [0.0, 0.0]);
     let view = View::new(&camera, &dark.pose, dark.frame_origin_body, dark.bounds);
     let settings = RenderSettings { spp: Spp::whole(1), depth: 2, ..dark.render };
-    let fresh = |s: &Scene| render_view_with::<()>(s, &camera, &view, &settings, 0, PrimaryVisibility::Auto).0.data;
+    let fresh = |s: &Scene| render(s, &view, &RenderOptions::new(settings, 0)).0.data;
     let (want_dark, want_lit) = (fresh(&dark), fresh(&lit));
     assert!(want_lit.iter().filter(|&&v| v == 0.25).count() > 96 * 96 / 2, "most of the frame is sky");
     let mut buffers = FrameBuffers::<()>::default();
     for (k, (scene, want)) in
         [(&dark, &want_dark), (&lit, &want_lit), (&lit, &want_lit), (&dark, &want_dark)].into_iter().enumerate()
     {
-        render_view_into(&mut buffers, scene, &camera, &view, &settings, 0, PrimaryVisibility::Auto);
+        render_into(&mut buffers, scene, &view, &RenderOptions::new(settings, 0));
         let got = &buffers.image().data;
         assert!(got.iter().zip(want).all(|(a, b)| a.to_bits() == b.to_bits()), "frame {k}: the reused image differs");
     }

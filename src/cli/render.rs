@@ -128,9 +128,11 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         );
         (hilcam_core::render::film::WriteInfo { preview_scale: None }, f.render)
     } else if let Some(map) = &a.samples_map {
-        let view = hilcam_core::render::camera::View::new(&camera, &pose, scene.frame_origin_body, scene.bounds)
-            .with_distortion(scene.sensor.optics.distortion);
-        let (img, stats, counts) = hilcam_core::render::render_view_counted(&scene, &camera, &view, &settings, a.frame);
+        let view = scene.view(&camera, &pose).with_distortion(scene.sensor.optics.distortion);
+        let mut buffers = hilcam_core::render::FrameBuffers::<()>::default();
+        let options = hilcam_core::render::RenderOptions::new(settings, a.frame);
+        let stats = hilcam_core::render::render_into(&mut buffers, &scene, &view, &options);
+        let (counts, img) = (buffers.sample_counts(), buffers.take_image());
         let most = write_samples_map(map, camera.width, camera.height, &counts)?;
         println!("{}: samples per pixel, {most} at the brightest", map.display());
         (write_radiance(&a.out, &img, None, a.png16)?, stats)

@@ -37,7 +37,10 @@ pub fn recorded_rays(
         roulette: false,
         ..Default::default()
     };
-    let (_, _, logs) = hilcam_core::render::render_logged::<RecordedRays>(scene, &cam, &scene.pose, &settings, 0);
+    let mut buffers = hilcam_core::render::FrameBuffers::<RecordedRays>::default();
+    let options = hilcam_core::render::RenderOptions::new(settings, 0);
+    hilcam_core::render::render_into(&mut buffers, scene, &scene.view(&cam, &scene.pose), &options);
+    let logs = buffers.take_ray_logs();
     let closest = logs.iter().flat_map(|l| l.closest.iter().copied()).collect();
     let shadow = logs.iter().flat_map(|l| l.shadow.iter().copied()).collect();
     (closest, shadow)

@@ -15,7 +15,7 @@ use hilcam_core::render::film::RadianceImage;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
 use hilcam_core::render::sampling::{PerSample, Rng, Sequence, SobolStream};
-use hilcam_core::render::{render, render_view_counted};
+use hilcam_core::render::{FrameBuffers, RenderOptions, render, render_into};
 use hilcam_core::scene::Scene;
 
 fn satellite() -> Scene {
@@ -79,7 +79,9 @@ fn every_pixel_is_the_mean_of_its_own_first_samples_and_the_budget_is_kept() {
     for (sequence, sampler, spp, depth, adaptive) in cases {
         let spp: Spp = spp.parse().unwrap();
         let settings = RenderSettings { spp, depth, sampler, sequence, roulette: true, adaptive, seed: 5 };
-        let (img, stats, counts) = render_view_counted(&scene, &cam, &view, &settings, 0);
+        let mut buffers = FrameBuffers::<()>::default();
+        let stats = render_into(&mut buffers, &scene, &view, &RenderOptions::new(settings, 0));
+        let (img, counts) = (buffers.take_image(), buffers.sample_counts());
         let label = format!("{sequence:?} spp {spp} adaptive {adaptive}");
         let sampled: Vec<u32> = counts.iter().copied().filter(|&n| n > 0).collect();
         assert_eq!(sampled.len() as u64, stats.traced_pixels, "{label}");
@@ -141,7 +143,7 @@ fn a_plate_under_a_uniform_sky_averages_to_rho_times_the_sky() {
             scene(square(0.0, 0.0, 0.0, 2.0, 0), vec![lambert("paint", rho)], cam.clone(), Pose::ahead(5.0), settings);
         s.sun_irradiance = 0.0;
         s.background = 1.0;
-        let (img, stats) = render(&s, &cam, &s.pose, &settings, 0);
+        let (img, stats) = render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 0));
         assert!(stats.samples > 0);
         mean(&img.data)
     });
@@ -177,7 +179,7 @@ fn adaptive_and_uniform_means_agree_with_inter_reflections() {
             seed,
         };
         let s = scene(mesh.clone(), vec![lambert("paint", 0.9)], cam.clone(), pose, settings);
-        mean(&render(&s, &cam, &pose, &settings, 0).0.data)
+        mean(&render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0)).0.data)
     };
     let (a, se_a) = mean_over_seeds(16, |seed| run(true, seed));
     let (u, se_u) = mean_over_seeds(16, |seed| run(false, 1000 + seed));
@@ -198,12 +200,11 @@ fn on_the_satellite_adaptive_sampling_lowers_the_error_at_equal_samples() {
         seed: 3,
         ..Default::default()
     };
+    let view = scene.view(&cam, &scene.pose);
     let reference = render(
         &scene,
-        &cam,
-        &scene.pose,
-        &RenderSettings { spp: Spp::whole(256), adaptive: false, seed: 99, ..base },
-        0,
+        &view,
+        &RenderOptions::new(RenderSettings { spp: Spp::whole(256), adaptive: false, seed: 99, ..base }, 0),
     )
     .0;
     let rmse = |img: &RadianceImage| {
@@ -216,8 +217,8 @@ fn on_the_satellite_adaptive_sampling_lowers_the_error_at_equal_samples() {
             .collect();
         (d.iter().sum::<f64>() / d.len() as f64).sqrt()
     };
-    let (uniform, su) = render(&scene, &cam, &scene.pose, &RenderSettings { adaptive: false, ..base }, 0);
-    let (adaptive, sa) = render(&scene, &cam, &scene.pose, &RenderSettings { adaptive: true, ..base }, 0);
+    let (uniform, su) = render(&scene, &view, &RenderOptions::new(RenderSettings { adaptive: false, ..base }, 0));
+    let (adaptive, sa) = render(&scene, &view, &RenderOptions::new(RenderSettings { adaptive: true, ..base }, 0));
     assert!((sa.samples as f64 / su.samples as f64 - 1.0).abs() < 0.03, "{} vs {} samples", sa.samples, su.samples);
     let (eu, ea) = (rmse(&uniform), rmse(&adaptive));
     assert!(ea < 0.85 * eu, "rmse adaptive {ea} vs uniform {eu}");

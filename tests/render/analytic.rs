@@ -7,7 +7,7 @@ use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::View;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
-use hilcam_core::render::render;
+use hilcam_core::render::{RenderOptions, render};
 
 const E: f64 = 593.1;
 
@@ -43,7 +43,7 @@ fn lambert_plate_radiance_is_rho_e_cos_over_pi() {
             plate_pose(10.0, incidence),
             settings,
         );
-        let (img, stats) = render(&s, &cam, &s.pose, &settings, 0);
+        let (img, stats) = render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 0));
         let expected = 0.522 * E * incidence.to_radians().cos() / std::f64::consts::PI;
         let inner = inner_pixels(&img, 100.0);
         let m = mean(&inner);
@@ -74,7 +74,7 @@ fn half_shadowed_plate_is_exactly_zero_in_shadow_at_depth_1() {
     let q = DQuat::from_rotation_y(40f64.to_radians());
     let pose = Pose { attitude: q, sun_dir: q * DVec3::new(0.0, 0.0, -1.0), ..Pose::ahead(10.0) };
     let s = scene(mesh, vec![lambert("paint", 0.522)], cam.clone(), pose, settings);
-    let (img, _) = render(&s, &cam, &pose, &settings, 0);
+    let (img, _) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
 
     let eye = -(q.inverse() * pose.position); // camera centre, body frame
     let f = cam.focal_px();
@@ -115,7 +115,7 @@ fn same_bytes_whatever_the_thread_count() {
     let s = scene(mesh, vec![lambert("paint", 0.8)], cam.clone(), plate_pose(3.0, 20.0), settings);
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| render(&s, &cam, &s.pose, &settings, 7).0)
+        pool.install(|| render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 7)).0)
     };
     let (a, b) = (run(1), run(2));
     let bytes = |img: &hilcam_core::render::film::RadianceImage| {
@@ -128,7 +128,7 @@ fn same_bytes_whatever_the_thread_count() {
         .num_threads(2)
         .build()
         .unwrap()
-        .install(|| render(&s, &cam, &s.pose, &settings, 8).0);
+        .install(|| render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 8)).0);
     assert_ne!(bytes(&a), bytes(&c));
 }
 
@@ -161,7 +161,7 @@ fn a_vertex_lands_on_the_pixel_the_pinhole_model_predicts() {
     let settings =
         RenderSettings { spp: Spp::whole(64), depth: 1, sampler: SamplerKind::Cosine, seed: 0, ..Default::default() };
     let s = scene(mesh, vec![lambert("paint", 0.5)], cam.clone(), pose, settings);
-    let (img, _) = render(&s, &cam, &pose, &settings, 0);
+    let (img, _) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
     let p_cam = q * point.as_dvec3() + pose.position;
     let [x, y] = View::project_camera_point(&cam, p_cam).unwrap();
     // Brightest pixel in the neighbourhood of the prediction.
@@ -188,8 +188,8 @@ fn range_difference(mesh: hilcam_core::render::geometry::TriMesh, attitude: DQua
     let near_pose = Pose { attitude, sun_dir: sun_at_incidence(35.0), ..Pose::ahead(near) };
     let far_pose = Pose { position: DVec3::new(0.0, 0.0, far), ..near_pose };
     let s = scene(mesh, vec![lambert("paint", 0.7), lambert("dark", 0.1)], cam_near.clone(), near_pose, settings);
-    let (a, _) = render(&s, &cam_near, &near_pose, &settings, 0);
-    let (b, _) = render(&s, &cam_far, &far_pose, &settings, 0);
+    let (a, _) = render(&s, &s.view(&cam_near, &near_pose), &RenderOptions::new(settings, 0));
+    let (b, _) = render(&s, &s.view(&cam_far, &far_pose), &RenderOptions::new(settings, 0));
     let total: f64 = a.data.iter().map(|&v| v as f64).sum();
     assert!(total > 0.0 && b.data.iter().all(|v| v.is_finite()));
     a.data.iter().zip(&b.data).map(|(x, y)| (*x as f64 - *y as f64).abs()).sum::<f64>() / total
@@ -222,7 +222,7 @@ fn target_out_of_view_costs_nothing_and_is_background() {
     let aside = Pose { position: DVec3::new(50.0, 0.0, 10.0), ..Pose::ahead(10.0) };
     let s = scene(square(0.0, 0.0, 0.0, 1.0, 0), vec![lambert("paint", 0.5)], cam.clone(), behind, settings);
     for pose in [behind, aside] {
-        let (img, stats) = render(&s, &cam, &pose, &settings, 0);
+        let (img, stats) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
         assert!(img.data.iter().all(|&v| v == 0.0));
         assert_eq!(stats.rays.total(), 0);
         assert_eq!(stats.traced_pixels, 0);
@@ -235,7 +235,7 @@ fn far_small_target_traces_only_the_pixels_near_it() {
     let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..Default::default() };
     let s =
         scene(square(0.0, 0.0, 0.0, 1.0, 0), vec![lambert("paint", 0.5)], cam.clone(), Pose::ahead(100.0), settings);
-    let (_, stats) = render(&s, &cam, &s.pose, &settings, 0);
+    let (_, stats) = render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 0));
     // 1 m at 100 m with a 2000 px focal length: 20 px; its bounding sphere ≈ 28 px wide.
     assert!(stats.traced_pixels < 40 * 40, "{} pixels traced", stats.traced_pixels);
     assert!(stats.traced_pixels >= 20 * 20);
@@ -253,7 +253,7 @@ fn lambert_furnace_returns_albedo_times_background_for_every_sampler() {
             scene(square(0.0, 0.0, 0.0, 2.0, 0), vec![lambert("paint", rho)], cam.clone(), Pose::ahead(5.0), settings);
         s.sun_irradiance = 0.0;
         s.background = 1.0;
-        let (img, _) = render(&s, &cam, &s.pose, &settings, 0);
+        let (img, _) = render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 0));
         // The plate fills the frame (2 m at 5 m with a 2000 px focal length = 800 px).
         let m = mean(&img.data);
         // Uniform sampling has the most variance: σ/√N ≈ 0.57·ρ/√(64·4096) ≈ 1e-3.
@@ -282,7 +282,7 @@ fn grazing_and_hidden_sun_give_finite_images() {
         };
         let pose = Pose { sun_dir: sun, ..Pose::ahead(5.0) };
         let s = scene(mesh.clone(), vec![lambert("paint", 0.9)], cam.clone(), pose, settings);
-        let (img, stats) = render(&s, &cam, &pose, &settings, 0);
+        let (img, stats) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
         assert!(img.data.iter().all(|v| v.is_finite() && *v >= 0.0), "sun at {deg}°");
         assert_eq!(stats.rays.nonfinite, 0);
         // Sun behind the target: the camera-facing sides see no sunlight at all.
@@ -311,7 +311,7 @@ fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster(
             scene(square(0.0, 0.0, 0.0, 2.0, 0), vec![lambert("paint", rho)], cam.clone(), Pose::ahead(5.0), settings);
         s.sun_irradiance = 0.0;
         s.background = 1.0;
-        render(&s, &cam, &s.pose, &settings, 0).0
+        render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 0)).0
     };
     let rmse = |img: &hilcam_core::render::film::RadianceImage| {
         (img.data.iter().map(|&v| ((v - rho) as f64).powi(2)).sum::<f64>() / img.data.len() as f64).sqrt()
@@ -354,7 +354,7 @@ fn russian_roulette_is_unbiased() {
             ..Pose::ahead(3.0)
         };
         let s = scene(mesh.clone(), vec![lambert("paint", 0.9)], cam.clone(), pose, settings);
-        let (img, stats) = render(&s, &cam, &pose, &settings, 0);
+        let (img, stats) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
         (mean(&img.data), stats.rays.bounce)
     };
     let ((with, rays_with), (without, rays_without)) = (run(true), run(false));

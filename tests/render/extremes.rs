@@ -8,7 +8,7 @@ use hilcam_core::pose::Pose;
 use hilcam_core::render::geometry::TriMesh;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
-use hilcam_core::render::render;
+use hilcam_core::render::{RenderOptions, render};
 
 fn finite(img: &hilcam_core::render::film::RadianceImage) -> bool {
     img.data.iter().all(|v| v.is_finite() && *v >= 0.0)
@@ -56,12 +56,12 @@ fn ranges_from_half_a_metre_to_a_million_metres_image_the_same() {
     let cam0 = camera(64, 64, 20.0, 20.0);
     let s = scene(flat, vec![lambert("a", 0.7), lambert("b", 0.2)], cam0.clone(), Pose::ahead(base), settings);
     let pose = |r: f64| Pose { sun_dir: sun_at_incidence(25.0), ..Pose::ahead(r) };
-    let (reference, _) = render(&s, &cam0, &pose(base), &settings, 0);
+    let (reference, _) = render(&s, &s.view(&cam0, &pose(base)), &RenderOptions::new(settings, 0));
     let total: f64 = reference.data.iter().map(|&v| v as f64).sum();
     assert!(total > 0.0);
     for range in [5.0, 1e2, 1e4, 1e6] {
         let cam = camera(64, 64, 20.0, 20.0 * range / base);
-        let (img, _) = render(&s, &cam, &pose(range), &settings, 0);
+        let (img, _) = render(&s, &s.view(&cam, &pose(range)), &RenderOptions::new(settings, 0));
         assert!(finite(&img));
         let d: f64 =
             img.data.iter().zip(&reference.data).map(|(a, b)| (*a as f64 - *b as f64).abs()).sum::<f64>() / total;
@@ -82,7 +82,7 @@ fn camera_inside_the_targets_bounding_box() {
         ..Pose::ahead(0.0)
     };
     let s = scene(cube(2.0), vec![lambert("a", 0.9)], cam.clone(), pose, settings);
-    let (img, stats) = render(&s, &cam, &pose, &settings, 0);
+    let (img, stats) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
     assert!(finite(&img));
     assert_eq!(stats.traced_pixels, 64 * 64, "inside the bounds every pixel is traced");
     assert!(img.data.iter().all(|&v| v == 0.0));
@@ -94,7 +94,7 @@ fn camera_inside_the_targets_bounding_box() {
     open.indices = keep.iter().map(|&i| open.indices[i]).collect();
     open.material = vec![0; open.indices.len()];
     let s = scene(open, vec![lambert("a", 0.9)], cam.clone(), pose, settings);
-    let (img, _) = render(&s, &cam, &pose, &settings, 0);
+    let (img, _) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
     assert!(finite(&img) && img.data.iter().any(|&v| v > 0.0));
 }
 
@@ -108,7 +108,7 @@ fn target_on_the_image_edge_and_off_it() {
     let x_edge = (0.0 - 50.0) / f * 10.0;
     let pose = Pose { position: DVec3::new(x_edge, 0.0, 10.0), sun_dir: -DVec3::Z, ..Pose::ahead(10.0) };
     let s = scene(square(0.0, 0.0, 0.0, 1.0, 0), vec![lambert("a", 0.5)], cam.clone(), pose, settings);
-    let (img, _) = render(&s, &cam, &pose, &settings, 0);
+    let (img, _) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
     assert!(finite(&img));
     // The plate spans ±100 px around x = 0: columns 0..99 see it (rows within ±100 px: all).
     let expected = 0.5 * 593.1 / std::f64::consts::PI;
@@ -119,7 +119,7 @@ fn target_on_the_image_edge_and_off_it() {
     }
     // Entirely off the image: exactly one plate width beyond the edge.
     let off = Pose { position: DVec3::new(x_edge - 0.6 - 1e-3, 0.0, 10.0), ..pose };
-    let (img, stats) = render(&s, &cam, &off, &settings, 0);
+    let (img, stats) = render(&s, &s.view(&cam, &off), &RenderOptions::new(settings, 0));
     assert!(img.data.iter().all(|&v| v == 0.0));
     assert!(stats.rays.total() < 1000, "{} rays for an off-image target", stats.rays.total());
 }
@@ -138,7 +138,7 @@ fn near_degenerate_triangles_stay_finite() {
         RenderSettings { spp: Spp::whole(4), depth: 4, sampler: SamplerKind::Cosine, seed: 1, ..Default::default() };
     let pose = Pose { sun_dir: sun_at_incidence(40.0), ..Pose::ahead(3.0) };
     let s = scene(m, vec![lambert("a", 0.9)], cam.clone(), pose, settings);
-    let (img, stats) = render(&s, &cam, &pose, &settings, 0);
+    let (img, stats) = render(&s, &s.view(&cam, &pose), &RenderOptions::new(settings, 0));
     assert!(finite(&img) && stats.rays.nonfinite == 0);
 }
 
@@ -155,9 +155,9 @@ fn quaternions_at_plus_and_minus_180_degrees_are_the_same_attitude() {
     let q_neg = -q_plus; // the same rotation with the opposite sign
     let pose = |q: DQuat| Pose { attitude: q, sun_dir: DVec3::new(0.2, 0.1, -1.0).normalize(), ..Pose::ahead(4.0) };
     let s = scene(m, vec![lambert("a", 0.6)], cam.clone(), pose(q_plus), settings);
-    let (a, _) = render(&s, &cam, &pose(q_plus), &settings, 0);
+    let (a, _) = render(&s, &s.view(&cam, &pose(q_plus)), &RenderOptions::new(settings, 0));
     for q in [q_minus, q_neg] {
-        let (b, _) = render(&s, &cam, &pose(q), &settings, 0);
+        let (b, _) = render(&s, &s.view(&cam, &pose(q)), &RenderOptions::new(settings, 0));
         let d: f64 = a.data.iter().zip(&b.data).map(|(x, y)| (*x - *y).abs() as f64).sum();
         let t: f64 = a.data.iter().map(|&x| x as f64).sum();
         assert!(t > 0.0 && d / t < 1e-4, "relative difference {}", d / t);

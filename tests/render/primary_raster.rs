@@ -1,4 +1,4 @@
-//! Rasterised primary visibility (`render::visibility`) against tracing every primary ray
+//! Rasterised primary visibility (`render::cull::visibility`) against tracing every primary ray
 //! through the BVH: the same image bytes and the same rays, on the shipped satellite, from
 //! near and far, rotated, with and without the navigation camera's lens distortion; and
 //! the fall-back to tracing when the camera is among the triangles.
@@ -7,13 +7,13 @@ use crate::common;
 use glam::{DQuat, DVec3};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::{CameraModel, View};
-use hilcam_core::render::coverage::Coverage;
+use hilcam_core::render::cull::coverage::Coverage;
+use hilcam_core::render::cull::visibility::{PrimaryRaster, RasterScratch};
 use hilcam_core::render::geometry::bvh::brute_force;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind};
 use hilcam_core::render::sampling::{PerSample, Sequence, SobolStream};
-use hilcam_core::render::visibility::{PrimaryRaster, RasterScratch};
-use hilcam_core::render::{PrimaryVisibility, RenderStats, render_view_with};
+use hilcam_core::render::{PrimaryVisibility, RenderOptions, RenderStats, render};
 use hilcam_core::scene::Scene;
 
 fn small_nav(scene: &Scene, width: u32, height: u32) -> CameraModel {
@@ -33,8 +33,8 @@ fn compare(
     view: &View,
     settings: &RenderSettings,
 ) -> (usize, RenderStats, RenderStats) {
-    let (a, sa, _) = render_view_with::<()>(scene, cam, view, settings, FRAME, PrimaryVisibility::Raster);
-    let (b, sb, _) = render_view_with::<()>(scene, cam, view, settings, FRAME, PrimaryVisibility::Trace);
+    let (a, sa) = render(scene, view, &RenderOptions::new(*settings, FRAME).with_primary(PrimaryVisibility::Raster));
+    let (b, sb) = render(scene, view, &RenderOptions::new(*settings, FRAME).with_primary(PrimaryVisibility::Trace));
     let raster = PrimaryRaster::new(scene, view, view.pixel_rect().unwrap());
     let mut scratch = RasterScratch::default();
     let mut hits = Vec::new();
@@ -140,19 +140,19 @@ fn auto_traces_packets_or_rasterises_with_enough_samples_per_triangle() {
     let view = View::new(&cam, &plate.pose, plate.frame_origin_body, plate.bounds);
     // Where the 8-wide tree walks primary rays in packets, they are traced: faster than
     // rasterising at any number of samples (docs/performance.md).
-    let (_, packets, _) = render_view_with::<()>(&plate, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
+    let (_, packets) = render(&plate, &view, &RenderOptions::new(settings, 0));
     assert_eq!(packets.primary_rasterised, !plate.accel.walks_packets());
     // With single-ray walks: rasterised where enough samples share the per-frame binning.
     // The 2-triangle plate: a handful of samples already pays.
     plate.accel = Accel::build(&plate.mesh, BvhLayout::Bvh4);
-    let (_, many, _) = render_view_with::<()>(&plate, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
+    let (_, many) = render(&plate, &view, &RenderOptions::new(settings, 0));
     assert!(many.primary_rasterised);
     // ~7 000 samples for 145 616 triangles: the per-frame binning would cost more.
     let mut scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
     scene.accel = Accel::build(&scene.mesh, BvhLayout::Bvh4);
     let cam = small_nav(&scene, 160, 120);
     let view = View::new(&cam, &scene.pose, scene.frame_origin_body, scene.bounds);
-    let (_, few, _) = render_view_with::<()>(&scene, &cam, &view, &settings, 0, PrimaryVisibility::Auto);
+    let (_, few) = render(&scene, &view, &RenderOptions::new(settings, 0));
     assert!(!few.primary_rasterised);
 }
 

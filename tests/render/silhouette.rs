@@ -1,11 +1,12 @@
-//! Per-row spans of the target's bounds (camera::Silhouette) against a brute-force check:
+//! Per-row spans of the target's bounds (cull::Silhouette) against a brute-force check:
 //! every pixel the renderer skips must be one where no sample position can reach the
 //! target's box (independent slab test in f64), over random poses, boxes and cameras.
 
 use glam::{DQuat, DVec3};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::distortion::Distortion;
-use hilcam_core::render::camera::{CameraModel, Silhouette, TargetBounds, View};
+use hilcam_core::render::camera::{CameraModel, TargetBounds, View};
+use hilcam_core::render::cull::Silhouette;
 use hilcam_core::render::sampling::Rng;
 
 /// Ray (origin, dir) against the box [min, max]: true if they meet at t ≥ 0.

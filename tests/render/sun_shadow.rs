@@ -7,12 +7,12 @@
 
 use glam::{DVec3, Vec3};
 use hilcam_core::pose::Pose;
+use hilcam_core::render::{FrameBuffers, RenderOptions, render_into};
 use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::geometry::bvh::brute_force;
 use hilcam_core::render::geometry::{Ray, TriMesh};
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
-use hilcam_core::render::render_logged;
 use hilcam_core::render::sampling::Rng;
 use hilcam_core::scene::Scene;
 use hilcam_lab::sun_shadow::SunShadow;
@@ -47,10 +47,11 @@ fn logged_shadow_rays(scene: &Scene, pose: &Pose, sun_body: DVec3, w: u32) -> (V
         roulette: false,
         ..Default::default()
     };
-    let (_, stats, logs) = render_logged::<RecordedRays>(scene, &cam, &pose, &settings, 3);
-    let rays: Vec<Ray> = logs.into_iter().flat_map(|l| l.shadow).collect();
+    let view = scene.view(&cam, &pose);
+    let mut buffers = FrameBuffers::<RecordedRays>::default();
+    let stats = render_into(&mut buffers, scene, &view, &RenderOptions::new(settings, 3));
+    let rays: Vec<Ray> = buffers.take_ray_logs().into_iter().flat_map(|l| l.shadow).collect();
     assert_eq!(rays.len() as u64, stats.rays.shadow);
-    let view = hilcam_core::render::camera::View::new(&cam, &pose, scene.frame_origin_body, scene.bounds);
     (view.sun, rays)
 }
 

@@ -8,8 +8,8 @@ use hilcam_core::render::camera::{CameraModel, View};
 use hilcam_core::render::film::RadianceImage;
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{PathContext, RayCounts, RenderSettings, SamplerKind};
-use hilcam_core::render::render;
 use hilcam_core::render::sampling::{PerSample, Rng, Sequence, SobolStream};
+use hilcam_core::render::{RenderOptions, render};
 use hilcam_core::scene::Scene;
 
 fn per_sample_reference<S: PerSample>(
@@ -65,7 +65,7 @@ fn waves_give_the_same_bytes_as_tracing_sample_by_sample() {
     for (sequence, sampler, roulette, spp, depth) in cases {
         let settings =
             RenderSettings { spp: Spp::whole(spp), depth, sampler, sequence, roulette, adaptive: false, seed: 11 };
-        let (img, stats) = render(&scene, &cam, &scene.pose, &settings, 7);
+        let (img, stats) = render(&scene, &scene.view(&cam, &scene.pose), &RenderOptions::new(settings, 7));
         let (reference, counts) = match sequence {
             Sequence::Independent => per_sample_reference::<Rng>(&scene, &cam, &settings, 7),
             Sequence::Sobol => per_sample_reference::<SobolStream>(&scene, &cam, &settings, 7),

@@ -9,7 +9,7 @@ use crate::render::camera::{CameraModel, View};
 use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
 use crate::render::sampling::mix64;
-use crate::render::{FrameBuffers, PrimaryVisibility, RenderStats, render_view_into, render_view_with};
+use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
 use crate::sensor::{AutoExposure, Sensor, SensorError};
 use std::sync::Arc;
@@ -89,15 +89,16 @@ impl FramePipeline {
     }
 
     fn view(&self, pose: &Pose) -> View {
-        View::new(&self.camera, pose, self.scene.frame_origin_body, self.scene.bounds)
-            .with_distortion(self.scene.sensor.optics.distortion)
+        self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion)
+    }
+
+    fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {
+        RenderOptions::new(*settings, index).with_primary(self.primary)
     }
 
     /// Render the radiance only (no sensor), into a new image.
     pub fn radiance(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> (RadianceImage, RenderStats) {
-        let (img, stats, _) =
-            render_view_with::<()>(&self.scene, &self.camera, &self.view(pose), settings, index, self.primary);
-        (img, stats)
+        render(&self.scene, &self.view(pose), &self.options(settings, index))
     }
 
     /// [`FramePipeline::radiance`] into the pipeline's own buffers: after the first frame
@@ -108,9 +109,8 @@ impl FramePipeline {
         settings: &RenderSettings,
         index: u64,
     ) -> (&RadianceImage, RenderStats) {
-        let view = self.view(pose);
-        let (stats, _) =
-            render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
+        let (view, options) = (self.view(pose), self.options(settings, index));
+        let stats = render_into(&mut self.buffers, &self.scene, &view, &options);
         (self.buffers.image(), stats)
     }
 
@@ -129,9 +129,8 @@ impl FramePipeline {
         index: u64,
         integration_s: Option<f64>,
     ) -> Result<RenderedFrame, SensorError> {
-        let view = self.view(pose);
-        let (render, _) =
-            render_view_into(&mut self.buffers, &self.scene, &self.camera, &view, settings, index, self.primary);
+        let (view, options) = (self.view(pose), self.options(settings, index));
+        let render = render_into(&mut self.buffers, &self.scene, &view, &options);
         let radiance = self.buffers.image();
         let t0 = Instant::now();
         let seed = Self::sensor_seed(settings, index);

@@ -8,10 +8,10 @@
 //! and refilled: rendering allocates nothing (`tests/zero_alloc.rs` counts).
 
 use super::Band;
-use super::coverage::Coverage;
-use super::tile::{CameraSample, Scratch};
-use super::visibility::PrimaryRaster;
-use crate::render::camera::SilhouetteBuffers;
+use super::cull::SilhouetteBuffers;
+use super::cull::coverage::Coverage;
+use super::cull::visibility::PrimaryRaster;
+use super::integrator::waves::{CameraSample, Scratch};
 use crate::render::film::RadianceImage;
 use crate::render::sampling::{Rng, SobolStream};
 use std::sync::Mutex;
@@ -24,11 +24,15 @@ pub struct FrameBuffers<L = ()> {
     pub(super) written_rows: std::ops::Range<usize>,
     pub(super) fill: f32,
     pub(super) raster: PrimaryRaster,
-    /// The pixels a traced frame samples (`coverage::Coverage::from_leaf_boxes`).
+    /// The pixels a traced frame samples (`cull::coverage::Coverage::from_leaf_boxes`).
     pub(super) coverage: Coverage,
     /// One per band of rows; a frame uses the first `rows / BAND_ROWS` (the rest keep their
     /// capacity for larger frames).
     pub(super) bands: Vec<Band<L>>,
+    /// How many of `bands` the last frame used.
+    pub(super) bands_used: usize,
+    /// Width and height of the last frame (also once its image has been taken).
+    pub(super) size: (u32, u32),
     /// Pilot statistic of every pixel (adaptive frames).
     pub(super) stat: Vec<[f32; 2]>,
     /// Per-row spans through a distorting lens.
@@ -46,6 +50,8 @@ impl<L> Default for FrameBuffers<L> {
             raster: PrimaryRaster::default(),
             coverage: Coverage::default(),
             bands: Vec::new(),
+            bands_used: 0,
+            size: (0, 0),
             stat: Vec::new(),
             silhouette: SilhouetteBuffers::default(),
             sobol: Workers::default(),
@@ -66,6 +72,28 @@ impl<L> FrameBuffers<L> {
         std::mem::replace(&mut self.image, RadianceImage { width: 0, height: 0, data: Vec::new() })
     }
 
+    /// How many camera samples each pixel of the last frame got (row-major, 0 where none
+    /// was needed): with adaptive sampling, where the budget went.
+    pub fn sample_counts(&self) -> Vec<u32> {
+        let (w, h) = (self.size.0 as usize, self.size.1 as usize);
+        let mut counts = vec![0; w * h];
+        for band in &self.bands[..self.bands_used] {
+            for (&(row, col), &n) in band.pixels.iter().zip(&band.counts) {
+                counts[row as usize * w + col as usize] = n;
+            }
+        }
+        counts
+    }
+
+    /// The rays the last frame traced, one log per band of rows (none when the target was
+    /// out of view); the bands' logs are left empty.
+    pub fn take_ray_logs(&mut self) -> Vec<L>
+    where
+        L: Default,
+    {
+        self.bands[..self.bands_used].iter_mut().map(|b| std::mem::take(&mut b.log)).collect()
+    }
+
     /// Set the image to `width` × `height` pixels of `fill`, reusing its buffer: the whole
     /// of it when its size or fill changed, else only the rows the last frame wrote (a
     /// full 1024² clear is ~0.6 ms, one thread; the target covers ~40 % of the rows).
@@ -84,6 +112,8 @@ impl<L> FrameBuffers<L> {
             self.fill = fill;
         }
         self.written_rows = 0..0;
+        self.bands_used = 0;
+        self.size = (width, height);
     }
 }
 

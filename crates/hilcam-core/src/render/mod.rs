@@ -1,15 +1,16 @@
-//! The frame loop: (scene, camera, pose, settings, frame index) → radiance image.
+//! The frame loop: (target, view, options) → radiance image. Two entry points:
+//! [`render_into`] (reused buffers, what the pipeline calls) and [`render`] (a new image).
 //!
 //! Synchronous and pure; rayon parallelises over bands of rows, each band is traced tile
-//! by tile in waves (`tile`). Only pixels whose area can see the target's bounds are
-//! sampled (per-row spans, `camera::Silhouette`; the rest get the background radiance
+//! by tile in waves (`integrator::waves`). Only pixels whose area can see the target's bounds are
+//! sampled (per-row spans, `cull::Silhouette`; the rest get the background radiance
 //! without any work), so a far, small target costs in proportion to the pixels it
 //! covers. Every random
 //! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
 //! whatever the thread count.
 
-use crate::pose::Pose;
-use crate::render::camera::{CameraModel, PixelRect, Silhouette, View};
+use crate::render::camera::{PixelRect, View};
+use crate::render::cull::Silhouette;
 use crate::render::film::RadianceImage;
 use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::render::sampling::{PerSample, Sequence};
@@ -17,21 +18,18 @@ use crate::render::target::Target;
 use adaptive::Adaptive;
 pub use buffers::FrameBuffers;
 use buffers::{WorkerScratch, Workers};
-use tile::{CameraSample, TILE_PATHS, TileJob};
+use integrator::waves::{CameraSample, TILE_PATHS, TileJob};
 
 pub mod adaptive;
 pub mod bsdf;
 mod buffers;
 pub mod camera;
-pub mod coverage;
+pub mod cull;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
-mod lens_coverage;
 pub mod sampling;
 pub mod target;
-mod tile;
-pub mod visibility;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -44,16 +42,16 @@ pub struct RenderStats {
     /// the target is out of view).
     pub traced_pixels: u64,
     pub rect: Option<PixelRect>,
-    /// True when the primary hits were rasterised (`visibility`), false when traced.
+    /// True when the primary hits were rasterised (`cull::visibility`), false when traced.
     pub primary_rasterised: bool,
     /// Camera samples traced (`spp` × traced pixels on average; per pixel it varies
     /// when sampling is adaptive).
     pub samples: u64,
 }
 
-/// How primary hits are found. Both give the same hits (see `visibility`,
+/// How primary hits are found. Both give the same hits (see `cull::visibility`,
 /// `geometry::closest_packet`); both skip the pixels that cannot see a triangle
-/// (`coverage`), each by its own conservative rule, so a uniform frame has the same bytes
+/// (`cull::coverage`), each by its own conservative rule, so a uniform frame has the same bytes
 /// either way, and an adaptive one (whose budget is spp × sampled pixels) nearly so.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -75,119 +73,50 @@ impl RenderStats {
     }
 }
 
-/// Render one frame through an already placed view (e.g. with lens distortion).
-pub fn render_view(
-    scene: &Target,
-    camera: &CameraModel,
-    view: &View,
-    settings: &RenderSettings,
-    frame: u64,
-) -> (RadianceImage, RenderStats) {
-    let (img, stats, _) = render_view_logged::<()>(scene, camera, view, settings, frame);
-    (img, stats)
+/// How one frame is rendered: everything but what is seen (the target through a view)
+/// and where the pixels go.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    pub settings: RenderSettings,
+    /// Frame index: keys every random number together with `settings.seed`.
+    pub frame: u64,
+    pub primary: PrimaryVisibility,
 }
 
-/// Render one frame.
-pub fn render(
-    scene: &Target,
-    camera: &CameraModel,
-    pose: &Pose,
-    settings: &RenderSettings,
-    frame: u64,
-) -> (RadianceImage, RenderStats) {
-    let (img, stats, _) = render_logged::<()>(scene, camera, pose, settings, frame);
-    (img, stats)
+impl RenderOptions {
+    /// Frame `frame` with `settings`, primary hits found the default way.
+    pub fn new(settings: RenderSettings, frame: u64) -> RenderOptions {
+        RenderOptions { settings, frame, primary: PrimaryVisibility::default() }
+    }
+
+    /// These options with primary hits found the `primary` way.
+    pub fn with_primary(self, primary: PrimaryVisibility) -> RenderOptions {
+        RenderOptions { primary, ..self }
+    }
 }
 
-/// Render one frame and hand every traced ray to a per-row `L` (benchmarks).
-pub fn render_logged<L: RayLog + Default + Send + Sync>(
-    scene: &Target,
-    camera: &CameraModel,
-    pose: &Pose,
-    settings: &RenderSettings,
-    frame: u64,
-) -> (RadianceImage, RenderStats, Vec<L>) {
-    let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
-    render_view_logged(scene, camera, &view, settings, frame)
-}
-
-fn render_view_logged<L: RayLog + Default + Send + Sync>(
-    scene: &Target,
-    camera: &CameraModel,
-    view: &View,
-    settings: &RenderSettings,
-    frame: u64,
-) -> (RadianceImage, RenderStats, Vec<L>) {
-    render_view_with(scene, camera, view, settings, frame, PrimaryVisibility::default())
-}
-
-/// Render one frame through `view`, choosing how primary hits are found, and hand every
-/// traced ray to a per-band `L` (benchmarks and tests).
-pub fn render_view_with<L: RayLog + Default + Send + Sync>(
-    scene: &Target,
-    camera: &CameraModel,
-    view: &View,
-    settings: &RenderSettings,
-    frame: u64,
-    primary: PrimaryVisibility,
-) -> (RadianceImage, RenderStats, Vec<L>) {
-    let mut buffers = FrameBuffers::default();
-    let (stats, logs) = render_view_impl(&mut buffers, scene, camera, view, settings, frame, primary, None);
-    (buffers.take_image(), stats, logs)
-}
-
-/// [`render_view_with`] into reused buffers: the image is `buffers.image()`. Once the
-/// buffers have grown to the frame's size this allocates nothing (the loop of `hilcam
-/// serve` and replay, through `FramePipeline`).
-pub fn render_view_into<L: RayLog + Default + Send + Sync>(
-    buffers: &mut FrameBuffers<L>,
-    scene: &Target,
-    camera: &CameraModel,
-    view: &View,
-    settings: &RenderSettings,
-    frame: u64,
-    primary: PrimaryVisibility,
-) -> (RenderStats, Vec<L>) {
-    render_view_impl(buffers, scene, camera, view, settings, frame, primary, None)
-}
-
-/// Render one frame through `view` and say how many camera samples each pixel got
-/// (row-major, 0 where none was needed): with adaptive sampling, where the budget went.
-pub fn render_view_counted(
-    scene: &Target,
-    camera: &CameraModel,
-    view: &View,
-    settings: &RenderSettings,
-    frame: u64,
-) -> (RadianceImage, RenderStats, Vec<u32>) {
-    let mut counts = vec![0; camera.width as usize * camera.height as usize];
+/// Render one frame of `target` through `view` into a new image.
+pub fn render(target: &Target, view: &View, options: &RenderOptions) -> (RadianceImage, RenderStats) {
     let mut buffers = FrameBuffers::<()>::default();
-    let (stats, _) = render_view_impl(
-        &mut buffers,
-        scene,
-        camera,
-        view,
-        settings,
-        frame,
-        PrimaryVisibility::default(),
-        Some(&mut counts),
-    );
-    (buffers.take_image(), stats, counts)
+    let stats = render_into(&mut buffers, target, view, options);
+    (buffers.take_image(), stats)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn render_view_impl<L: RayLog + Default + Send + Sync>(
+/// Render one frame of `target` through `view` into reused buffers: the image is
+/// `buffers.image()`, the samples each pixel got `buffers.sample_counts()`, and every
+/// traced ray went to the per-band logs `buffers.take_ray_logs()`. Once the buffers have grown
+/// to the frame's size this allocates nothing (the loop of `hilcam serve` and replay,
+/// through `FramePipeline`; `tests/zero_alloc.rs` counts).
+pub fn render_into<L: RayLog + Default + Send + Sync>(
     buffers: &mut FrameBuffers<L>,
-    scene: &Target,
-    camera: &CameraModel,
+    target: &Target,
     view: &View,
-    settings: &RenderSettings,
-    frame: u64,
-    primary: PrimaryVisibility,
-    mut counts: Option<&mut Vec<u32>>,
-) -> (RenderStats, Vec<L>) {
+    options: &RenderOptions,
+) -> RenderStats {
+    let RenderOptions { settings, frame, primary } = options;
     let t0 = Instant::now();
-    buffers.reset_image(camera.width, camera.height, scene.background);
+    let (width, height) = view.size();
+    buffers.reset_image(width, height, target.background);
     let FrameBuffers {
         image: img,
         written_rows,
@@ -197,17 +126,18 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
         bands: band_buffers,
         stat,
         silhouette: spans,
+        bands_used,
+        size: _,
         sobol,
         independent,
     } = buffers;
-    let rect = if scene.accel.is_empty() { None } else { view.pixel_rect() };
+    let rect = if target.accel.is_empty() { None } else { view.pixel_rect() };
     let mut rays = RayCounts::default();
-    let mut logs = Vec::new();
     let mut traced = 0u64;
     let mut samples = 0u64;
     let mut primary_rasterised = false;
     if let Some(rect) = rect {
-        let ctx = PathContext::new(scene, view.sun, settings);
+        let ctx = PathContext::new(target, view.sun, settings);
         let silhouette = Silhouette::new_reusing(view, spans);
         // Columns of a row that can see the target's bounds; the rest keep the background
         // without costing a sample.
@@ -230,18 +160,18 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             })
             .sum::<u64>() as f64
             * settings.spp.get();
-        let pays = planned >= (RASTER_SAMPLES_PER_TRIANGLE * scene.accel.len() as u64) as f64;
+        let pays = planned >= (RASTER_SAMPLES_PER_TRIANGLE * target.accel.len() as u64) as f64;
         let rasterise = match primary {
-            PrimaryVisibility::Auto => pays && !scene.accel.walks_packets(),
+            PrimaryVisibility::Auto => pays && !target.accel.walks_packets(),
             PrimaryVisibility::Raster => true,
             PrimaryVisibility::Trace => false,
         };
-        primary_rasterised = rasterise && raster_buffers.rebuild(scene, view, rect);
+        primary_rasterised = rasterise && raster_buffers.rebuild(target, view, rect);
         // Traced frames skip the pixels no leaf box projects onto.
         let coverage = if primary_rasterised {
             Some(&raster_buffers.coverage)
         } else {
-            box_coverage.from_leaf_boxes(scene, view, rect).then_some(&*box_coverage)
+            box_coverage.from_leaf_boxes(target, view, rect).then_some(&*box_coverage)
         };
         let job = TileJob {
             view,
@@ -249,8 +179,8 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             raster: primary_rasterised.then_some(&*raster_buffers),
             coverage,
             seed: settings.seed,
-            frame,
-            width: camera.width as usize,
+            frame: *frame,
+            width: width as usize,
         };
         let spp = settings.spp.floor();
         let adaptive = Adaptive::new(settings.spp, settings.adaptive);
@@ -260,21 +190,16 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
         }
         let bands = &mut band_buffers[..n_bands];
         *written_rows = rect.row0 as usize..rect.row1 as usize;
+        *bands_used = n_bands;
         let frame_buffers = FrameParts { img, bands, stat };
         match settings.sequence {
             Sequence::Independent => render_bands(&job, frame_buffers, independent, rect, &span, spp, adaptive),
             Sequence::Sobol => render_bands(&job, frame_buffers, sobol, rect, &span, spp, adaptive),
         }
-        for band in band_buffers[..n_bands].iter_mut() {
+        for band in &band_buffers[..n_bands] {
             rays.add(&band.rays);
             traced += band.pixels.len() as u64;
             samples += band.counts.iter().map(|&n| u64::from(n)).sum::<u64>();
-            if let Some(counts) = counts.as_deref_mut() {
-                for (&(row, col), &n) in band.pixels.iter().zip(&band.counts) {
-                    counts[row as usize * job.width + col as usize] = n;
-                }
-            }
-            logs.push(std::mem::take(&mut band.log));
         }
         if let Some(s) = silhouette {
             s.recycle(spans);
@@ -283,8 +208,7 @@ fn render_view_impl<L: RayLog + Default + Send + Sync>(
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
-    let stats = RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples };
-    (stats, logs)
+    RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples }
 }
 
 /// Camera samples per triangle from which primary hits are rasterised rather than traced.

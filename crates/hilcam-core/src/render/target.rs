@@ -2,8 +2,9 @@
 //! the sun's band irradiance and the background. Nothing here depends on the camera, the
 //! sensor or the pose; a scene file adds those ([`crate::scene::Scene`]).
 
+use crate::pose::Pose;
 use crate::render::bsdf::Bsdf;
-use crate::render::camera::TargetBounds;
+use crate::render::camera::{CameraModel, TargetBounds, View};
 use crate::render::geometry::{Accel, BvhLayout, TriMesh};
 use glam::{DVec3, Vec3};
 
@@ -66,6 +67,11 @@ impl Target {
             sun_irradiance: sun_irradiance as f32,
             background: background as f32,
         }
+    }
+
+    /// The target as `camera` sees it at `pose` (an ideal lens).
+    pub fn view(&self, camera: &CameraModel, pose: &Pose) -> View {
+        View::new(camera, pose, self.frame_origin_body, self.bounds)
     }
 
     /// Material of triangle `tri`.

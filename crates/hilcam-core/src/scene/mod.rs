@@ -21,7 +21,7 @@ pub const SOLAR_BAND_IRRADIANCE: f64 = 593.1;
 
 /// A scene file, loaded: the target the renderer draws and the defaults (camera, sensor,
 /// pose, render settings) that let one file render on its own. Dereferences to its
-/// [`Target`], so `scene.mesh` and `render_view(&scene, …)` read as before.
+/// [`Target`], so `scene.mesh` and `render(&scene, …)` read as before.
 pub struct Scene {
     pub target: Target,
     pub camera: CameraModel,

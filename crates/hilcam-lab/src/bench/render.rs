@@ -10,10 +10,9 @@ use super::median;
 use crate::sun_shadow::SunShadow;
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::CameraModel;
-use hilcam_core::render::camera::View;
 use hilcam_core::render::geometry::Ray;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings};
-use hilcam_core::render::{PrimaryVisibility, render, render_logged, render_view_with};
+use hilcam_core::render::{FrameBuffers, PrimaryVisibility, RenderOptions, render, render_into};
 use hilcam_core::scene::Scene;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -60,7 +59,7 @@ impl RenderBenchRow {
 
 /// Fraction of pixels (centre rays, on a coarse grid) whose ray hits the target.
 pub fn coverage(scene: &Scene, camera: &CameraModel, pose: &Pose) -> f64 {
-    let view = hilcam_core::render::camera::View::new(camera, pose, scene.frame_origin_body, scene.bounds);
+    let view = scene.view(camera, pose);
     let step = (camera.width.max(camera.height) / 256).max(1);
     let (mut n, mut hit) = (0u64, 0u64);
     for row in (0..camera.height).step_by(step as usize) {
@@ -128,19 +127,22 @@ pub fn measure(
     label: &str,
 ) -> RenderBenchRow {
     // The defaults (primary hits as `auto` finds them) with every ray recorded.
-    let (_, stats, logs) = render_logged::<RecordedRays>(scene, camera, pose, settings, 0);
+    let view = scene.view(camera, pose);
+    let options = RenderOptions::new(*settings, 0);
+    let mut buffers = FrameBuffers::<RecordedRays>::default();
+    let stats = render_into(&mut buffers, scene, &view, &options);
+    let logs = buffers.take_ray_logs();
     let recorded: u64 = logs.iter().map(|l| (l.closest.len() + l.shadow.len()) as u64).sum();
     // Every ray the renderer traced must be re-traced, or the ratio compares different work.
     assert_eq!(recorded, stats.rays.total(), "ray log incomplete");
-    let view = View::new(camera, pose, scene.frame_origin_body, scene.bounds);
-    let with = |p| render_view_with::<()>(scene, camera, &view, settings, 0, p).1;
+    let with = |p| render(scene, &view, &options.with_primary(p)).1;
     let traced_pixels_traced = with(PrimaryVisibility::Trace).traced_pixels;
     let traced_pixels_raster = with(PrimaryVisibility::Raster).traced_pixels;
     // Alternating: the defaults, the raw re-trace, every primary ray traced, all rasterised.
     let (mut t_render, mut t_raw) = (Vec::new(), Vec::new());
     let (mut t_render_traced, mut t_render_raster) = (Vec::new(), Vec::new());
     for _ in 0..rounds.max(1) {
-        let (_, s) = render(scene, camera, pose, settings, 0);
+        let (_, s) = render(scene, &view, &options);
         t_render.push(s.time.as_secs_f64());
         t_raw.push(trace_raw(scene, &logs));
         t_render_traced.push(with(PrimaryVisibility::Trace).time.as_secs_f64());

@@ -17,8 +17,8 @@ use hilcam_core::render::camera::{CameraModel, View};
 use hilcam_core::render::film::RadianceImage;
 use hilcam_core::render::geometry::{BvhLayout, TriMesh};
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind, Spp};
-use hilcam_core::render::render;
 use hilcam_core::render::sampling::Sequence;
+use hilcam_core::render::{RenderOptions, render};
 use hilcam_core::scene::{Material, Scene, SceneParts};
 use hilcam_core::sensor::SensorConfig;
 use std::time::Instant;
@@ -108,7 +108,8 @@ impl PlaneCase {
     /// Render with `settings`; returns the image and the wall time (s).
     pub fn render(&self, settings: &RenderSettings) -> (RadianceImage, f64) {
         let t0 = Instant::now();
-        let (img, stats) = render(&self.scene, &self.camera, &self.pose, settings, 0);
+        let view = self.scene.view(&self.camera, &self.pose);
+        let (img, stats) = render(&self.scene, &view, &RenderOptions::new(*settings, 0));
         if stats.rays.nonfinite > 0 {
             tracing::warn!(nonfinite = stats.rays.nonfinite, "sampling bench: non-finite samples dropped");
         }

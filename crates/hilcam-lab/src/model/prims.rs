@@ -18,7 +18,7 @@ impl Place {
     }
     /// Local +Z mapped onto `axis` (unit), with `at` as origin.
     pub fn along(axis: Vec3, at: Vec3) -> Self {
-        let f = hilcam_core::render::sampling::Frame::from_normal(axis.normalize());
+        let f = hilcam_core::render::sampling::ShadingBasis::from_normal(axis.normalize());
         Place { rot: Mat3::from_cols(f.t, f.b, f.n), at }
     }
     pub fn apply(&self, p: Vec3) -> Vec3 {

@@ -5,20 +5,21 @@
 //! product is what [`BlinnPhong::eval_cos`] returns. It is Eq. (5) with `a = 1, b = 0`.
 //! Not reciprocal (the `1/(n·l)` is not symmetric in `wo`, `wi`).
 
-use super::lobe::{BlinnLobe, max_albedo, stratified_albedo};
-use super::{BsdfError, BsdfSample, check_finite_nonneg, check_unit, mixture};
-use glam::{Vec2, Vec3};
-use std::f32::consts::FRAC_1_PI;
+use super::BsdfError;
+use super::diffuse_lobe::DiffuseLobe;
+use super::lobe::BlinnLobe;
+use super::{check_finite_nonneg, check_unit};
 
-/// Eq. (4) with a Lambertian diffuse term `ρd/π` (ρd is the diffuse albedo).
+/// Eq. (4) with a Lambertian diffuse term `ρd/π` (ρd is the diffuse albedo); the specular
+/// lobe has `a = 1`, `b = 0`. Sampling, albedo and normalisation are [`DiffuseLobe`]'s.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BlinnPhong {
-    /// Diffuse albedo ρd (the Lambert term is ρd/π).
-    pub rho_d: f32,
-    /// The specular lobe (`a = 1`, `b = 0`), with ρs already scaled by `normalization`.
-    pub lobe: BlinnLobe,
-    /// Factor applied to ρs by [`BlinnPhong::normalized`] (1 for the model as given).
-    pub normalization: f32,
+pub struct BlinnPhong(pub DiffuseLobe<BlinnLobe>);
+
+impl std::ops::Deref for BlinnPhong {
+    type Target = DiffuseLobe<BlinnLobe>;
+    fn deref(&self) -> &DiffuseLobe<BlinnLobe> {
+        &self.0
+    }
 }
 
 impl BlinnPhong {
@@ -33,53 +34,11 @@ impl BlinnPhong {
         check_unit("blinn_phong", "rho_d", rho_d)?;
         check_finite_nonneg("blinn_phong", "rho_s", rho_s)?;
         check_finite_nonneg("blinn_phong", "alpha", alpha)?;
-        Ok(BlinnPhong { rho_d, lobe: BlinnLobe { rho_s, alpha, a: 1.0, b: 0.0 }, normalization: 1.0 })
+        Ok(BlinnPhong(DiffuseLobe::new(rho_d, BlinnLobe { rho_s, alpha, a: 1.0, b: 0.0 })))
     }
 
-    /// The energy-normalised variant: ρs scaled by `min(1, (1 − ρd)/max_θo A_s(θo))` so
-    /// that the directional albedo is ≤ 1 at every view angle.
-    pub fn normalized(mut self) -> Self {
-        let k = super::normalization_factor(self.rho_d, |c| self.spec_albedo(c, 48));
-        self.lobe.rho_s *= k;
-        self.normalization *= k;
-        self
-    }
-
-    /// Largest directional albedo over view angles (deterministic quadrature).
-    pub fn max_albedo(&self) -> f32 {
-        self.rho_d + max_albedo(|c| self.spec_albedo(c, 48))
-    }
-
-    fn spec_albedo(&self, cos_o: f32, n: u32) -> f32 {
-        let l = self.lobe;
-        stratified_albedo(cos_o, n, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i))
-    }
-
-    /// `f_r`; at grazing `wi` the `1/(n·l)` is evaluated with `n·l ≥ 1e-30` (finite).
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        (self.rho_d * FRAC_1_PI + self.lobe.eval_cos(wo, wi) / wi.z.max(1e-30)).min(f32::MAX)
-    }
-
-    /// `f_r cosθi` as one bounded product.
-    pub fn eval_cos(&self, wo: Vec3, wi: Vec3) -> f32 {
-        mixture::eval_cos(self.rho_d, &self.lobe, wo, wi)
-    }
-
-    /// One-sample MIS of the Blinn lobe and the cosine warp.
-    pub fn sample(&self, wo: Vec3, u: Vec2, u_lobe: f32) -> Option<BsdfSample> {
-        mixture::sample(self.rho_d, &self.lobe, wo, u, u_lobe)
-    }
-
-    /// Mixture density of [`BlinnPhong::sample`].
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        mixture::pdf(self.rho_d, &self.lobe, wo, wi)
-    }
-
-    /// ρd + specular albedo at `cos_theta_o` (stratified quadrature of the lobe).
-    pub fn directional_albedo(&self, cos_theta_o: f32, samples: u32) -> f32 {
-        self.rho_d + self.spec_albedo(cos_theta_o, super::grid_side(samples))
+    /// The energy-normalised variant ([`DiffuseLobe::normalized`]: ρs scaled).
+    pub fn normalized(self) -> Self {
+        BlinnPhong(self.0.normalized())
     }
 }

@@ -6,13 +6,13 @@
 //! - F: Schlick, `F0 + (1 − F0)(1 − wi·h)^5`.
 //!
 //! Reciprocal. Sampled by drawing `h` from `D(h) cosθh` (`tan²θh = −m² ln(1−u)`) mixed
-//! with the cosine warp by one-sample MIS (see `mixture`).
+//! with the cosine warp by one-sample MIS (see `diffuse_lobe`).
 
-use super::lobe::{Half, max_albedo, reflect, stratified_albedo};
-use super::mixture::{self, SpecularLobe};
-use super::{BsdfError, BsdfSample, check_finite_nonneg, check_unit};
+use super::diffuse_lobe::{DiffuseLobe, SpecularLobe};
+use super::lobe::{Half, reflect};
+use super::{BsdfError, check_finite_nonneg, check_unit};
 use glam::{Vec2, Vec3};
-use std::f32::consts::{FRAC_1_PI, PI};
+use std::f32::consts::PI;
 
 /// The Beckmann/Smith/Schlick specular lobe.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -93,17 +93,26 @@ impl SpecularLobe for BeckmannLobe {
     fn albedo_hint(&self, cos_o: f32) -> f32 {
         self.k_s * self.fresnel(cos_o.clamp(0.0, 1.0))
     }
+
+    fn scale(&mut self, k: f32) {
+        self.k_s *= k;
+    }
+
+    fn is_black(&self) -> bool {
+        self.k_s == 0.0
+    }
 }
 
-/// Cook-Torrance with a Lambertian diffuse term `ρd/π`.
+/// Cook-Torrance with a Lambertian diffuse term `ρd/π`. Sampling, albedo and
+/// normalisation are [`DiffuseLobe`]'s.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CookTorrance {
-    /// Diffuse albedo ρd.
-    pub rho_d: f32,
-    /// The microfacet lobe, k_s already scaled by `normalization`.
-    pub lobe: BeckmannLobe,
-    /// Factor applied to k_s by [`CookTorrance::normalized`] (1 otherwise).
-    pub normalization: f32,
+pub struct CookTorrance(pub DiffuseLobe<BeckmannLobe>);
+
+impl std::ops::Deref for CookTorrance {
+    type Target = DiffuseLobe<BeckmannLobe>;
+    fn deref(&self) -> &DiffuseLobe<BeckmannLobe> {
+        &self.0
+    }
 }
 
 impl CookTorrance {
@@ -127,52 +136,11 @@ impl CookTorrance {
                 reason: "must be in [0.001, 1] (Beckmann RMS slope)",
             });
         }
-        Ok(CookTorrance { rho_d, lobe: BeckmannLobe { m, f0, k_s }, normalization: 1.0 })
+        Ok(CookTorrance(DiffuseLobe::new(rho_d, BeckmannLobe { m, f0, k_s })))
     }
 
-    /// Energy-normalised variant: k_s scaled so the directional albedo is ≤ 1 everywhere.
-    pub fn normalized(mut self) -> Self {
-        let k = super::normalization_factor(self.rho_d, |c| self.spec_albedo(c, 48));
-        self.lobe.k_s *= k;
-        self.normalization *= k;
-        self
-    }
-
-    /// Largest directional albedo over view angles (deterministic quadrature).
-    pub fn max_albedo(&self) -> f32 {
-        self.rho_d + max_albedo(|c| self.spec_albedo(c, 48))
-    }
-
-    fn spec_albedo(&self, cos_o: f32, n: u32) -> f32 {
-        let l = self.lobe;
-        stratified_albedo(cos_o, n, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i))
-    }
-
-    /// `f_r`, finite (cosθi clamped to ≥ 1e-30 in the denominator).
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        (self.rho_d * FRAC_1_PI + self.lobe.eval_cos(wo, wi) / wi.z.max(1e-30)).min(f32::MAX)
-    }
-
-    /// `f_r cosθi`.
-    pub fn eval_cos(&self, wo: Vec3, wi: Vec3) -> f32 {
-        mixture::eval_cos(self.rho_d, &self.lobe, wo, wi)
-    }
-
-    /// One-sample MIS of the Beckmann lobe and the cosine warp.
-    pub fn sample(&self, wo: Vec3, u: Vec2, u_lobe: f32) -> Option<BsdfSample> {
-        mixture::sample(self.rho_d, &self.lobe, wo, u, u_lobe)
-    }
-
-    /// Mixture density of [`CookTorrance::sample`].
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        mixture::pdf(self.rho_d, &self.lobe, wo, wi)
-    }
-
-    /// ρd + specular albedo at `cos_theta_o` (stratified quadrature of the lobe).
-    pub fn directional_albedo(&self, cos_theta_o: f32, samples: u32) -> f32 {
-        self.rho_d + self.spec_albedo(cos_theta_o, super::grid_side(samples))
+    /// Energy-normalised variant ([`DiffuseLobe::normalized`]: k_s scaled).
+    pub fn normalized(self) -> Self {
+        CookTorrance(self.0.normalized())
     }
 }

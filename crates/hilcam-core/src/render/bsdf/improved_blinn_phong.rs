@@ -8,20 +8,22 @@
 //! incidence, so `f_r cosθi` is evaluated as `… · cosθi^(1−a)` (bounded for a ≤ 1).
 //! Not reciprocal: `(n·l)^-a` depends on `wi` alone.
 
-use super::lobe::{BlinnLobe, max_albedo, pow_pos, stratified_albedo};
-use super::{BsdfError, BsdfSample, check_finite_nonneg, check_unit, mixture};
-use glam::{Vec2, Vec3};
-use std::f32::consts::FRAC_1_PI;
+use super::BsdfError;
+use super::diffuse_lobe::DiffuseLobe;
+use super::lobe::{BlinnLobe, pow_pos};
+use super::{check_finite_nonneg, check_unit};
+use glam::Vec3;
 
-/// Eq. (5) with a Lambertian diffuse term `ρd/π` (ρd is the diffuse albedo).
+/// Eq. (5) with a Lambertian diffuse term `ρd/π` (ρd is the diffuse albedo). Sampling,
+/// albedo and normalisation are [`DiffuseLobe`]'s.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ImprovedBlinnPhong {
-    /// Diffuse albedo ρd (the Lambert term is ρd/π).
-    pub rho_d: f32,
-    /// The specular lobe, with ρs already scaled by `normalization`.
-    pub lobe: BlinnLobe,
-    /// Factor applied to ρs by [`ImprovedBlinnPhong::normalized`] (1 for the paper's model).
-    pub normalization: f32,
+pub struct ImprovedBlinnPhong(pub DiffuseLobe<BlinnLobe>);
+
+impl std::ops::Deref for ImprovedBlinnPhong {
+    type Target = DiffuseLobe<BlinnLobe>;
+    fn deref(&self) -> &DiffuseLobe<BlinnLobe> {
+        &self.0
+    }
 }
 
 impl ImprovedBlinnPhong {
@@ -39,7 +41,7 @@ impl ImprovedBlinnPhong {
         check_finite_nonneg(M, "alpha", alpha)?;
         check_unit(M, "a", a)?;
         check_finite_nonneg(M, "b", b)?;
-        Ok(ImprovedBlinnPhong { rho_d, lobe: BlinnLobe { rho_s, alpha, a, b }, normalization: 1.0 })
+        Ok(ImprovedBlinnPhong(DiffuseLobe::new(rho_d, BlinnLobe { rho_s, alpha, a, b })))
     }
 
     /// The paper's gold-polyimide parameters.
@@ -48,52 +50,15 @@ impl ImprovedBlinnPhong {
         Self::new(rd, rs, al, a, b).expect("paper parameters are valid")
     }
 
-    /// The energy-normalised variant: ρs scaled by `min(1, (1 − ρd)/max_θo A_s(θo))` so
-    /// that the directional albedo is ≤ 1 at every view angle (shape unchanged).
-    pub fn normalized(mut self) -> Self {
-        let k = super::normalization_factor(self.rho_d, |c| self.spec_albedo(c, 48));
-        self.lobe.rho_s *= k;
-        self.normalization *= k;
-        self
-    }
-
-    /// Largest directional albedo over view angles (deterministic quadrature).
-    pub fn max_albedo(&self) -> f32 {
-        self.rho_d + max_albedo(|c| self.spec_albedo(c, 48))
-    }
-
-    fn spec_albedo(&self, cos_o: f32, n: u32) -> f32 {
-        let l = self.lobe;
-        stratified_albedo(cos_o, n, |o, u| l.sample(o, u), |o, i| l.eval_cos(o, i), |o, i| l.pdf(o, i))
+    /// The energy-normalised variant ([`DiffuseLobe::normalized`]: ρs scaled, shape
+    /// unchanged).
+    pub fn normalized(self) -> Self {
+        ImprovedBlinnPhong(self.0.normalized())
     }
 
     /// `f_r`; at grazing `wi`, `(n·l)^-a` is evaluated with `n·l ≥ 1e-30` (finite).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let spec_cos = self.lobe.eval_cos(wo, wi); // ρs·shape·cos^(1−a)
-        let spec = spec_cos * pow_pos(wi.z.max(1e-30), -1.0);
-        (self.rho_d * FRAC_1_PI + spec).min(f32::MAX)
-    }
-
-    /// `f_r cosθi` as one bounded product.
-    pub fn eval_cos(&self, wo: Vec3, wi: Vec3) -> f32 {
-        mixture::eval_cos(self.rho_d, &self.lobe, wo, wi)
-    }
-
-    /// One-sample MIS of the Blinn lobe and the cosine warp.
-    pub fn sample(&self, wo: Vec3, u: Vec2, u_lobe: f32) -> Option<BsdfSample> {
-        mixture::sample(self.rho_d, &self.lobe, wo, u, u_lobe)
-    }
-
-    /// Mixture density of [`ImprovedBlinnPhong::sample`].
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        mixture::pdf(self.rho_d, &self.lobe, wo, wi)
-    }
-
-    /// ρd + specular albedo at `cos_theta_o` (stratified quadrature of the lobe).
-    pub fn directional_albedo(&self, cos_theta_o: f32, samples: u32) -> f32 {
-        self.rho_d + self.spec_albedo(cos_theta_o, super::grid_side(samples))
+        // The lobe gives ρs·shape·cos^(1−a).
+        self.0.eval_with(wo, wi, |spec_cos, cos_i| spec_cos * pow_pos(cos_i, -1.0))
     }
 }

@@ -18,14 +18,15 @@
 
 mod blinn_phong;
 mod cook_torrance;
+mod diffuse_lobe;
 mod improved_blinn_phong;
 mod lambert;
 pub(crate) mod lobe;
-mod mixture;
 mod spec;
 
 pub use blinn_phong::BlinnPhong;
 pub use cook_torrance::{BeckmannLobe, CookTorrance};
+pub use diffuse_lobe::{DiffuseLobe, SpecularLobe};
 pub use improved_blinn_phong::ImprovedBlinnPhong;
 pub use lambert::Lambert;
 pub use lobe::BlinnLobe;
@@ -123,9 +124,9 @@ impl Bsdf {
     pub fn is_black(&self) -> bool {
         match self {
             Bsdf::Lambert(b) => b.rho == 0.0,
-            Bsdf::BlinnPhong(b) => b.rho_d == 0.0 && b.lobe.rho_s == 0.0,
-            Bsdf::ImprovedBlinnPhong(b) => b.rho_d == 0.0 && b.lobe.rho_s == 0.0,
-            Bsdf::CookTorrance(b) => b.rho_d == 0.0 && (b.lobe.k_s == 0.0),
+            Bsdf::BlinnPhong(b) => b.is_black(),
+            Bsdf::ImprovedBlinnPhong(b) => b.is_black(),
+            Bsdf::CookTorrance(b) => b.is_black(),
         }
     }
 
@@ -133,10 +134,9 @@ impl Bsdf {
     pub fn is_lambertian(&self) -> Option<f32> {
         match self {
             Bsdf::Lambert(b) => Some(b.rho),
-            Bsdf::BlinnPhong(b) if b.lobe.rho_s == 0.0 => Some(b.rho_d),
-            Bsdf::ImprovedBlinnPhong(b) if b.lobe.rho_s == 0.0 => Some(b.rho_d),
-            Bsdf::CookTorrance(b) if b.lobe.k_s == 0.0 => Some(b.rho_d),
-            _ => None,
+            Bsdf::BlinnPhong(b) => b.lambertian(),
+            Bsdf::ImprovedBlinnPhong(b) => b.lambertian(),
+            Bsdf::CookTorrance(b) => b.lambertian(),
         }
     }
 

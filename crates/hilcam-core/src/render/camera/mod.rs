@@ -6,12 +6,9 @@
 //! `(cx, cy)` is the principal point's offset from the array centre, in pixels.
 
 pub mod distortion;
-mod lens_spans;
-pub mod silhouette;
 pub mod view;
 
 use serde::Deserialize;
-pub use silhouette::{Silhouette, SilhouetteBuffers};
 pub use view::{PixelRect, TargetBounds, View};
 
 /// Intrinsics of a pinhole camera, as read from `[camera]` in a scene or config file.

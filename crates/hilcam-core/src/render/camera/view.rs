@@ -38,19 +38,19 @@ pub struct TargetBounds {
 /// One camera, one pose: everything needed to make primary rays.
 #[derive(Clone, Debug)]
 pub struct View {
-    pub(super) width: u32,
-    pub(super) height: u32,
+    pub(in crate::render) width: u32,
+    pub(in crate::render) height: u32,
     /// Pixel coordinate of the principal point (continuous, 0 at the array's corner).
-    pub(super) pp: [f64; 2],
-    pub(super) inv_focal_px: f64,
+    pub(in crate::render) pp: [f64; 2],
+    pub(in crate::render) inv_focal_px: f64,
     /// Camera centre in the render frame, metres.
-    pub(super) origin: DVec3,
+    pub(in crate::render) origin: DVec3,
     /// Camera frame → render frame.
-    pub(super) cam_to_render: DMat3,
-    pub(super) bounds: TargetBounds,
+    pub(in crate::render) cam_to_render: DMat3,
+    pub(in crate::render) bounds: TargetBounds,
     /// Lens distortion: sample positions on the (distorted) focal plane are mapped to the
     /// ideal pinhole directions that a real lens would image there.
-    pub(super) distortion: Option<Distortion>,
+    pub(in crate::render) distortion: Option<Distortion>,
     /// Unit vector toward the sun, render frame.
     pub sun: Vec3,
 }
@@ -87,6 +87,11 @@ impl View {
             distortion: None,
             sun,
         }
+    }
+
+    /// The image's width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
     }
 
     /// The same view through a distorting lens (identity coefficients are ignored).
@@ -247,7 +252,7 @@ impl View {
 
     /// The target box's eight corners on the ideal image plane, `(x/z, y/z)` in the camera
     /// frame, or `None` unless all lie in front of the camera.
-    pub(super) fn box_corners_image(&self) -> Option<[(f64, f64); 8]> {
+    pub(in crate::render) fn box_corners_image(&self) -> Option<[(f64, f64); 8]> {
         let render_to_cam = self.cam_to_render.transpose();
         let b = &self.bounds;
         let mut corners = [(0.0, 0.0); 8];

@@ -100,7 +100,7 @@ pub struct Accel {
     /// Vertex indices of each primitive into the mesh's positions, BVH order.
     vertices: Vec<[u32; 3]>,
     /// Each leaf's box and primitives (for the traced frames' pixel coverage,
-    /// `render::coverage`): the `Bvh2`'s leaves, which the wide trees keep; for the CWBVH
+    /// `render::cull::coverage`): the `Bvh2`'s leaves, which the wide trees keep; for the CWBVH
     /// each triangle.
     leaves: Vec<Leaf>,
     pub build_time: Duration,

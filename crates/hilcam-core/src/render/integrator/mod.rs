@@ -8,13 +8,15 @@
 
 use crate::render::geometry::{Hit, Ray};
 use crate::render::sampling::{
-    Frame, SampleSource, Sequence, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
+    SampleSource, Sequence, ShadingBasis, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
 };
 use crate::render::target::Target;
 use glam::Vec3;
 use serde::Deserialize;
 
 mod spp;
+/// The same estimator run for many camera samples at once, in waves.
+pub(in crate::render) mod waves;
 pub use spp::{Spp, SppError};
 
 /// How indirect directions are drawn.
@@ -239,12 +241,12 @@ impl<'a> PathContext<'a> {
         let bsdf = &self.scene.materials[hit.material as usize].bsdf;
         let p = ray.origin + ray.dir * hit.t;
         let origin = p + n * self.offset(p);
-        let frame = Frame::from_normal(n);
-        let wo_l = frame.to_local(wo);
+        let basis = ShadingBasis::from_normal(n);
+        let wo_l = basis.to_local(wo);
 
         let mut shadow = None;
         if n.dot(self.sun) > 0.0 {
-            let f_cos = bsdf.eval_cos(wo_l, frame.to_local(self.sun));
+            let f_cos = bsdf.eval_cos(wo_l, basis.to_local(self.sun));
             if f_cos > 0.0 {
                 let ray = Ray { origin, dir: self.sun, tmax: f32::INFINITY };
                 shadow = Some((ray, beta * f_cos * self.scene.sun_irradiance));
@@ -281,6 +283,6 @@ impl<'a> PathContext<'a> {
             }
             beta = 1.0;
         }
-        Scatter { shadow, next: Some((Ray { origin, dir: frame.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
+        Scatter { shadow, next: Some((Ray { origin, dir: basis.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
     }
 }

@@ -179,15 +179,16 @@ pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
     (s, c)
 }
 
-/// An orthonormal basis with `n` as +Z (Duff et al. 2017, branchless and exact for unit n).
+/// The local shading basis: orthonormal, with `n` as +Z (Duff et al. 2017, branchless
+/// and exact for unit n). BSDFs work in it.
 #[derive(Clone, Copy, Debug)]
-pub struct Frame {
+pub struct ShadingBasis {
     pub t: Vec3,
     pub b: Vec3,
     pub n: Vec3,
 }
 
-impl Frame {
+impl ShadingBasis {
     #[inline]
     pub fn from_normal(n: Vec3) -> Self {
         let sign = 1.0f32.copysign(n.z);
@@ -195,7 +196,7 @@ impl Frame {
         let b = n.x * n.y * a;
         let t = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
         let bb = Vec3::new(b, sign + n.y * n.y * a, -n.y);
-        Frame { t, b: bb, n }
+        ShadingBasis { t, b: bb, n }
     }
 
     #[inline]
@@ -274,14 +275,14 @@ mod tests {
         let mut r = Rng::from_state(3);
         for _ in 0..10_000 {
             let n = (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 2.0 - 1.0).normalize_or(Vec3::Z);
-            let f = Frame::from_normal(n);
+            let f = ShadingBasis::from_normal(n);
             assert!(f.t.dot(f.b).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5 && f.b.dot(n).abs() < 1e-5);
             assert!((f.t.length() - 1.0).abs() < 1e-5 && (f.b.length() - 1.0).abs() < 1e-5);
             let v = Vec3::new(0.3, -0.2, 0.9);
             assert!((f.to_local(f.to_world(v)) - v).length() < 1e-5);
         }
         // The branch cut at n = -Z.
-        let f = Frame::from_normal(-Vec3::Z);
+        let f = ShadingBasis::from_normal(-Vec3::Z);
         assert!(f.t.dot(f.b).abs() < 1e-6);
     }
 

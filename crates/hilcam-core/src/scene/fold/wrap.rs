@@ -22,7 +22,7 @@
 
 use super::field::{FoldField, FoldParams};
 use crate::render::geometry::TriMesh;
-use crate::render::sampling::{Frame, mix64};
+use crate::render::sampling::{ShadingBasis, mix64};
 use glam::{DVec2, DVec3, Vec3};
 use std::collections::HashMap;
 
@@ -79,7 +79,7 @@ pub fn wrap_faces(mesh: &TriMesh, materials: &[u32], params: &FoldParams, seed: 
 
 struct Plane {
     normal: DVec3,
-    frame: Frame,
+    frame: ShadingBasis,
     field: FoldField,
     /// Pinned edges (flat positions) of this plane, for the taper.
     pinned: Vec<(DVec3, DVec3)>,
@@ -145,9 +145,9 @@ pub fn wrap_faces_report(
         let id = *plane_key.entry(key).or_insert_with(|| {
             let h = key.iter().fold(seed, |h, &k| mix64(h ^ k as u64));
             // Chart and displacement from the quantised normal: independent of which
-            // triangle comes first and free of −0.0 (which flips `Frame::from_normal`).
+            // triangle comes first and free of −0.0 (which flips `ShadingBasis::from_normal`).
             let nq = (DVec3::new(key[0] as f64, key[1] as f64, key[2] as f64) * 1e-5).normalize() + DVec3::ZERO;
-            let frame = Frame::from_normal(nq.as_vec3());
+            let frame = ShadingBasis::from_normal(nq.as_vec3());
             planes.push(Plane {
                 normal: nq,
                 frame,

@@ -2,7 +2,7 @@
 //!
 //! A pass is one camera sample (index `s`) in every pixel of the band, cut into tiles of
 //! [`TILE_PATHS`] paths. Traced camera rays are set up tile by tile, just before the tile
-//! runs; the rasteriser (`visibility`), when it applies, needs the whole pass's rays at
+//! runs; the rasteriser (`cull::visibility`), when it applies, needs the whole pass's rays at
 //! once and finds all its primary hits first. A tile's paths advance one interaction at a
 //! time: all closest-hit rays, then all shading, then all shadow rays (parallel, toward
 //! the one sun direction, from neighbouring points). Tracing one sample to the end before
@@ -13,10 +13,11 @@
 //! Each path keeps its own random-number stream and runs exactly the steps of
 //! [`PathContext::radiance`] (shared through [`PathContext::scatter`]) in the same order,
 //! and each pixel sums its samples in index order, so the image has the same bytes as
-//! tracing sample by sample.
+//! tracing sample by sample: the wave loop must equal the estimator of this module's
+//! parent, [`PathContext::radiance`], and `tests/render_waves.rs` checks it byte for byte.
 
-use super::visibility::{PrimaryRaster, RasterScratch};
 use crate::render::camera::View;
+use crate::render::cull::visibility::{PrimaryRaster, RasterScratch};
 use crate::render::geometry::shadow_packet::PACKET;
 use crate::render::geometry::{Hit, Ray};
 use crate::render::integrator::{PathContext, RayCounts, RayLog};
@@ -90,8 +91,8 @@ impl<S> Default for Scratch<S> {
 impl<S> Scratch<S> {
     /// Grow each buffer to at least the capacity of `other`'s (see
     /// `buffers::Workers::equalise`).
-    pub(super) fn grow_like(&mut self, other: &Self) {
-        use super::buffers::reserve_to;
+    pub(in crate::render) fn grow_like(&mut self, other: &Self) {
+        use crate::render::buffers::reserve_to;
         reserve_to(&mut self.paths, other.paths.capacity());
         reserve_to(&mut self.rays, other.rays.capacity());
         reserve_to(&mut self.ideal, other.ideal.capacity());
@@ -111,7 +112,7 @@ pub struct TileJob<'a> {
     /// Rasterised primary visibility for this frame, when it applies.
     pub raster: Option<&'a PrimaryRaster>,
     /// The pixels that may see a triangle (the rest are not sampled), when known.
-    pub coverage: Option<&'a super::coverage::Coverage>,
+    pub coverage: Option<&'a crate::render::cull::coverage::Coverage>,
     pub seed: u64,
     pub frame: u64,
     pub width: usize,

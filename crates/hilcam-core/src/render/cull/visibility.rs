@@ -48,7 +48,7 @@ pub struct PrimaryRaster {
     /// square, grown by the margin, meets a triangle; through a lens the pixels the lens
     /// images such cells onto). A pixel outside it cannot see any triangle, so its samples
     /// are not even generated.
-    pub(super) coverage: Coverage,
+    pub(in crate::render) coverage: Coverage,
     /// Build-time buffers, kept so that a rebuild for the next frame allocates nothing:
     /// each vertex on the ideal plane (x, y, depth), and the bucket fill cursors.
     projected: Vec<(f64, f64, f64)>,
@@ -71,8 +71,8 @@ pub struct RasterScratch {
 impl RasterScratch {
     /// Grow each buffer to at least the capacity of `other`'s (see
     /// `buffers::Workers::equalise`).
-    pub(super) fn grow_like(&mut self, other: &Self) {
-        use super::buffers::reserve_to;
+    pub(in crate::render) fn grow_like(&mut self, other: &Self) {
+        use crate::render::buffers::reserve_to;
         reserve_to(&mut self.cell_start, other.cell_start.capacity());
         reserve_to(&mut self.cell_samples, other.cell_samples.capacity());
         reserve_to(&mut self.best_t, other.best_t.capacity());

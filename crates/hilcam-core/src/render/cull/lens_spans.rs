@@ -11,7 +11,7 @@
 //! A chord cuts a curve by at most its sagitta, well under a pixel at these densities
 //! (≈ 7.5e-5 of the curve's radius); the caller adds a margin for it.
 
-use super::distortion::Distortion;
+use crate::render::camera::distortion::Distortion;
 use glam::{DVec2, DVec3};
 
 /// Points on the ideal ellipse boundary.

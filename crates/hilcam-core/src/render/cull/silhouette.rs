@@ -19,8 +19,8 @@
 //! them; the other segments lie inside it). A span is the intersection of both bounds.
 //! Through a distorting lens the same two regions are bent; `lens_spans` bounds them.
 
-use super::View;
 use super::lens_spans::lens_spans;
+use crate::render::camera::View;
 use glam::DVec3;
 
 /// The bounding sphere's image, ready to answer per-row column spans.
