@@ -4,12 +4,14 @@
 //! - [`config`]: the TOML configuration.
 //! - [`scheduler`]: latest-pose-wins triggering, the render thread, publishing.
 //! - [`governor`]: the quality ladder that keeps frames inside their budget.
+//! - [`render_times`]: the summary's render time percentiles, over a fixed window.
 //! - [`extrapolate`]: poses moved to the exposure mid-time with their rates.
 //! - [`session`]: the session file writer (poses received, frames rendered).
 
 pub mod config;
 pub mod extrapolate;
 pub mod governor;
+pub mod render_times;
 pub mod scheduler;
 
 use crate::link::serial::SerialConfig;

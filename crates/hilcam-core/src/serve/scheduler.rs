@@ -11,6 +11,7 @@
 
 use super::extrapolate::extrapolate;
 use super::governor::{Governor, Policy, Quality};
+use super::render_times::RenderTimes;
 use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, decode_header, unix_ns_now};
 use crate::link::InputEvent;
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
@@ -103,6 +104,7 @@ pub struct SchedulerSummary {
     pub skipped_busy: u64,
     pub poses: u64,
     pub triggers: u64,
+    /// Render time percentiles of the newest [`RenderTimes::WINDOW`] frames.
     pub render_p50_ms: f64,
     pub render_p99_ms: f64,
 }
@@ -405,7 +407,7 @@ pub async fn run_scheduler(
     let mut inputs_open = true;
     let mut index = 0u64;
     let mut last_integration = 0.0f64;
-    let mut render_times: Vec<f64> = Vec::new();
+    let mut render_times = RenderTimes::default();
     let mut failures_in_row = 0u32;
 
     loop {
@@ -458,7 +460,7 @@ pub async fn run_scheduler(
                     s.fatal = Some("the render thread stopped unexpectedly".into());
                     break;
                 };
-                render_times.push(d.render_time.as_secs_f64());
+                render_times.record(d.render_time);
                 governor.observe(d.quality, d.render_time);
                 if let Some(i) = d.integration_s {
                     last_integration = i;
@@ -527,7 +529,7 @@ pub async fn run_scheduler(
     if busy && s.fatal.is_none() {
         match done_rx.recv().await {
             Some(d) => {
-                render_times.push(d.render_time.as_secs_f64());
+                render_times.record(d.render_time);
                 deliver(&d, &sinks, &m, &mut s, &mut failures_in_row, cfg.session.as_ref());
             }
             None => s.fatal = Some("the render thread stopped unexpectedly".into()),
@@ -540,10 +542,7 @@ pub async fn run_scheduler(
     m.superseded.add(unrendered);
     drop(job_tx);
     let _ = tokio::task::spawn_blocking(move || renderer.join()).await;
-    render_times.sort_by(f64::total_cmp);
-    let pct =
-        |q: f64| render_times.get(((render_times.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(0.0);
-    s.render_p50_ms = pct(0.5) * 1e3;
-    s.render_p99_ms = pct(0.99) * 1e3;
+    s.render_p50_ms = render_times.percentile_ms(0.5);
+    s.render_p99_ms = render_times.percentile_ms(0.99);
     s
 }
