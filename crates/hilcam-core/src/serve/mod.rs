@@ -18,6 +18,8 @@ use crate::link::serial::SerialConfig;
 use crate::link::slcan::SlcanConfig;
 use crate::link::socketcan::SocketCanConfig;
 use crate::link::{EventSink, InputCounters, InputEvent};
+/// The server's one stop signal (defined with the links, the earliest layer that waits on it).
+pub use crate::link::Shutdown;
 use crate::metrics::{Registry, serve_http, spawn_summary_logger};
 use crate::pipeline::FramePipeline;
 use crate::pose::Message;
@@ -33,7 +35,7 @@ use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tokio::sync::{mpsc, oneshot, watch};
+use tokio::sync::{mpsc, oneshot};
 
 /// Where a running server can be reached (sent once it is listening).
 #[derive(Clone, Debug)]
@@ -67,14 +69,6 @@ pub struct Embed {
     pub max_frames: Option<u64>,
     /// Render-fault injection for tests ([`scheduler::SchedulerConfig::fault`]).
     pub render_fault: Option<scheduler::FaultInjector>,
-}
-
-async fn stopped(mut rx: watch::Receiver<bool>) {
-    while !*rx.borrow() {
-        if rx.changed().await.is_err() {
-            return;
-        }
-    }
 }
 
 /// Copy the transports' atomic counters into the registry (as deltas, so they stay
@@ -121,12 +115,15 @@ async fn replay_trajectory(
     }
 }
 
-/// Run the server until `shutdown` resolves (or `embed.max_frames` frames are out).
+/// Run the server until `stop` resolves (or `embed.max_frames` frames are out, or the
+/// renderer fails). All of them trigger one [`Shutdown`]: the scheduler finishes the
+/// frame in flight while the inputs and helpers stop, then the sinks close.
 pub async fn run(
     cfg: ServeConfig,
     mut embed: Embed,
-    shutdown: impl std::future::Future,
+    stop: impl std::future::Future + Send + 'static,
 ) -> anyhow::Result<ServeReport> {
+    let shutdown = Shutdown::when(stop);
     // The zero of the session file's clocks (monotonic and wall).
     let (session_start, session_start_unix) = (std::time::Instant::now(), crate::frame::unix_ns_now());
     let embedded = embed.inputs.is_some();
@@ -137,7 +134,6 @@ pub async fn run(
     let pipeline = FramePipeline::new(scene.clone(), camera.clone()).context("sensor")?;
     let registry = Registry::new();
     let counters = Arc::new(InputCounters::new());
-    let (stop_tx, stop_rx) = watch::channel(false);
     let mut tasks = Vec::new();
 
     // Inputs.
@@ -147,7 +143,7 @@ pub async fn run(
             let (tx, rx) = mpsc::channel::<InputEvent>(1024);
             let i = &cfg.input;
             let ids = CanIds::new(i.can_base.unwrap_or(CanIds::DEFAULT_BASE), i.can_extended)?;
-            let stop = stopped(stop_rx.clone());
+            let stop = shutdown.clone().wait_owned();
             let c = counters.clone();
             match i.kind {
                 InputKind::Serial => {
@@ -237,18 +233,18 @@ pub async fn run(
     if let Some(addr) = cfg.metrics.listen {
         let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("metrics listen {addr}"))?;
         metrics_addr = Some(listener.local_addr()?);
-        tasks.push(tokio::spawn(serve_http(listener, registry.clone(), stopped(stop_rx.clone()))));
+        tasks.push(tokio::spawn(serve_http(listener, registry.clone(), shutdown.clone().wait_owned())));
     }
     let seen = Arc::new(Mutex::new(HashMap::new()));
     mirror_input_counters(&registry, &counters, &seen);
     {
-        let (registry, counters, seen, mut stop) = (registry.clone(), counters.clone(), seen.clone(), stop_rx.clone());
+        let (registry, counters, seen, stop) = (registry.clone(), counters.clone(), seen.clone(), shutdown.clone());
         tasks.push(tokio::spawn(async move {
             let mut t = tokio::time::interval(Duration::from_millis(250));
             loop {
                 tokio::select! {
                     _ = t.tick() => mirror_input_counters(&registry, &counters, &seen),
-                    _ = stop.changed() => break,
+                    _ = stop.wait() => break,
                 }
             }
         }));
@@ -256,7 +252,7 @@ pub async fn run(
     let summary_logger = spawn_summary_logger(
         registry.clone(),
         Duration::from_secs_f64(cfg.metrics.print_interval_s),
-        stopped(stop_rx.clone()),
+        shutdown.clone().wait_owned(),
     );
     tracing::info!(
         stream = %stream_addr,
@@ -282,10 +278,11 @@ pub async fn run(
         fault: embed.render_fault.take(),
         exposure,
     };
-    let summary = run_scheduler(sched_cfg, pipeline, inputs, sinks.clone(), registry.clone(), shutdown).await;
+    let summary = run_scheduler(sched_cfg, pipeline, inputs, sinks.clone(), registry.clone(), shutdown.clone()).await;
 
-    // Shut down: stop inputs and helpers, then close the sinks (clean close for clients).
-    let _ = stop_tx.send(true);
+    // Shut down: the inputs and helpers stop on the signal (the scheduler triggered it
+    // when it stopped), then the sinks close (a clean close for clients).
+    shutdown.trigger();
     for t in tasks {
         let _ = t.await;
     }

@@ -13,7 +13,7 @@ use super::extrapolate::extrapolate;
 use super::governor::{Governor, Policy, Quality};
 use super::render_times::RenderTimes;
 use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, decode_header, unix_ns_now};
-use crate::link::InputEvent;
+use crate::link::{InputEvent, Shutdown};
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
 use crate::pipeline::FramePipeline;
 use crate::pose::Pose;
@@ -367,15 +367,17 @@ fn deliver(
     }
 }
 
-/// Run until `shutdown` resolves, the inputs close (in `Pose`/`External` mode), or
-/// `max_frames` frames are out. The frame in flight is finished and published.
+/// Run until `shutdown` is triggered, the inputs close (in `Pose`/`External` mode), or
+/// `max_frames` frames are out. The frame in flight is finished and published. However
+/// it stops (done, or the renderer failed), it triggers `shutdown` for the rest of the
+/// server.
 pub async fn run_scheduler(
     cfg: SchedulerConfig,
     pipeline: FramePipeline,
     mut inputs: mpsc::Receiver<InputEvent>,
     sinks: Arc<Vec<Sink>>,
     registry: Arc<Registry>,
-    shutdown: impl std::future::Future,
+    shutdown: Shutdown,
 ) -> SchedulerSummary {
     let m = Metrics::new(&registry);
     let mut s = SchedulerSummary::default();
@@ -385,6 +387,7 @@ pub async fn run_scheduler(
         Ok(r) => r,
         Err(e) => {
             s.fatal = Some(format!("cannot start the render thread: {e}"));
+            shutdown.trigger();
             return s;
         }
     };
@@ -398,7 +401,8 @@ pub async fn run_scheduler(
         }
         _ => None,
     };
-    tokio::pin!(shutdown);
+    let stopped = shutdown.wait();
+    tokio::pin!(stopped);
 
     let mut latest: Option<(Pose, Instant)> = None;
     let mut pending = 0u64; // poses accepted since the last render started
@@ -419,7 +423,7 @@ pub async fn run_scheduler(
             break;
         }
         tokio::select! {
-            _ = &mut shutdown => break,
+            _ = &mut stopped => break,
             ev = inputs.recv(), if inputs_open => match ev {
                 None => inputs_open = false,
                 Some(InputEvent::Pose { pose, arrival }) => {
@@ -524,6 +528,7 @@ pub async fn run_scheduler(
         }
     }
 
+    shutdown.trigger();
     // Finish the frame in flight (unless the renderer is what failed), then stop the
     // render thread.
     if busy && s.fatal.is_none() {
