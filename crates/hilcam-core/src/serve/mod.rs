@@ -11,25 +11,20 @@
 pub mod config;
 pub mod extrapolate;
 pub mod governor;
+mod inputs;
 pub mod render_times;
 pub mod scheduler;
 
-use crate::link::serial::SerialConfig;
-use crate::link::slcan::SlcanConfig;
-use crate::link::socketcan::SocketCanConfig;
-use crate::link::{EventSink, InputCounters, InputEvent};
 /// The server's one stop signal (defined with the links, the earliest layer that waits on it).
 pub use crate::link::Shutdown;
+use crate::link::{InputCounters, InputEvent};
 use crate::metrics::{Registry, serve_http, spawn_summary_logger};
 use crate::pipeline::FramePipeline;
-use crate::pose::Message;
-use crate::pose::can::CanIds;
-use crate::pose::validate::PoseLimits;
 use crate::session::writer::SessionWriter;
 use crate::session::{EndLine, SessionHeader};
 use crate::sink::{Recorder, RecorderConfig, Sink, StreamConfig, StreamServer, WriteHook};
 use anyhow::Context;
-use config::{InputKind, ServeConfig};
+use config::ServeConfig;
 use scheduler::{SchedulerConfig, SchedulerSummary, run_scheduler};
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -92,29 +87,6 @@ fn mirror_input_counters(registry: &Registry, counters: &InputCounters, seen: &M
     });
 }
 
-/// Feed a trajectory's poses at their recorded timing (× `speed`) into the input channel
-/// through the same pose gate, counters and warnings as a live link: a row the gate
-/// refuses is counted under its reason and logged, and the rows after it still render.
-async fn replay_trajectory(
-    samples: Vec<crate::pose::trajectory::TrajectorySample>,
-    speed: f64,
-    mut gate: EventSink,
-    stop: impl std::future::Future,
-) {
-    tokio::pin!(stop);
-    let t0 = tokio::time::Instant::now();
-    let first = samples.first().map_or(0.0, |s| s.time_s);
-    for (k, s) in samples.iter().enumerate() {
-        // Capped (at ~30 years) so that absurd times and speeds wait rather than overflow.
-        let due = t0 + Duration::from_secs_f64(((s.time_s - first) / speed).clamp(0.0, 1e9));
-        tokio::select! {
-            _ = tokio::time::sleep_until(due) => {}
-            _ = &mut stop => return,
-        }
-        gate.message(Message::Pose(s.to_pose(k as u32)), std::time::Instant::now());
-    }
-}
-
 /// Run the server until `stop` resolves (or `embed.max_frames` frames are out, or the
 /// renderer fails). All of them trigger one [`Shutdown`]: the scheduler finishes the
 /// frame in flight while the inputs and helpers stop, then the sinks close.
@@ -140,39 +112,8 @@ pub async fn run(
     let mut inputs = match embed.inputs.take() {
         Some(rx) => rx,
         None => {
-            let (tx, rx) = mpsc::channel::<InputEvent>(1024);
-            let i = &cfg.input;
-            let ids = CanIds::new(i.can_base.unwrap_or(CanIds::DEFAULT_BASE), i.can_extended)?;
-            let stop = shutdown.clone().wait_owned();
-            let c = counters.clone();
-            match i.kind {
-                InputKind::Serial => {
-                    let sc = SerialConfig::new(i.device.clone().unwrap_or_default(), i.baud.unwrap_or(115_200));
-                    tasks.push(tokio::spawn(crate::link::serial::run_serial(sc, tx, c, stop)));
-                }
-                InputKind::Slcan => {
-                    let sc = SerialConfig::new(i.device.clone().unwrap_or_default(), i.baud.unwrap_or(115_200));
-                    let cfg = SlcanConfig { serial: sc, bitrate: i.bitrate, listen_only: false, ids };
-                    tasks.push(tokio::spawn(async move {
-                        if let Err(e) = crate::link::slcan::run_slcan(cfg, tx, c, stop).await {
-                            tracing::error!("{e}");
-                        }
-                    }));
-                }
-                InputKind::Socketcan => {
-                    let mut sc = SocketCanConfig::new(i.iface.clone().unwrap_or_default());
-                    sc.ids = ids;
-                    tasks.push(tokio::spawn(crate::link::socketcan::run_socketcan(sc, tx, c, stop)));
-                }
-                InputKind::Trajectory => {
-                    let path = i.file.clone().unwrap_or_default();
-                    let samples = crate::pose::trajectory::Trajectory::load(&path)?;
-                    let speed = i.speed.unwrap_or(1.0);
-                    let gate = EventSink::new(tx, c, PoseLimits::default(), format!("trajectory {}", path.display()));
-                    tasks.push(tokio::spawn(replay_trajectory(samples, speed, gate, stop)));
-                }
-                InputKind::None => drop(tx),
-            }
+            let (rx, task) = inputs::start(&cfg.input, counters.clone(), &shutdown)?;
+            tasks.extend(task);
             rx
         }
     };
@@ -217,7 +158,7 @@ pub async fn run(
         exposure = Some(crate::sink::gige::exposure::follow_exposure(&device));
         sinks.push(Sink::Gige(device));
     }
-    let input_name = if embedded { "embedded" } else { cfg.input.kind.as_str() };
+    let input_name = if embedded { "embedded" } else { cfg.input.kind() };
     let session_writer = match cfg.record.as_ref().and_then(|r| r.session.as_ref()) {
         Some(path) => {
             let mut header = session_header(&cfg, &camera, &settings, input_name);
