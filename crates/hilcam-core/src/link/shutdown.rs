@@ -56,8 +56,8 @@ impl Shutdown {
     }
 
     /// [`Shutdown::wait`] as an owned future (for APIs that take `impl Future`).
-    pub fn wait_owned(self) -> impl std::future::Future<Output = ()> + Send + 'static {
-        async move { self.wait().await }
+    pub async fn wait_owned(self) {
+        self.wait().await
     }
 
     /// Blocking sleep for `d` in short steps, so a trigger is seen within 10 ms;
