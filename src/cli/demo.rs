@@ -9,7 +9,7 @@ use anyhow::{Context, bail};
 use hilcam_core::link::send::{SendOptions, SerialWriter, send_trajectory};
 use hilcam_core::pose::trajectory::Trajectory;
 use hilcam_core::serve::config::{GovernorConfig, RenderOverrides};
-use hilcam_core::serve::config::{InputConfig, InputKind, MetricsSection, ServeConfig, StreamSection, TriggerConfig};
+use hilcam_core::serve::config::{InputConfig, MetricsSection, SerialInput, ServeConfig, StreamSection, TriggerConfig};
 use hilcam_core::serve::governor::Policy;
 use hilcam_core::serve::scheduler::TriggerMode;
 use hilcam_core::serve::{Embed, run};
@@ -60,12 +60,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     let cfg = ServeConfig {
         scene: root.join("scenes/satellite.toml"),
         width: None,
-        input: InputConfig {
-            kind: InputKind::Serial,
-            device: Some(device.clone()),
-            baud: Some(921_600),
-            ..Default::default()
-        },
+        input: InputConfig::Serial(SerialInput { device: device.clone(), baud: 921_600 }),
         trigger: TriggerConfig { mode: TriggerMode::Rate, rate_hz: Some(a.rate), extrapolate: true },
         governor: GovernorConfig { policy: Policy::FixedRate, budget_ms: None },
         render: RenderOverrides::default(),

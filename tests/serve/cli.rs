@@ -12,7 +12,7 @@ fn shipped_serve_configs_load() {
             continue;
         }
         let c = ServeConfig::load(&f).unwrap_or_else(|e| panic!("{e}"));
-        kinds.insert(c.input.kind.as_str());
+        kinds.insert(c.input.kind());
         assert!(c.scene.ends_with("scenes/satellite.toml") && c.scene.exists(), "{}", c.scene.display());
     }
     // docs/serve-config.md promises a shipped example for each input kind.
@@ -30,7 +30,7 @@ fn config_errors_name_the_file_and_field() {
     let e = write("scene = \"s.toml\"\n[trigger]\nmode = \"rate\"\n");
     assert!(e.contains("serve.toml") && e.contains("trigger.rate_hz"), "{e}");
     let e = write("scene = \"s.toml\"\n[input]\nkind = \"serial\"\n");
-    assert!(e.contains("input.device"), "{e}");
+    assert!(e.contains("serve.toml") && e.contains("missing field `device`"), "{e}");
     let e = write("scene = \"s.toml\"\n[stream]\nlisten = \"nowhere\"\n");
     assert!(e.contains("line 3"), "{e}");
     let e = write("scene = \"s.toml\"\n[input]\nkind = \"slcan\"\ndevice = \"/dev/x\"\nbitrate = 1000\n");

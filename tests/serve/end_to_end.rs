@@ -9,7 +9,9 @@ use hilcam_core::link::send::{MessageWriter, SerialWriter};
 use hilcam_core::pose::{Message, Pose};
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::serve::ServeReport;
-use hilcam_core::serve::config::{GovernorConfig, InputConfig, InputKind, RecordSection, TriggerConfig};
+use hilcam_core::serve::config::{
+    GovernorConfig, InputConfig, RecordSection, SerialInput, TrajectoryInput, TriggerConfig,
+};
 use hilcam_core::serve::governor::Policy;
 use hilcam_core::serve::scheduler::TriggerMode;
 use hilcam_core::session::Session;
@@ -26,8 +28,7 @@ async fn a_pose_sent_over_a_pty_arrives_as_a_frame_where_the_pinhole_model_puts_
     let dir = tempfile::tempdir().unwrap();
     let (master, slave) = serialport::TTYPort::pair().unwrap();
     let device = slave.name().unwrap();
-    let input =
-        InputConfig { kind: InputKind::Serial, device: Some(device), baud: Some(921_600), ..Default::default() };
+    let input = InputConfig::Serial(SerialInput { device, baud: 921_600 });
     let cfg = config(sphere_scene(dir.path(), 96, 16), input, TriggerConfig::default(), GovernorConfig::default());
     let server = start(cfg, None).await;
     let mut reader = Reader::connect(server.info.stream).await;
@@ -151,8 +152,7 @@ async fn poses_at_10_khz_are_all_counted_and_frames_use_the_newest_extrapolated_
     let dir = tempfile::tempdir().unwrap();
     let (mut master, slave) = serialport::TTYPort::pair().unwrap();
     let device = slave.name().unwrap();
-    let input =
-        InputConfig { kind: InputKind::Serial, device: Some(device), baud: Some(921_600), ..Default::default() };
+    let input = InputConfig::Serial(SerialInput { device, baud: 921_600 });
     let trigger = TriggerConfig { mode: TriggerMode::Rate, rate_hz: Some(50.0), extrapolate: true };
     let mut cfg = config(sphere_scene(dir.path(), 16, 1), input, trigger, GovernorConfig::default());
     let path = dir.path().join("10khz.session.jsonl");
@@ -288,7 +288,7 @@ async fn a_trajectory_file_is_replayed_in_real_time_through_the_pose_path() {
         text.push_str(&format!("{},0,0,{},1,0,0,0,0,0,-1\n", f64::from(k) * 0.1, 10.0 + f64::from(k)));
     }
     std::fs::write(&csv, text).unwrap();
-    let input = InputConfig { kind: InputKind::Trajectory, file: Some(csv), speed: Some(2.0), ..Default::default() };
+    let input = InputConfig::Trajectory(TrajectoryInput { file: csv, speed: 2.0 });
     let cfg = config(sphere_scene(dir.path(), 32, 1), input, TriggerConfig::default(), GovernorConfig::default());
     let t0 = Instant::now();
     let server = start(cfg, None).await;
@@ -361,7 +361,7 @@ async fn trajectory_rows_the_pose_gate_refuses_are_counted_by_reason_and_later_r
         "600,0,0,11,1,0,0,0,0,0,-1", // keeps the input open while the test reads /metrics
     ];
     std::fs::write(&csv, format!("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n{}\n", rows.join("\n"))).unwrap();
-    let input = InputConfig { kind: InputKind::Trajectory, file: Some(csv), speed: Some(5.0), ..Default::default() };
+    let input = InputConfig::Trajectory(TrajectoryInput { file: csv, speed: 5.0 });
     let mut cfg = config(sphere_scene(dir.path(), 32, 1), input, TriggerConfig::default(), GovernorConfig::default());
     cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
     let server = start(cfg, None).await;

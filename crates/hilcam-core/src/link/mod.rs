@@ -16,12 +16,14 @@ mod counters;
 mod events;
 pub mod send;
 pub mod serial;
+mod shutdown;
 pub mod slcan;
 pub mod socketcan;
 
 pub use counters::InputCounters;
 pub(crate) use events::EventSink;
 pub use events::InputEvent;
+pub use shutdown::Shutdown;
 
 use std::time::Duration;
 
@@ -47,32 +49,30 @@ impl Backoff {
 }
 
 /// Sleeps `d` in short steps so a stop request is seen promptly; returns
-/// `false` if stopped.
-pub(crate) fn sleep_unless_stopped(d: Duration, stop: &std::sync::atomic::AtomicBool) -> bool {
+/// `false` if `stopped()` became true.
+pub(crate) fn sleep_unless_stopped(d: Duration, stopped: impl Fn() -> bool) -> bool {
     let until = std::time::Instant::now() + d;
     while std::time::Instant::now() < until {
-        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        if stopped() {
             return false;
         }
         std::thread::sleep(Duration::from_millis(10).min(d));
     }
-    !stop.load(std::sync::atomic::Ordering::Relaxed)
+    !stopped()
 }
 
 /// Runs the blocking loop `body(stop)` on a blocking thread until `shutdown`
-/// resolves (then sets `stop` and waits for it) or the loop returns by itself.
+/// resolves (then triggers `stop` and waits for the loop) or the loop returns by itself.
 pub(crate) async fn run_blocking_until<F>(body: F, shutdown: impl std::future::Future)
 where
-    F: FnOnce(&std::sync::atomic::AtomicBool) + Send + 'static,
+    F: FnOnce(&Shutdown) + Send + 'static,
 {
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
-    let stop = Arc::new(AtomicBool::new(false));
-    let stop2 = stop.clone();
-    let mut task = tokio::task::spawn_blocking(move || body(&stop2));
+    let stop = Shutdown::new();
+    let for_loop = stop.clone();
+    let mut task = tokio::task::spawn_blocking(move || body(&for_loop));
     tokio::select! {
         _ = shutdown => {
-            stop.store(true, Ordering::Relaxed);
+            stop.trigger();
             let _ = task.await;
         }
         _ = &mut task => {}

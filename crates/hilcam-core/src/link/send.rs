@@ -236,7 +236,11 @@ pub struct SendStats {
 
 fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {
     let now = Instant::now();
-    if due > now { super::sleep_unless_stopped(due - now, stop) } else { !stop.load(Ordering::Relaxed) }
+    if due > now {
+        super::sleep_unless_stopped(due - now, || stop.load(Ordering::Relaxed))
+    } else {
+        !stop.load(Ordering::Relaxed)
+    }
 }
 
 /// Replays `samples` through `w`, blocking, until done or `stop` is set.

@@ -6,13 +6,12 @@
 //! unplug, pty closed) the loop counts a device error and reopens the same path
 //! with backoff until it is back, without restarting hilcam.
 
-use super::{Backoff, EventSink, InputCounters, InputEvent, run_blocking_until, sleep_unless_stopped};
+use super::{Backoff, EventSink, InputCounters, InputEvent, Shutdown, run_blocking_until};
 use crate::pose::serial::{DecodeEvent, SerialDecoder};
 use crate::pose::validate::PoseLimits;
 use serialport::{DataBits, Parity, SerialPort, StopBits};
 use std::io::Read;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 
@@ -96,17 +95,17 @@ pub async fn run_serial(
     run_blocking_until(move |stop| serial_loop(&cfg, sink, stop), shutdown).await;
 }
 
-/// Opens the device (with backoff) until it works or `stop` is set; `opened`
+/// Opens the device (with backoff) until it works or `stop` is triggered; `opened`
 /// counts successful opens so the second and later ones count as reconnects.
 pub(crate) fn open_with_retry(
     cfg: &SerialConfig,
     sink: &mut EventSink,
-    stop: &AtomicBool,
+    stop: &Shutdown,
     opened: &mut u64,
 ) -> Option<serialport::TTYPort> {
     let mut wait = Duration::ZERO;
     loop {
-        if stop.load(Ordering::Relaxed) || sink.closed() {
+        if stop.is_triggered() || sink.closed() {
             return None;
         }
         match open_port(&cfg.path, cfg.baud, cfg.data_bits, cfg.parity, cfg.stop_bits) {
@@ -125,7 +124,7 @@ pub(crate) fn open_with_retry(
                 InputCounters::inc(&sink.counters.device_errors);
                 sink.warn(format_args!("{e}; retrying"));
                 wait = cfg.backoff.next(wait);
-                if !sleep_unless_stopped(wait, stop) {
+                if !stop.sleep(wait) {
                     return None;
                 }
             }
@@ -133,14 +132,14 @@ pub(crate) fn open_with_retry(
     }
 }
 
-fn serial_loop(cfg: &SerialConfig, mut sink: EventSink, stop: &AtomicBool) {
+fn serial_loop(cfg: &SerialConfig, mut sink: EventSink, stop: &Shutdown) {
     let mut opened = 0;
     let mut buf = vec![0u8; 4096];
     while let Some(mut port) = open_with_retry(cfg, &mut sink, stop, &mut opened) {
         // A fresh connection starts mid-stream: drop any partial frame.
         let mut dec = SerialDecoder::new();
         loop {
-            if stop.load(Ordering::Relaxed) || sink.closed() {
+            if stop.is_triggered() || sink.closed() {
                 return;
             }
             match port.read(&mut buf) {

@@ -12,7 +12,7 @@ use crate::pose::can::{CanAssembler, CanEvent, CanIds};
 use crate::pose::slcan::{SlcanDecoder, SlcanItem, bitrate_code};
 use std::io::{Read, Write};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 use tokio::sync::mpsc;
 
@@ -65,7 +65,7 @@ pub async fn run_slcan(
     Ok(())
 }
 
-fn slcan_loop(cfg: &SlcanConfig, init: &str, mut sink: EventSink, stop: &AtomicBool) {
+fn slcan_loop(cfg: &SlcanConfig, init: &str, mut sink: EventSink, stop: &super::Shutdown) {
     let mut opened = 0;
     let mut buf = vec![0u8; 4096];
     let mut asm = CanAssembler::new(cfg.ids);
@@ -81,7 +81,7 @@ fn slcan_loop(cfg: &SlcanConfig, init: &str, mut sink: EventSink, stop: &AtomicB
             sink.counters.can_drop(d);
         }
         loop {
-            if stop.load(Ordering::Relaxed) || sink.closed() {
+            if stop.is_triggered() || sink.closed() {
                 return;
             }
             match port.read(&mut buf) {

@@ -8,13 +8,14 @@
 //!
 //! [input]                              # where poses come from
 //! kind = "serial"                      # serial | slcan | socketcan | trajectory | none
-//! device = "/dev/ttyUSB0"              # serial / slcan
-//! baud = 921600
+//! device = "/dev/ttyUSB0"              # serial, slcan
+//! baud = 921600                        # serial, slcan
 //! # iface = "can0"                     # socketcan
-//! # can_base = 0x300                   # CAN base id
+//! # can_base = 0x300                   # slcan, socketcan: CAN base id
 //! # bitrate = 1000000                  # slcan: the adapter's CAN bit rate, bit/s
 //! # file = "../scenes/trajectories/flyaround.csv"   # trajectory: real-time replay
 //! # speed = 1.0                        # trajectory: time scale
+//! # (each kind takes only its own keys: another kind's key is an error)
 //!
 //! [trigger]
 //! mode = "rate"                        # pose | rate | external
@@ -99,48 +100,122 @@ pub struct OutputSection {
     pub gige: Option<crate::sink::gige::GigeConfig>,
 }
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum InputKind {
-    Serial,
-    Slcan,
-    Socketcan,
+/// `[input]`: where poses come from. `kind` picks the variant and each variant takes
+/// exactly its own keys, so a key of another kind (a `device` on a socketcan input) is
+/// refused by name rather than ignored.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum InputConfig {
+    Serial(SerialInput),
+    Slcan(SlcanInput),
+    Socketcan(SocketcanInput),
     /// Poses from a trajectory file at its recorded timing (× `speed`), through the same
     /// path as live poses: real-time replay without a dynamics simulator.
-    Trajectory,
-    #[default]
-    None,
+    Trajectory(TrajectoryInput),
+    /// No input: nothing renders (also what a config without `[input]` gets). A struct
+    /// variant so that serde refuses keys here too (a unit variant ignores them).
+    None {},
 }
 
-impl InputKind {
-    /// The config spelling (`serial`, …).
-    pub fn as_str(self) -> &'static str {
-        match self {
-            InputKind::Serial => "serial",
-            InputKind::Slcan => "slcan",
-            InputKind::Socketcan => "socketcan",
-            InputKind::Trajectory => "trajectory",
-            InputKind::None => "none",
-        }
+impl Default for InputConfig {
+    fn default() -> Self {
+        InputConfig::None {}
     }
 }
 
-#[derive(Clone, Debug, Default, Deserialize)]
+/// `kind = "serial"`.
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct InputConfig {
-    #[serde(default)]
-    pub kind: InputKind,
-    pub device: Option<String>,
-    pub baud: Option<u32>,
-    pub iface: Option<String>,
+pub struct SerialInput {
+    pub device: String,
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+}
+
+/// `kind = "slcan"`: a serial-line CAN adapter.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlcanInput {
+    pub device: String,
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+    /// The adapter's CAN bit rate, set on open (None: as the adapter is).
+    pub bitrate: Option<u32>,
     pub can_base: Option<u32>,
     #[serde(default)]
     pub can_extended: bool,
-    pub bitrate: Option<u32>,
-    /// `trajectory` input: the CSV file (relative to the config file).
-    pub file: Option<PathBuf>,
-    /// `trajectory` input: simulation seconds per wall second (default 1).
-    pub speed: Option<f64>,
+}
+
+/// `kind = "socketcan"`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SocketcanInput {
+    pub iface: String,
+    pub can_base: Option<u32>,
+    #[serde(default)]
+    pub can_extended: bool,
+}
+
+/// `kind = "trajectory"`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectoryInput {
+    /// The CSV file (relative to the config file).
+    pub file: PathBuf,
+    /// Simulation seconds per wall second.
+    #[serde(default = "default_speed")]
+    pub speed: f64,
+}
+
+fn default_baud() -> u32 {
+    115_200
+}
+
+fn default_speed() -> f64 {
+    1.0
+}
+
+impl InputConfig {
+    /// The config spelling of the kind (`serial`, …).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            InputConfig::Serial(_) => "serial",
+            InputConfig::Slcan(_) => "slcan",
+            InputConfig::Socketcan(_) => "socketcan",
+            InputConfig::Trajectory(_) => "trajectory",
+            InputConfig::None {} => "none",
+        }
+    }
+
+    /// Field-level checks that serde cannot express.
+    fn validate(&self) -> Result<(), (&'static str, String)> {
+        let baud = match self {
+            InputConfig::Serial(i) => Some(i.baud),
+            InputConfig::Slcan(i) => Some(i.baud),
+            _ => None,
+        };
+        if let Some(b) = baud
+            && !(1..=4_000_000).contains(&b)
+        {
+            return Err(("input.baud", format!("must be 1..=4000000, got {b}")));
+        }
+        if let InputConfig::Slcan(SlcanInput { bitrate: Some(b), .. }) = self
+            && crate::pose::slcan::bitrate_code(*b).is_none()
+        {
+            return Err((
+                "input.bitrate",
+                format!(
+                    "{b} bit/s is not an slcan rate (10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000, 1000000)"
+                ),
+            ));
+        }
+        if let InputConfig::Trajectory(t) = self
+            && !(t.speed.is_finite() && t.speed > 0.0)
+        {
+            return Err(("input.speed", format!("must be a positive number, got {}", t.speed)));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -258,8 +333,8 @@ impl ServeConfig {
             toml::from_str(&text).map_err(|e| ConfigError::Parse { path: path.into(), message: e.to_string() })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         cfg.scene = dir.join(&cfg.scene);
-        if let Some(f) = &mut cfg.input.file {
-            *f = dir.join(&*f);
+        if let InputConfig::Trajectory(t) = &mut cfg.input {
+            t.file = dir.join(&t.file);
         }
         if let Some(r) = &mut cfg.record {
             r.dir = r.dir.as_ref().map(|d| dir.join(d));
@@ -274,37 +349,7 @@ impl ServeConfig {
         if let Some(w) = self.width {
             crate::render::camera::check_side(w).map_err(|m| ("width", m))?;
         }
-        let i = &self.input;
-        match i.kind {
-            InputKind::Serial | InputKind::Slcan if i.device.is_none() => {
-                return Err(("input.device", "a serial or slcan input needs `device`".into()));
-            }
-            InputKind::Socketcan if i.iface.is_none() => {
-                return Err(("input.iface", "a socketcan input needs `iface`".into()));
-            }
-            InputKind::Trajectory if i.file.is_none() => {
-                return Err(("input.file", "a trajectory input needs `file`".into()));
-            }
-            _ if i.speed.is_some_and(|v| !(v.is_finite() && v > 0.0)) => {
-                return Err(("input.speed", "must be a positive number".into()));
-            }
-            _ => {}
-        }
-        if let Some(b) = i.baud
-            && !(1..=4_000_000).contains(&b)
-        {
-            return Err(("input.baud", format!("must be 1..=4000000, got {b}")));
-        }
-        if let Some(b) = i.bitrate
-            && crate::pose::slcan::bitrate_code(b).is_none()
-        {
-            return Err((
-                "input.bitrate",
-                format!(
-                    "{b} bit/s is not an slcan rate (10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000, 1000000)"
-                ),
-            ));
-        }
+        self.input.validate()?;
         match (self.trigger.mode, self.trigger.rate_hz) {
             (TriggerMode::Rate, None) => return Err(("trigger.rate_hz", "rate mode needs rate_hz".into())),
             (_, Some(r)) if !(r.is_finite() && r > 0.0 && r <= 10_000.0) => {
@@ -346,5 +391,56 @@ impl ServeConfig {
     pub fn budget(&self) -> std::time::Duration {
         let ms = self.governor.budget_ms.or(self.trigger.rate_hz.map(|r| 1000.0 / r)).unwrap_or(100.0);
         std::time::Duration::from_secs_f64(ms / 1e3)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(input: &str) -> Result<ServeConfig, String> {
+        let text = format!("scene = \"s.toml\"\n[input]\n{input}");
+        let cfg: ServeConfig = toml::from_str(&text).map_err(|e| e.to_string())?;
+        cfg.validate().map_err(|(field, m)| format!("{field}: {m}"))?;
+        Ok(cfg)
+    }
+
+    #[test]
+    fn each_kind_takes_its_own_keys_with_defaults() {
+        let c = parse("kind = \"slcan\"\ndevice = \"/dev/ttyACM0\"\nbitrate = 500000\ncan_base = 0x300\n").unwrap();
+        let InputConfig::Slcan(i) = &c.input else { panic!("{:?}", c.input) };
+        assert_eq!(
+            (i.device.as_str(), i.baud, i.bitrate, i.can_base),
+            ("/dev/ttyACM0", 115_200, Some(500_000), Some(0x300))
+        );
+        let c = parse("kind = \"trajectory\"\nfile = \"t.csv\"\n").unwrap();
+        let InputConfig::Trajectory(t) = &c.input else { panic!("{:?}", c.input) };
+        assert_eq!((t.file.as_path(), t.speed), (Path::new("t.csv"), 1.0));
+        let c: ServeConfig = toml::from_str("scene = \"s.toml\"\n").unwrap();
+        assert_eq!(c.input.kind(), "none");
+    }
+
+    #[test]
+    fn a_key_of_another_kind_is_refused_by_name() {
+        let e = parse("kind = \"serial\"\ndevice = \"/dev/ttyUSB0\"\niface = \"can0\"\n").unwrap_err();
+        assert!(e.contains("unknown field `iface`") && e.contains("line 2"), "{e}");
+        let e = parse("kind = \"socketcan\"\niface = \"can0\"\nbaud = 9600\n").unwrap_err();
+        assert!(e.contains("unknown field `baud`"), "{e}");
+        let e = parse("kind = \"trajectory\"\nfile = \"t.csv\"\ncan_base = 0x300\n").unwrap_err();
+        assert!(e.contains("unknown field `can_base`"), "{e}");
+        let e = parse("kind = \"none\"\ndevice = \"/dev/ttyUSB0\"\n").unwrap_err();
+        assert!(e.contains("device"), "{e}");
+    }
+
+    #[test]
+    fn missing_and_out_of_range_values_name_the_key() {
+        let e = parse("kind = \"socketcan\"\n").unwrap_err();
+        assert!(e.contains("missing field `iface`"), "{e}");
+        let e = parse("kind = \"serial\"\ndevice = \"/dev/x\"\nbaud = 0\n").unwrap_err();
+        assert_eq!(e, "input.baud: must be 1..=4000000, got 0");
+        let e = parse("kind = \"trajectory\"\nfile = \"t.csv\"\nspeed = -1.0\n").unwrap_err();
+        assert_eq!(e, "input.speed: must be a positive number, got -1");
+        let e = parse("kind = \"carrier-pigeon\"\n").unwrap_err();
+        assert!(e.contains("carrier-pigeon"), "{e}");
     }
 }

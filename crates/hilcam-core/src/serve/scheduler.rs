@@ -11,8 +11,9 @@
 
 use super::extrapolate::extrapolate;
 use super::governor::{Governor, Policy, Quality};
+use super::render_times::RenderTimes;
 use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, decode_header, unix_ns_now};
-use crate::link::InputEvent;
+use crate::link::{InputEvent, Shutdown};
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
 use crate::pipeline::FramePipeline;
 use crate::pose::Pose;
@@ -103,6 +104,7 @@ pub struct SchedulerSummary {
     pub skipped_busy: u64,
     pub poses: u64,
     pub triggers: u64,
+    /// Render time percentiles of the newest [`RenderTimes::WINDOW`] frames.
     pub render_p50_ms: f64,
     pub render_p99_ms: f64,
 }
@@ -317,233 +319,308 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "panic with a non-text payload".into())
 }
 
-/// Publish a finished frame to every sink and count it (late, degraded, its quality),
-/// or count and log its failure; `failures_in_row` tracks consecutive failures.
-fn deliver(
-    d: &Done,
-    sinks: &[Sink],
-    m: &Metrics,
-    s: &mut SchedulerSummary,
-    failures_in_row: &mut u32,
-    tap: Option<&SessionTap>,
-) {
-    m.render.record_duration(d.render_time);
-    record(tap, d);
-    match &d.frame {
-        Ok(frame) => {
-            *failures_in_row = 0;
-            for sink in sinks {
-                sink.publish(frame);
+/// The loop's state between events: what is due, what is rendering, what was counted.
+struct Loop {
+    cfg: SchedulerConfig,
+    m: Metrics,
+    s: SchedulerSummary,
+    sinks: Arc<Vec<Sink>>,
+    governor: Governor,
+    /// The configured quality: a frame below it is flagged degraded.
+    best: Quality,
+    /// The newest pose and its arrival.
+    latest: Option<(Pose, Instant)>,
+    /// Poses accepted since the last render started.
+    pending: u64,
+    /// A frame is due; its reference instant.
+    want: Option<Instant>,
+    busy: bool,
+    inputs_open: bool,
+    /// Index of the next frame.
+    index: u64,
+    last_integration: f64,
+    render_times: RenderTimes,
+    failures_in_row: u32,
+}
+
+impl Loop {
+    fn new(cfg: SchedulerConfig, sinks: Arc<Vec<Sink>>, registry: &Registry) -> Self {
+        let best = Quality { spp: cfg.settings.spp, depth: cfg.settings.depth };
+        Loop {
+            governor: Governor::new(cfg.policy, cfg.budget, best),
+            m: Metrics::new(registry),
+            s: SchedulerSummary::default(),
+            sinks,
+            best,
+            latest: None,
+            pending: 0,
+            want: None,
+            busy: false,
+            inputs_open: true,
+            index: 0,
+            last_integration: 0.0,
+            render_times: RenderTimes::default(),
+            failures_in_row: 0,
+            cfg,
+        }
+    }
+
+    fn all_frames_started(&self) -> bool {
+        self.cfg.max_frames.is_some_and(|n| self.index >= n)
+    }
+
+    /// Nothing left to do: the frame budget is spent, or the inputs closed and no frame
+    /// can become due (a `Rate` ticker keeps rendering the last pose).
+    fn finished(&self) -> bool {
+        let starved = !self.inputs_open && self.cfg.trigger != TriggerMode::Rate && self.want.is_none();
+        !self.busy && (self.all_frames_started() || starved)
+    }
+
+    fn on_input(&mut self, ev: Option<InputEvent>) {
+        match ev {
+            None => self.inputs_open = false,
+            Some(InputEvent::Pose { pose, arrival }) => {
+                if let Some(tap) = &self.cfg.session {
+                    tap.pose(&pose, arrival);
+                }
+                self.s.poses += 1;
+                self.pending += 1;
+                self.latest = Some((pose, arrival));
+                if self.cfg.trigger == TriggerMode::Pose {
+                    self.want = Some(arrival);
+                }
             }
-            s.frames += 1;
-            m.frames.inc();
-            m.spp.set(i64::from(d.quality.spp.floor()));
-            m.spp_milli.set(i64::from(d.quality.spp.milli()));
-            m.depth.set(i64::from(d.quality.depth));
-            if d.late {
-                s.late += 1;
-                m.late.inc();
+            Some(InputEvent::Trigger { arrival, .. }) => {
+                self.s.triggers += 1;
+                self.m.triggers.inc();
+                if self.cfg.trigger == TriggerMode::External {
+                    if self.want.is_some() {
+                        self.skip_busy();
+                    }
+                    self.want = Some(arrival);
+                }
             }
-            if frame.meta.flags.contains(FrameFlags::DEGRADED) {
-                s.degraded += 1;
-                m.degraded.inc();
+            Some(InputEvent::Heartbeat { .. }) => {}
+        }
+    }
+
+    fn on_tick(&mut self, tick: Instant) {
+        if self.busy || self.want.is_some() {
+            self.skip_busy();
+        } else {
+            self.want = Some(tick);
+        }
+    }
+
+    fn skip_busy(&mut self) {
+        self.s.skipped_busy += 1;
+        self.m.skipped.inc();
+    }
+
+    /// A frame came back from the renderer: learn its time, publish or count it. `false`
+    /// when the renderer is taken to be broken (`s.fatal` says why).
+    fn on_done(&mut self, d: Option<Done>) -> bool {
+        self.busy = false;
+        let Some(d) = d else {
+            self.s.fatal = Some("the render thread stopped unexpectedly".into());
+            return false;
+        };
+        self.governor.observe(d.quality, d.render_time);
+        if let Some(i) = d.integration_s {
+            self.last_integration = i;
+        }
+        self.deliver(&d);
+        if self.failures_in_row >= MAX_CONSECUTIVE_FAILURES {
+            let e = d.frame.as_ref().err().map(ToString::to_string).unwrap_or_default();
+            self.s.fatal = Some(format!("{} frames in a row failed; the last: {e}", self.failures_in_row));
+            return false;
+        }
+        true
+    }
+
+    /// Publish a finished frame to every sink and count it (late, degraded, its quality),
+    /// or count and log its failure.
+    fn deliver(&mut self, d: &Done) {
+        let (m, s) = (&self.m, &mut self.s);
+        self.render_times.record(d.render_time);
+        m.render.record_duration(d.render_time);
+        record(self.cfg.session.as_ref(), d);
+        match &d.frame {
+            Ok(frame) => {
+                self.failures_in_row = 0;
+                for sink in self.sinks.iter() {
+                    sink.publish(frame);
+                }
+                s.frames += 1;
+                m.frames.inc();
+                m.spp.set(i64::from(d.quality.spp.floor()));
+                m.spp_milli.set(i64::from(d.quality.spp.milli()));
+                m.depth.set(i64::from(d.quality.depth));
+                if d.late {
+                    s.late += 1;
+                    m.late.inc();
+                }
+                if frame.meta.flags.contains(FrameFlags::DEGRADED) {
+                    s.degraded += 1;
+                    m.degraded.inc();
+                }
+            }
+            Err(e) => {
+                self.failures_in_row += 1;
+                s.failed += 1;
+                if let Some((_, c)) = m.failed.iter().find(|(r, _)| *r == e.reason) {
+                    c.inc();
+                }
+                tracing::error!(
+                    frame = d.job.index,
+                    pose_seq = d.job.pose.seq,
+                    in_a_row = self.failures_in_row,
+                    "frame failed, not delivered: {e}"
+                );
             }
         }
-        Err(e) => {
-            *failures_in_row += 1;
-            s.failed += 1;
-            if let Some((_, c)) = m.failed.iter().find(|(r, _)| *r == e.reason) {
-                c.inc();
-            }
-            tracing::error!(
-                frame = d.job.index,
-                pose_seq = d.job.pose.seq,
-                in_a_row = *failures_in_row,
-                "frame failed, not delivered: {e}"
-            );
+    }
+
+    /// The next job, when a frame is due, the renderer is free and a pose exists.
+    fn due_job(&mut self) -> Option<Job> {
+        let (Some(reference), false, Some((pose, arrival))) = (self.want, self.busy, self.latest) else {
+            return None;
+        };
+        self.want = None;
+        if self.all_frames_started() {
+            return None;
         }
+        let superseded = self.pending.saturating_sub(1);
+        self.s.superseded += superseded;
+        self.m.superseded.add(superseded);
+        self.pending = 0;
+        let q = self.governor.current();
+        let mut flags = FrameFlags::default();
+        if q != self.best {
+            flags = flags.with(FrameFlags::DEGRADED);
+        }
+        let (pose, extrapolated_s) = match self.exposure_pose(&pose, arrival, reference) {
+            Some((moved, dt)) => {
+                flags = flags.with(FrameFlags::EXTRAPOLATED);
+                (moved, dt)
+            }
+            None => (pose, 0.0),
+        };
+        let job = Job {
+            pose,
+            source_arrival: arrival,
+            extrapolated_s,
+            started: Instant::now(),
+            poses_received: self.s.poses,
+            arrival_unix_ns: unix_ns_of(arrival),
+            reference,
+            settings: RenderSettings { spp: q.spp, depth: q.depth, ..self.cfg.settings },
+            exposure_s: self.cfg.exposure.as_ref().and_then(|rx| *rx.borrow()),
+            index: self.index,
+            flags,
+        };
+        self.index += 1;
+        self.busy = true;
+        Some(job)
+    }
+
+    /// The pose moved to the exposure mid-time with its rates and the seconds it moved
+    /// (`Rate` mode with `extrapolate`; None when it did not move).
+    fn exposure_pose(&self, pose: &Pose, arrival: Instant, reference: Instant) -> Option<(Pose, f64)> {
+        if !(self.cfg.extrapolate && self.cfg.trigger == TriggerMode::Rate) {
+            return None;
+        }
+        let dt = reference.saturating_duration_since(arrival).as_secs_f64() + self.last_integration * 0.5;
+        let (moved, did_move) = extrapolate(pose, dt);
+        did_move.then_some((moved, dt))
+    }
+
+    /// Poses still waiting at shutdown were replaced by the newest one, which was not
+    /// rendered either; count them so that accepted = rendered-from + superseded + 1.
+    fn summary(mut self) -> SchedulerSummary {
+        let unrendered = self.pending.saturating_sub(1);
+        self.s.superseded += unrendered;
+        self.m.superseded.add(unrendered);
+        self.s.render_p50_ms = self.render_times.percentile_ms(0.5);
+        self.s.render_p99_ms = self.render_times.percentile_ms(0.99);
+        self.s
     }
 }
 
-/// Run until `shutdown` resolves, the inputs close (in `Pose`/`External` mode), or
-/// `max_frames` frames are out. The frame in flight is finished and published.
-pub async fn run_scheduler(
-    cfg: SchedulerConfig,
-    pipeline: FramePipeline,
-    mut inputs: mpsc::Receiver<InputEvent>,
-    sinks: Arc<Vec<Sink>>,
-    registry: Arc<Registry>,
-    shutdown: impl std::future::Future,
-) -> SchedulerSummary {
-    let m = Metrics::new(&registry);
-    let mut s = SchedulerSummary::default();
-    let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
-    let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
-    let renderer = match spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx) {
-        Ok(r) => r,
-        Err(e) => {
-            s.fatal = Some(format!("cannot start the render thread: {e}"));
-            return s;
-        }
-    };
-    let best = Quality { spp: cfg.settings.spp, depth: cfg.settings.depth };
-    let mut governor = Governor::new(cfg.policy, cfg.budget, best);
-    let mut ticker = match (cfg.trigger, cfg.rate_hz) {
+/// A `Rate` mode ticker (None in the other modes: frames wait for a pose or a trigger).
+fn rate_ticker(cfg: &SchedulerConfig) -> Option<tokio::time::Interval> {
+    match (cfg.trigger, cfg.rate_hz) {
         (TriggerMode::Rate, Some(hz)) if hz > 0.0 => {
             let mut t = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
             t.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
             Some(t)
         }
         _ => None,
+    }
+}
+
+async fn next_tick(ticker: &mut Option<tokio::time::Interval>) -> Option<Instant> {
+    match ticker.as_mut() {
+        Some(t) => Some(t.tick().await.into_std()),
+        None => None,
+    }
+}
+
+/// Run until `shutdown` is triggered, the inputs close (in `Pose`/`External` mode), or
+/// `max_frames` frames are out. The frame in flight is finished and published. However
+/// it stops (done, or the renderer failed), it triggers `shutdown` for the rest of the
+/// server.
+pub async fn run_scheduler(
+    cfg: SchedulerConfig,
+    pipeline: FramePipeline,
+    mut inputs: mpsc::Receiver<InputEvent>,
+    sinks: Arc<Vec<Sink>>,
+    registry: Arc<Registry>,
+    shutdown: Shutdown,
+) -> SchedulerSummary {
+    let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
+    let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
+    let renderer = spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx);
+    let mut ticker = rate_ticker(&cfg);
+    let mut st = Loop::new(cfg, sinks, &registry);
+    let renderer = match renderer {
+        Ok(r) => r,
+        Err(e) => {
+            st.s.fatal = Some(format!("cannot start the render thread: {e}"));
+            shutdown.trigger();
+            return st.summary();
+        }
     };
-    tokio::pin!(shutdown);
-
-    let mut latest: Option<(Pose, Instant)> = None;
-    let mut pending = 0u64; // poses accepted since the last render started
-    let mut want: Option<Instant> = None; // a frame is due; its reference instant
-    let mut busy = false;
-    let mut inputs_open = true;
-    let mut index = 0u64;
-    let mut last_integration = 0.0f64;
-    let mut render_times: Vec<f64> = Vec::new();
-    let mut failures_in_row = 0u32;
-
-    loop {
-        let done_all = cfg.max_frames.is_some_and(|n| index >= n);
-        if done_all && !busy {
-            break;
-        }
-        if !inputs_open && !busy && cfg.trigger != TriggerMode::Rate && want.is_none() {
-            break;
-        }
+    let stopped = shutdown.wait();
+    tokio::pin!(stopped);
+    while !st.finished() {
         tokio::select! {
-            _ = &mut shutdown => break,
-            ev = inputs.recv(), if inputs_open => match ev {
-                None => inputs_open = false,
-                Some(InputEvent::Pose { pose, arrival }) => {
-                    if let Some(tap) = &cfg.session {
-                        tap.pose(&pose, arrival);
-                    }
-                    s.poses += 1;
-                    pending += 1;
-                    latest = Some((pose, arrival));
-                    if cfg.trigger == TriggerMode::Pose {
-                        want = Some(arrival);
-                    }
-                }
-                Some(InputEvent::Trigger { arrival, .. }) => {
-                    s.triggers += 1;
-                    m.triggers.inc();
-                    if cfg.trigger == TriggerMode::External {
-                        if want.is_some() {
-                            s.skipped_busy += 1;
-                            m.skipped.inc();
-                        }
-                        want = Some(arrival);
-                    }
-                }
-                Some(InputEvent::Heartbeat { .. }) => {}
-            },
-            Some(tick) = async { match ticker.as_mut() { Some(t) => Some(t.tick().await), None => None } }, if ticker.is_some() => {
-                if busy || want.is_some() {
-                    s.skipped_busy += 1;
-                    m.skipped.inc();
-                } else {
-                    want = Some(tick.into_std());
-                }
-            }
-            d = done_rx.recv(), if busy => {
-                busy = false;
-                let Some(d) = d else {
-                    s.fatal = Some("the render thread stopped unexpectedly".into());
-                    break;
-                };
-                render_times.push(d.render_time.as_secs_f64());
-                governor.observe(d.quality, d.render_time);
-                if let Some(i) = d.integration_s {
-                    last_integration = i;
-                }
-                deliver(&d, &sinks, &m, &mut s, &mut failures_in_row, cfg.session.as_ref());
-                if failures_in_row >= MAX_CONSECUTIVE_FAILURES {
-                    let e = d.frame.as_ref().err().map(ToString::to_string).unwrap_or_default();
-                    s.fatal = Some(format!("{failures_in_row} frames in a row failed; the last: {e}"));
+            _ = &mut stopped => break,
+            ev = inputs.recv(), if st.inputs_open => st.on_input(ev),
+            Some(tick) = next_tick(&mut ticker), if ticker.is_some() => st.on_tick(tick),
+            d = done_rx.recv(), if st.busy => {
+                if !st.on_done(d) {
                     break;
                 }
             }
         }
-
-        // Start the next frame when one is due, the renderer is free, and a pose exists.
-        if let (Some(reference), false, Some((pose, arrival))) = (want, busy, latest) {
-            if cfg.max_frames.is_some_and(|n| index >= n) {
-                want = None;
-                continue;
-            }
-            want = None;
-            let superseded = pending.saturating_sub(1);
-            s.superseded += superseded;
-            m.superseded.add(superseded);
-            pending = 0;
-            let q = governor.current();
-            let settings = RenderSettings { spp: q.spp, depth: q.depth, ..cfg.settings };
-            let mut flags = FrameFlags::default();
-            if q != best {
-                flags = flags.with(FrameFlags::DEGRADED);
-            }
-            let mut pose = pose;
-            let mut extrapolated_s = 0.0;
-            if cfg.extrapolate && cfg.trigger == TriggerMode::Rate {
-                let dt = reference.saturating_duration_since(arrival).as_secs_f64() + last_integration * 0.5;
-                let (p, moved) = extrapolate(&pose, dt);
-                if moved {
-                    pose = p;
-                    extrapolated_s = dt;
-                    flags = flags.with(FrameFlags::EXTRAPOLATED);
-                }
-            }
-            let job = Job {
-                pose,
-                source_arrival: arrival,
-                extrapolated_s,
-                started: Instant::now(),
-                poses_received: s.poses,
-                arrival_unix_ns: unix_ns_of(arrival),
-                reference,
-                settings,
-                exposure_s: cfg.exposure.as_ref().and_then(|rx| *rx.borrow()),
-                index,
-                flags,
-            };
-            if job_tx.send(job).is_err() {
-                tracing::error!("render thread is gone");
-                break;
-            }
-            index += 1;
-            busy = true;
+        if let Some(job) = st.due_job()
+            && job_tx.send(job).is_err()
+        {
+            tracing::error!("render thread is gone");
+            break;
         }
     }
-
+    shutdown.trigger();
     // Finish the frame in flight (unless the renderer is what failed), then stop the
     // render thread.
-    if busy && s.fatal.is_none() {
+    if st.busy && st.s.fatal.is_none() {
         match done_rx.recv().await {
-            Some(d) => {
-                render_times.push(d.render_time.as_secs_f64());
-                deliver(&d, &sinks, &m, &mut s, &mut failures_in_row, cfg.session.as_ref());
-            }
-            None => s.fatal = Some("the render thread stopped unexpectedly".into()),
+            Some(d) => st.deliver(&d),
+            None => st.s.fatal = Some("the render thread stopped unexpectedly".into()),
         }
     }
-    // Poses still waiting at shutdown were replaced by the newest one, which was not
-    // rendered either; count them so that accepted = rendered-from + superseded + 1.
-    let unrendered = pending.saturating_sub(1);
-    s.superseded += unrendered;
-    m.superseded.add(unrendered);
     drop(job_tx);
     let _ = tokio::task::spawn_blocking(move || renderer.join()).await;
-    render_times.sort_by(f64::total_cmp);
-    let pct =
-        |q: f64| render_times.get(((render_times.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(0.0);
-    s.render_p50_ms = pct(0.5) * 1e3;
-    s.render_p99_ms = pct(0.99) * 1e3;
-    s
+    st.summary()
 }

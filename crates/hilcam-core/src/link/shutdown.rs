@@ -1,0 +1,99 @@
+//! The one stop signal of a server: the command line's SIGINT/SIGTERM/SIGHUP, the
+//! scheduler's stop (fatal or done) and the input links all use it.
+//!
+//! A cloneable handle over a `watch` channel: [`Shutdown::trigger`] from anywhere (async
+//! or not, any number of times); async tasks wait with [`Shutdown::wait`], blocking
+//! device loops poll [`Shutdown::is_triggered`] or sleep with [`Shutdown::sleep`].
+
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::watch;
+
+#[derive(Clone, Debug)]
+pub struct Shutdown {
+    tx: Arc<watch::Sender<bool>>,
+}
+
+impl Default for Shutdown {
+    fn default() -> Self {
+        Shutdown::new()
+    }
+}
+
+impl Shutdown {
+    pub fn new() -> Self {
+        Shutdown { tx: Arc::new(watch::Sender::new(false)) }
+    }
+
+    /// A signal triggered when `stop` resolves (a task on the current tokio runtime
+    /// waits for it; it ends when either happens).
+    pub fn when(stop: impl std::future::Future + Send + 'static) -> Self {
+        let s = Shutdown::new();
+        let t = s.clone();
+        tokio::spawn(async move {
+            tokio::select! {
+                _ = stop => t.trigger(),
+                _ = t.wait() => {}
+            }
+        });
+        s
+    }
+
+    /// Ask everything that holds this signal to stop (idempotent).
+    pub fn trigger(&self) {
+        self.tx.send_replace(true);
+    }
+
+    pub fn is_triggered(&self) -> bool {
+        *self.tx.borrow()
+    }
+
+    /// Resolves once triggered (at once if it already was).
+    pub async fn wait(&self) {
+        let mut rx = self.tx.subscribe();
+        // The sender lives in `self`, so the channel cannot close while this waits.
+        let _ = rx.wait_for(|stop| *stop).await;
+    }
+
+    /// [`Shutdown::wait`] as an owned future (for APIs that take `impl Future`).
+    pub async fn wait_owned(self) {
+        self.wait().await
+    }
+
+    /// Blocking sleep for `d` in short steps, so a trigger is seen within 10 ms;
+    /// `false` if triggered.
+    pub fn sleep(&self, d: Duration) -> bool {
+        super::sleep_unless_stopped(d, || self.is_triggered())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn every_clone_sees_one_trigger_and_late_waiters_return_at_once() {
+        let s = Shutdown::new();
+        let (a, b) = (s.clone(), s.clone());
+        let waiter = tokio::spawn(async move { a.wait().await });
+        assert!(!b.is_triggered());
+        s.trigger();
+        s.trigger();
+        tokio::time::timeout(Duration::from_secs(5), waiter).await.expect("waiter woke").unwrap();
+        assert!(b.is_triggered());
+        tokio::time::timeout(Duration::from_secs(1), b.wait()).await.expect("already triggered");
+    }
+
+    #[tokio::test]
+    async fn when_triggers_on_the_future_and_a_blocking_sleep_ends_early() {
+        let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+        let s = Shutdown::when(rx);
+        let sleeper = s.clone();
+        let t0 = std::time::Instant::now();
+        let slept = tokio::task::spawn_blocking(move || sleeper.sleep(Duration::from_secs(30)));
+        tx.send(()).unwrap();
+        assert!(!slept.await.unwrap(), "sleep reports the trigger");
+        assert!(t0.elapsed() < Duration::from_secs(5), "the sleep ended early: {:?}", t0.elapsed());
+        assert!(s.is_triggered());
+    }
+}
