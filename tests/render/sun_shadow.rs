@@ -7,13 +7,13 @@
 
 use glam::{DVec3, Vec3};
 use hilcam_core::pose::Pose;
-use hilcam_core::render::{FrameBuffers, RenderOptions, render_into};
 use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::geometry::bvh::brute_force;
 use hilcam_core::render::geometry::{Ray, TriMesh};
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
 use hilcam_core::render::sampling::Rng;
+use hilcam_core::render::{FrameBuffers, RenderOptions, render_into};
 use hilcam_core::scene::Scene;
 use hilcam_lab::sun_shadow::SunShadow;
 use rayon::prelude::*;
