@@ -1,4 +1,4 @@
-"""A real GigE Vision client for tests/gige.rs: Aravis through its GObject bindings.
+"""A real GigE Vision client for tests/serve/gige.rs: Aravis through its GObject bindings.
 
 Usage: aravis_client.py ADDRESS FRAMES [Feature=value ...] [--trigger] [--roi-centroid]
 Opens the camera at ADDRESS, writes the features, acquires FRAMES buffers (with

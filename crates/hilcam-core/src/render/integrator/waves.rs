@@ -14,7 +14,7 @@
 //! [`PathContext::radiance`] (shared through [`PathContext::scatter`]) in the same order,
 //! and each pixel sums its samples in index order, so the image has the same bytes as
 //! tracing sample by sample: the wave loop must equal the estimator of this module's
-//! parent, [`PathContext::radiance`], and `tests/render_waves.rs` checks it byte for byte.
+//! parent, [`PathContext::radiance`], and `tests/render/waves.rs` checks it byte for byte.
 
 use crate::render::camera::View;
 use crate::render::cull::visibility::{PrimaryRaster, RasterScratch};
