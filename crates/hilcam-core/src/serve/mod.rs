@@ -97,6 +97,7 @@ pub async fn run(
     let out = Outputs::start(&cfg, &scene, &camera, &registry, inputs).await?;
     let session = session_file::start(&cfg, &camera, &settings, input_name, clock, &registry)?;
     let helpers = Helpers::start(&cfg, &registry, &counters, &shutdown).await?;
+    scheduler::register_metrics(&registry);
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 

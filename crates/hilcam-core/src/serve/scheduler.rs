@@ -570,6 +570,13 @@ async fn next_tick(ticker: &mut Option<tokio::time::Interval>) -> Option<Instant
 /// `max_frames` frames are out. The frame in flight is finished and published. However
 /// it stops (done, or the renderer failed), it triggers `shutdown` for the rest of the
 /// server.
+/// Create the scheduler's metric series (at zero) in `registry`, so a `/metrics` scrape
+/// made before the first frame already lists every series; [`run_scheduler`] then uses
+/// the same ones (a registry hands out one series per name and labels).
+pub fn register_metrics(registry: &Registry) {
+    Metrics::new(registry);
+}
+
 pub async fn run_scheduler(
     cfg: SchedulerConfig,
     pipeline: FramePipeline,
