@@ -22,3 +22,4 @@ mod silhouette;
 mod sun_shadow;
 mod trade;
 mod waves;
+mod window;

@@ -5,7 +5,7 @@
 //! replayed offline are the same bytes. Synchronous; callers choose the thread.
 
 use crate::pose::Pose;
-use crate::render::camera::{CameraModel, View};
+use crate::render::camera::{CameraModel, View, Window};
 use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
 use crate::render::sampling::mix64;
@@ -29,6 +29,18 @@ pub struct RenderedFrame {
     pub integration_s: Option<f64>,
 }
 
+/// What a camera client asked of one frame besides its pose and render settings (a
+/// GigE Vision client's ExposureTime and ROI). The default asks nothing: the frame is
+/// the configured one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FrameRequest {
+    /// Integration time (s) replacing the configured or auto-exposure one for this frame;
+    /// the auto-exposure state is left alone. Ignored without a detector.
+    pub integration_s: Option<f64>,
+    /// Only this region of the sensor is rendered and converted (it must be inside it).
+    pub roi: Option<Window>,
+}
+
 /// Render + sensor for one camera. Holds the auto-exposure state between frames.
 pub struct FramePipeline {
     scene: Arc<Scene>,
@@ -38,6 +50,8 @@ pub struct FramePipeline {
     primary: PrimaryVisibility,
     /// Kept from frame to frame: [`FramePipeline::frame`] renders without allocating.
     buffers: FrameBuffers,
+    /// The sensor of the last ROI's grown window, kept while the ROI stays.
+    windowed: Option<Sensor>,
 }
 
 impl FramePipeline {
@@ -52,6 +66,7 @@ impl FramePipeline {
             auto_exposure,
             primary: PrimaryVisibility::default(),
             buffers: FrameBuffers::default(),
+            windowed: None,
         })
     }
 
@@ -120,8 +135,7 @@ impl FramePipeline {
     }
 
     /// [`FramePipeline::frame`] with the integration time set from outside (a camera
-    /// client's ExposureTime): it replaces the configured or auto-exposure time for this
-    /// frame and leaves the auto-exposure state alone. Ignored without a detector.
+    /// client's ExposureTime). See [`FrameRequest::integration_s`].
     pub fn frame_exposed(
         &mut self,
         pose: &Pose,
@@ -129,21 +143,62 @@ impl FramePipeline {
         index: u64,
         integration_s: Option<f64>,
     ) -> Result<RenderedFrame, SensorError> {
-        let (view, options) = (self.view(pose), self.options(settings, index));
+        self.frame_requested(pose, settings, index, &FrameRequest { integration_s, roi: None })
+    }
+
+    /// [`FramePipeline::frame`] as a camera client asked for it. With an ROI only the
+    /// ROI is rendered, grown by the PSF's reach so that its pixels are converted as in
+    /// the full frame: with uniform sampling they are the full frame's bytes there.
+    /// The auto-exposure meters the ROI, as a camera's does.
+    pub fn frame_requested(
+        &mut self,
+        pose: &Pose,
+        settings: &RenderSettings,
+        index: u64,
+        request: &FrameRequest,
+    ) -> Result<RenderedFrame, SensorError> {
+        let roi = match request.roi.filter(|w| !w.is_full(&self.camera)) {
+            None => None,
+            Some(w) => Some(
+                w.inside(&self.camera)
+                    .map_err(|e| SensorError::Invalid { field: "roi".into(), message: e.to_string() })?,
+            ),
+        };
+        let (mut view, options) = (self.view(pose), self.options(settings, index));
+        if let Some(roi) = &roi {
+            let (mx, my) = self.sensor.psf_margin();
+            let area = roi.grown(mx, my, &self.camera);
+            if self.windowed.as_ref().is_none_or(|s| s.window() != area) {
+                self.windowed = Some(self.sensor.windowed(area));
+            }
+            view = view.window(&area);
+        }
         let render = render_into(&mut self.buffers, &self.scene, &view, &options);
         let radiance = self.buffers.image();
+        let sensor = if roi.is_some() { self.windowed.as_ref().expect("set above") } else { &self.sensor };
         let t0 = Instant::now();
         let seed = Self::sensor_seed(settings, index);
-        let fixed = integration_s.filter(|_| self.scene.sensor.detector.is_some());
-        let out = match (fixed, &mut self.auto_exposure) {
-            (Some(t), _) => self.sensor.apply_with_integration(radiance, seed, t)?,
-            (None, Some(ae)) => self.sensor.apply_auto(radiance, seed, ae)?.0,
-            (None, None) => self.sensor.apply(radiance, seed)?,
+        let fixed = request.integration_s.filter(|_| self.scene.sensor.detector.is_some());
+        let out = match fixed.or_else(|| self.auto_exposure.as_ref().map(AutoExposure::integration_time_s)) {
+            Some(t) => sensor.apply_with_integration(radiance, seed, t)?,
+            None => sensor.apply(radiance, seed)?,
         };
+        let (pixels, width, height) = match &roi {
+            None => (out.pixels, self.camera.width, self.camera.height),
+            Some(roi) => {
+                let area = sensor.window();
+                (out.pixels.crop(area.width, &area.relative(roi)), roi.width, roi.height)
+            }
+        };
+        if fixed.is_none()
+            && let Some(ae) = &mut self.auto_exposure
+        {
+            ae.update(&pixels);
+        }
         Ok(RenderedFrame {
-            pixels: out.pixels,
-            width: self.camera.width,
-            height: self.camera.height,
+            pixels,
+            width,
+            height,
             settings: *settings,
             render,
             sensor_time: t0.elapsed(),

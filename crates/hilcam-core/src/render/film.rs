@@ -101,6 +101,23 @@ pub enum Pixels {
 }
 
 impl Pixels {
+    /// `window` of an image `width` columns wide (`window` inside it), row by row.
+    pub fn crop(&self, width: u32, window: &crate::render::camera::Window) -> Pixels {
+        fn rows<T: Copy>(v: &[T], width: u32, w: &crate::render::camera::Window) -> Vec<T> {
+            let (x, n, stride) = (w.x as usize, w.width as usize, width as usize);
+            let mut out = Vec::with_capacity(n * w.height as usize);
+            for row in w.y as usize..(w.y + w.height) as usize {
+                out.extend_from_slice(&v[row * stride + x..row * stride + x + n]);
+            }
+            out
+        }
+        match self {
+            Pixels::Mono8(v) => Pixels::Mono8(rows(v, width, window)),
+            Pixels::Mono16 { data, bits } => Pixels::Mono16 { data: rows(data, width, window), bits: *bits },
+            Pixels::Float32(v) => Pixels::Float32(rows(v, width, window)),
+        }
+    }
+
     pub fn format(&self) -> PixelFormat {
         match self {
             Pixels::Mono8(_) => PixelFormat::Mono8,

@@ -36,7 +36,7 @@ pub mod ptc;
 pub use config::{CameraPreset, OutputKind, SensorConfig};
 pub use exposure::{AutoExposure, ExposureUpdate};
 
-use crate::render::camera::CameraModel;
+use crate::render::camera::{CameraModel, PixelKeys, Window};
 use crate::render::film::{Pixels, RadianceImage};
 use adc::{Adc, Conversion};
 use detector::Detector;
@@ -71,6 +71,8 @@ pub struct Sensor {
     e_per_radiance_s: Option<f64>,
     adc: Option<Adc>,
     fixed_pattern: Option<detector::FixedPattern>,
+    /// The part of the array this sensor converts (the whole array unless [`Sensor::windowed`]).
+    window: Window,
 }
 
 /// One converted frame.
@@ -169,11 +171,30 @@ impl Sensor {
                 (d.prnu.unwrap_or(0.0) > 0.0 || d.dsnu_e_per_s.unwrap_or(0.0) > 0.0)
                     .then(|| detector::FixedPattern::new(d.fpn_seed, camera.width as usize * camera.height as usize))
             }),
+            window: Window::full(camera),
         })
     }
 
     pub fn camera(&self) -> &CameraModel {
         &self.camera
+    }
+
+    /// This sensor converting only `window` of its array (a client's ROI, grown by
+    /// [`Sensor::psf_margin`]): each pixel gets the cos⁴ factor, fixed pattern and noise
+    /// stream of its place on the full array. `window` must be inside the array.
+    pub fn windowed(&self, window: Window) -> Sensor {
+        Sensor { window, ..self.clone() }
+    }
+
+    /// The part of the array converted.
+    pub fn window(&self) -> Window {
+        self.window
+    }
+
+    /// Columns and rows the PSF reads on each side of a pixel: a window grown by this
+    /// gives its inner pixels the values they have in the full frame.
+    pub fn psf_margin(&self) -> (u32, u32) {
+        self.psf.iter().fold((0, 0), |(x, y), k| (x + k.rx as u32, y + k.ry as u32))
     }
 
     pub fn config(&self) -> &SensorConfig {
@@ -214,12 +235,13 @@ impl Sensor {
         let tau = o.transmittance.unwrap_or(1.0);
         if tau != 1.0 || o.cos4 {
             let w = img.width as usize;
-            let cam = &self.camera;
+            let (cam, keys) = (&self.camera, self.keys());
             out.data.par_chunks_mut(w).enumerate().for_each(|(row, line)| {
                 for (col, v) in line.iter_mut().enumerate() {
                     let mut f = tau;
                     if o.cos4 {
-                        f *= optics::cos4(cam, col as u32, row as u32);
+                        let (r, c) = keys.on_sensor(row as u32, col as u32);
+                        f *= optics::cos4(cam, c, r);
                     }
                     *v = (*v as f64 * f) as f32;
                 }
@@ -285,6 +307,7 @@ impl Sensor {
             _ => None,
         };
         let scale = self.radiance_scale;
+        let keys = self.keys();
         let n = rad.data.len();
         let mut dn = vec![0u16; n];
         let rows: Vec<RowStats> = dn
@@ -294,7 +317,7 @@ impl Sensor {
             .map(|(row, (out, src))| {
                 let mut st = RowStats::default();
                 for (col, (o, l)) in out.iter_mut().zip(src).enumerate() {
-                    let pixel = (row * w + col) as u64;
+                    let pixel = keys.key(row as u32, col as u32);
                     let (expected, collected, full, read) = match &det {
                         Some(d) => {
                             let e = d.expected(*l as f64, pixel);
@@ -352,16 +375,20 @@ impl Sensor {
         Ok(SensorOutput { pixels, integration_time_s: det.as_ref().map(|_| t_s), stats: s })
     }
 
+    fn keys(&self) -> PixelKeys {
+        PixelKeys::window(&self.window, self.camera.width)
+    }
+
     fn check_size(&self, img: &RadianceImage) -> Result<(), SensorError> {
-        if img.width != self.camera.width
-            || img.height != self.camera.height
+        if img.width != self.window.width
+            || img.height != self.window.height
             || img.data.len() != img.width as usize * img.height as usize
         {
             return Err(SensorError::SizeMismatch {
                 got_w: img.width,
                 got_h: img.height,
-                want_w: self.camera.width,
-                want_h: self.camera.height,
+                want_w: self.window.width,
+                want_h: self.window.height,
             });
         }
         Ok(())

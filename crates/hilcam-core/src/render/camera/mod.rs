@@ -7,9 +7,11 @@
 
 pub mod distortion;
 pub mod view;
+pub mod window;
 
 use serde::Deserialize;
 pub use view::{PixelRect, TargetBounds, View};
+pub use window::{PixelKeys, Window};
 
 /// Intrinsics of a pinhole camera, as read from `[camera]` in a scene or config file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

@@ -7,6 +7,7 @@
 
 use super::CameraModel;
 use super::distortion::Distortion;
+use super::window::{PixelKeys, Window};
 use crate::pose::Pose;
 use crate::render::geometry::Ray;
 use glam::{DMat3, DVec3, Vec3};
@@ -53,6 +54,8 @@ pub struct View {
     pub(in crate::render) distortion: Option<Distortion>,
     /// Unit vector toward the sun, render frame.
     pub sun: Vec3,
+    /// Random-number key of each pixel: its index on the full sensor.
+    pub(in crate::render) keys: PixelKeys,
 }
 
 impl View {
@@ -86,7 +89,26 @@ impl View {
             bounds,
             distortion: None,
             sun,
+            keys: PixelKeys::full(cam.width),
         }
+    }
+
+    /// The same view cropped to `window` of its image (`window` inside it, see
+    /// [`Window::inside`]): the same sensor coordinates and random numbers per pixel, only
+    /// fewer pixels. The image's pixel (0, 0) is the sensor's (`window.y`, `window.x`).
+    pub fn window(mut self, window: &Window) -> View {
+        // `pp - x` is exact (both are on pp's grid when x ≤ 2·pp), so each primary ray's
+        // `(col + u) - pp'` rounds the same real number as the full view's `(x + col + u) - pp`.
+        self.pp = [self.pp[0] - f64::from(window.x), self.pp[1] - f64::from(window.y)];
+        self.keys = self.keys.shifted(window);
+        (self.width, self.height) = (window.width, window.height);
+        self
+    }
+
+    /// Random-number key of the image's pixel (`row`, `col`).
+    #[inline]
+    pub fn pixel_key(&self, row: u32, col: u32) -> u64 {
+        self.keys.key(row, col)
     }
 
     /// The image's width and height in pixels.

@@ -185,8 +185,7 @@ impl TileJob<'_> {
     /// The random-number stream of one camera sample.
     #[inline]
     fn sample_stream<S: PerSample>(&self, CameraSample { row, col, index }: CameraSample) -> S {
-        let pixel = u64::from(row) * self.width as u64 + u64::from(col);
-        S::for_sample(self.seed, self.frame, pixel, index)
+        S::for_sample(self.seed, self.frame, self.view.pixel_key(row, col), index)
     }
 
     /// The sample's position in the image (its stream's first 2-D point within the pixel).
