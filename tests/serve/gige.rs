@@ -141,7 +141,7 @@ async fn run(cmd: &'static str, args: Vec<String>) -> (bool, String) {
     .unwrap()
 }
 
-async fn python_client(ip: Ipv4Addr, frames: u32, extra: &[&str]) -> serde_json::Value {
+pub(crate) async fn python_client(ip: Ipv4Addr, frames: u32, extra: &[&str]) -> serde_json::Value {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gige_client/aravis_client.py");
     let mut args = vec![script.to_string(), ip.to_string(), frames.to_string()];
     args.extend(extra.iter().map(|s| s.to_string()));

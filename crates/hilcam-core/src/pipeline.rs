@@ -33,12 +33,22 @@ pub struct RenderedFrame {
 /// GigE Vision client's ExposureTime and ROI). The default asks nothing: the frame is
 /// the configured one.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FrameRequest {
     /// Integration time (s) replacing the configured or auto-exposure one for this frame;
     /// the auto-exposure state is left alone. Ignored without a detector.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub integration_s: Option<f64>,
     /// Only this region of the sensor is rendered and converted (it must be inside it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub roi: Option<Window>,
+}
+
+impl FrameRequest {
+    /// Asks nothing: the configured frame.
+    pub fn is_default(&self) -> bool {
+        *self == FrameRequest::default()
+    }
 }
 
 /// Render + sensor for one camera. Holds the auto-exposure state between frames.

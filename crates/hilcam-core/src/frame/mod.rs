@@ -119,7 +119,7 @@ impl Frame {
         let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
         bytes.extend_from_slice(&encode_header(&self.meta, &payload));
         bytes.extend_from_slice(&payload);
-        EncodedFrame { meta: self.meta, bytes }
+        EncodedFrame { meta: self.meta, bytes, roi: None }
     }
 }
 
@@ -129,6 +129,10 @@ pub struct EncodedFrame {
     pub meta: FrameMeta,
     /// The 88-byte header followed by the payload.
     pub bytes: Vec<u8>,
+    /// The region of the sensor the pixels are, when a camera client asked for one
+    /// (`FrameRequest::roi`); None: the whole array. Not on the wire: the header has
+    /// the size, and a GigE Vision stream carries the offsets in its leader.
+    pub roi: Option<crate::render::camera::Window>,
 }
 
 impl EncodedFrame {

@@ -23,7 +23,7 @@
 //! - The directory's [`manifest`] pins scene, size and settings: a resume with others is refused.
 
 use crate::frame::{FrameFlags, FrameMeta, unix_ns_now};
-use crate::pipeline::FramePipeline;
+use crate::pipeline::{FramePipeline, FrameRequest};
 use crate::pose::trajectory::TrajectorySample;
 use crate::render::integrator::RenderSettings;
 use crate::scene::Scene;
@@ -293,16 +293,14 @@ fn trim_partial_line(path: &Path) -> Result<(), ReplayError> {
 /// (`expected(k)`) is refused.
 fn done_frames(
     dir: &Path,
-    w: u32,
-    h: u32,
-    expected: impl Fn(u64) -> RenderSettings,
+    expected: impl Fn(u64) -> (RenderSettings, (u32, u32)),
     stats: &mut ReplayStats,
 ) -> Result<HashSet<u64>, ReplayError> {
     let mut done = HashSet::new();
     for log in log_files(dir)? {
         for d in read_log(&log, &mut stats.truncated_lines)? {
             let r = &d.rec;
-            let want = expected(r.frame_seq);
+            let (want, (w, h)) = expected(r.frame_seq);
             let (found, expected) = (
                 format!("{}x{} spp {} depth {}", r.width, r.height, r.spp, r.depth),
                 format!("{w}x{h} spp {} depth {}", want.spp, want.depth),
@@ -329,6 +327,8 @@ pub struct FrameJob {
     pub settings: RenderSettings,
     pub flags: FrameFlags,
     pub expect_crc32: Option<u32>,
+    /// What the camera client asked of the frame live (its exposure and ROI).
+    pub request: FrameRequest,
 }
 
 /// The jobs of a trajectory: row k is frame k with pose seq k at `settings`.
@@ -340,6 +340,7 @@ pub fn trajectory_jobs(samples: &[TrajectorySample], settings: &RenderSettings) 
             settings: *settings,
             flags: FrameFlags::default(),
             expect_crc32: None,
+            request: FrameRequest::default(),
         })
         .collect()
 }
@@ -356,6 +357,7 @@ pub fn session_jobs(session: &crate::session::Session, verify: bool) -> Vec<Fram
             settings: f.settings.to_settings(),
             flags: FrameFlags(f.flags),
             expect_crc32: verify.then_some(f.payload_crc32),
+            request: f.request,
         })
         .collect()
 }
@@ -398,14 +400,16 @@ pub fn replay_jobs_until(
     }
     let dir = &cfg.out_dir;
     std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let (w, h) = (pipeline.camera().width, pipeline.camera().height);
+    let full = (pipeline.camera().width, pipeline.camera().height);
+    let size = |r: &FrameRequest| r.roi.map_or(full, |w| (w.width, w.height));
     let manifest = manifest::ReplayManifest::new(cfg, pipeline);
     let has_manifest = manifest::check(dir, &manifest)?;
     let mut stats = ReplayStats::default();
     let log_path = dir.join(cfg.shard.log_name());
     trim_partial_line(&log_path)?;
-    let by_index: std::collections::HashMap<u64, RenderSettings> = jobs.iter().map(|j| (j.index, j.settings)).collect();
-    let done = done_frames(dir, w, h, |k| by_index.get(&k).copied().unwrap_or(cfg.settings), &mut stats)?;
+    let by_index: std::collections::HashMap<u64, (RenderSettings, (u32, u32))> =
+        jobs.iter().map(|j| (j.index, (j.settings, size(&j.request)))).collect();
+    let done = done_frames(dir, |k| by_index.get(&k).copied().unwrap_or((cfg.settings, full)), &mut stats)?;
     let positions = select_frames(jobs.len() as u64, cfg.every, cfg.shard);
     stats.selected = positions.len() as u64;
     let todo: Vec<&FrameJob> =
@@ -440,8 +444,9 @@ pub fn replay_jobs_until(
             let done = stats.skipped + stats.rendered;
             return Err(ReplayError::Interrupted { signal, dir: dir.clone(), done, selected: stats.selected, last });
         }
-        let f =
-            pipeline.frame(&job.pose, &job.settings, k).map_err(|source| ReplayError::Sensor { frame: k, source })?;
+        let f = pipeline
+            .frame_requested(&job.pose, &job.settings, k, &job.request)
+            .map_err(|source| ReplayError::Sensor { frame: k, source })?;
         let payload = f.pixels.to_le_bytes();
         let crc = crate::frame::CRC32.checksum(&payload);
         if let Some(want) = job.expect_crc32
@@ -465,7 +470,7 @@ pub fn replay_jobs_until(
             true => disk_full(e.to_string()),
             false => ReplayError::Image { frame: k, path: path.clone(), msg: e.to_string() },
         })?;
-        let mut meta = frame_meta(k, &job.pose, &f.pixels, w, h, &job.settings, f.integration_s);
+        let mut meta = frame_meta(k, &job.pose, &f.pixels, f.width, f.height, &job.settings, f.integration_s);
         meta.flags = job.flags;
         let line =
             serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");

@@ -101,7 +101,7 @@ pub async fn run(
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 
-    let sched_cfg = scheduler_config(&cfg, settings, &mut embed, session.as_ref(), out.exposure);
+    let sched_cfg = scheduler_config(&cfg, settings, &mut embed, session.as_ref(), out.requests);
     let sinks = Arc::new(out.sinks);
     let summary =
         run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), registry.clone(), shutdown.clone()).await;
@@ -147,7 +147,7 @@ fn scheduler_config(
     settings: RenderSettings,
     embed: &mut Embed,
     session: Option<&SessionWriter>,
-    exposure: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
 ) -> SchedulerConfig {
     SchedulerConfig {
         trigger: cfg.trigger.mode,
@@ -159,7 +159,7 @@ fn scheduler_config(
         max_frames: embed.max_frames,
         session: session.map(SessionWriter::tap),
         fault: embed.render_fault.take(),
-        exposure,
+        requests,
     }
 }
 

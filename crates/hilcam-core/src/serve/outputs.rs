@@ -18,8 +18,8 @@ pub(super) struct Outputs {
     pub latency: Arc<Histogram>,
     /// The inputs, with a GigE client's software triggers merged in.
     pub inputs: mpsc::Receiver<InputEvent>,
-    /// A GigE client's exposure time (see [`super::scheduler::SchedulerConfig::exposure`]).
-    pub exposure: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    /// What a GigE client asks of each frame (see [`super::scheduler::SchedulerConfig::requests`]).
+    pub requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
 }
 
 impl Outputs {
@@ -37,7 +37,7 @@ impl Outputs {
         );
         let stream = start_stream(cfg, registry, latency.clone()).await?;
         let stream_addr = stream.local_addr();
-        let mut out = Outputs { sinks: vec![Sink::Stream(stream)], stream_addr, latency, inputs, exposure: None };
+        let mut out = Outputs { sinks: vec![Sink::Stream(stream)], stream_addr, latency, inputs, requests: None };
         if let Some(r) = &cfg.record
             && let Some(dir) = &r.dir
         {
@@ -57,7 +57,7 @@ impl Outputs {
         camera: &CameraModel,
         registry: &Arc<Registry>,
     ) -> anyhow::Result<()> {
-        use crate::sink::gige::{CameraDescription, GigeDevice, exposure, triggers};
+        use crate::sink::gige::{CameraDescription, GigeDevice, request, triggers};
         let desc =
             CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz).map_err(anyhow::Error::msg)?;
         let device = GigeDevice::start(g, desc, registry.clone()).await?;
@@ -65,7 +65,7 @@ impl Outputs {
             registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
         let inputs = std::mem::replace(&mut self.inputs, mpsc::channel(1).1);
         self.inputs = triggers::merge_software_triggers(inputs, &device, dropped);
-        self.exposure = Some(exposure::follow_exposure(&device));
+        self.requests = Some(request::follow_requests(&device));
         self.sinks.push(Sink::Gige(device));
         Ok(())
     }

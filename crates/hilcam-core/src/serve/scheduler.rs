@@ -15,7 +15,7 @@ use super::render_times::RenderTimes;
 use crate::frame::{EncodedFrame, Frame, FrameFlags, FrameMeta, decode_header, unix_ns_now};
 use crate::link::{InputEvent, Shutdown};
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
-use crate::pipeline::FramePipeline;
+use crate::pipeline::{FramePipeline, FrameRequest};
 use crate::pose::Pose;
 use crate::render::integrator::RenderSettings;
 use crate::session::writer::SessionTap;
@@ -57,9 +57,9 @@ pub struct SchedulerConfig {
     /// Called on the render thread with each frame's index just before it renders: a
     /// panic here is a render fault (tests inject one to show what the server does).
     pub fault: Option<FaultInjector>,
-    /// An integration time set from outside (a GigE Vision client's ExposureTime), read
-    /// as each frame starts; `None` in the channel: the sensor's own (configured or auto).
-    pub exposure: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    /// What a camera client asks of each frame (a GigE Vision client's ExposureTime and
+    /// ROI), read as each frame starts; the default request: the configured frame.
+    pub requests: Option<tokio::sync::watch::Receiver<FrameRequest>>,
 }
 
 /// See [`SchedulerConfig::fault`].
@@ -123,8 +123,8 @@ struct Job {
     /// Lateness is measured from here (pose arrival, tick or trigger).
     reference: Instant,
     settings: RenderSettings,
-    /// Integration time override for the sensor (see [`SchedulerConfig::exposure`]).
-    exposure_s: Option<f64>,
+    /// What the camera client asked of this frame (see [`SchedulerConfig::requests`]).
+    request: FrameRequest,
     index: u64,
     flags: FrameFlags,
 }
@@ -228,6 +228,7 @@ fn record(tap: Option<&SessionTap>, d: &Done) {
                 degraded: flags.contains(FrameFlags::DEGRADED),
                 integration_s: d.integration_s,
                 payload_crc32: crc,
+                request: j.request,
             });
         }
         Err(e) => tap.send(SessionLine::FrameFailed(FrameFailedLine {
@@ -282,7 +283,7 @@ fn render_job(
     job: &Job,
     budget: Duration,
 ) -> (Result<Arc<EncodedFrame>, FrameFailure>, Option<f64>) {
-    let f = match pipeline.frame_exposed(&job.pose, &job.settings, job.index, job.exposure_s) {
+    let f = match pipeline.frame_requested(&job.pose, &job.settings, job.index, &job.request) {
         Ok(f) => f,
         Err(e) => return (Err(FrameFailure { reason: "sensor", message: e.to_string() }), None),
     };
@@ -305,7 +306,7 @@ fn render_job(
     };
     let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
         fr.meta.emit_unix_ns = unix_ns_now();
-        Arc::new(fr.encode())
+        Arc::new(EncodedFrame { roi: job.request.roi, ..fr.encode() })
     });
     (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), f.integration_s)
 }
@@ -515,7 +516,7 @@ impl Loop {
             arrival_unix_ns: unix_ns_of(arrival),
             reference,
             settings: RenderSettings { spp: q.spp, depth: q.depth, ..self.cfg.settings },
-            exposure_s: self.cfg.exposure.as_ref().and_then(|rx| *rx.borrow()),
+            request: self.cfg.requests.as_ref().map(|rx| *rx.borrow()).unwrap_or_default(),
             index: self.index,
             flags,
         };

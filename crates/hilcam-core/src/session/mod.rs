@@ -11,6 +11,7 @@
 
 pub mod writer;
 
+use crate::pipeline::FrameRequest;
 use crate::pose::Pose;
 use crate::render::integrator::{RenderSettings, SamplerKind};
 use crate::render::sampling::Sequence;
@@ -194,6 +195,10 @@ pub struct FrameLine {
     pub integration_s: Option<f64>,
     /// CRC-32/ISO-HDLC of the streamed payload (pixels after the sensor).
     pub payload_crc32: u32,
+    /// What a camera client asked of this frame (a GigE Vision client's ExposureTime and
+    /// ROI); absent when it asked nothing, so the frame is the configured one.
+    #[serde(default, skip_serializing_if = "FrameRequest::is_default")]
+    pub request: FrameRequest,
 }
 
 /// A frame whose sensor stage failed (nothing was streamed for this index).
@@ -395,7 +400,22 @@ mod tests {
             degraded: true,
             integration_s: Some(1.0 / 3.0),
             payload_crc32: 0xdead_beef,
+            request: FrameRequest::default(),
         }
+    }
+
+    #[test]
+    fn a_frame_line_carries_a_clients_request_only_when_there_is_one() {
+        let plain = SessionLine::Frame(frame_line()).encode();
+        assert!(!plain.contains("request"), "{plain}");
+        let roi = crate::render::camera::Window { x: 8, y: 4, width: 32, height: 16 };
+        let line = FrameLine { request: FrameRequest { integration_s: Some(5e-6), roi: Some(roi) }, ..frame_line() };
+        let text = SessionLine::Frame(line.clone()).encode();
+        assert!(
+            text.ends_with(r#""request":{"integration_s":5e-6,"roi":{"x":8,"y":4,"width":32,"height":16}}}"#),
+            "{text}"
+        );
+        assert_eq!(SessionLine::decode(&text, Path::new("s.jsonl"), 1).unwrap(), SessionLine::Frame(line));
     }
 
     fn bits(p: &Pose) -> Vec<u64> {

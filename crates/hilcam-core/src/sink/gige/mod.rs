@@ -14,7 +14,7 @@
 //! - [`describe`]: the camera description from hilcam's camera and sensor config.
 //! - [`device`]: sockets, the stream thread, the resend ring.
 //! - [`triggers`]: software triggers into the serve loop's inputs.
-//! - [`exposure`]: the client's ExposureTime as the sensor's integration time.
+//! - [`request`]: the client's ExposureTime and ROI as what each frame renders.
 //!
 //! Reference: `docs/gige.md`.
 
@@ -22,12 +22,12 @@ pub mod chunk;
 pub mod control;
 pub mod describe;
 pub mod device;
-pub mod exposure;
 pub mod genicam;
 pub mod gvcp;
 pub mod gvsp;
 pub mod pixel;
 pub mod registers;
+pub mod request;
 pub mod triggers;
 pub mod zip;
 

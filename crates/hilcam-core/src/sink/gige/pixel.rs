@@ -7,6 +7,7 @@
 //! (`DN << (16 - bits)`). Pixels are little-endian, rows packed.
 
 use crate::frame::{EncodedFrame, PixelFormat};
+use crate::render::camera::Window;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GevPixelFormat {
@@ -75,6 +76,8 @@ pub enum ConvertError {
     Format { seq: u64, format: PixelFormat },
     #[error("frame {seq} is {width}x{height}: ROI {roi_w}x{roi_h} at ({x}, {y}) is outside it")]
     Roi { seq: u64, width: u32, height: u32, roi_w: u32, roi_h: u32, x: u32, y: u32 },
+    #[error("frame {seq} was rendered for the ROI {was:?}, the client now asks for {now:?}")]
+    StaleRoi { seq: u64, was: Window, now: Window },
 }
 
 /// Shift a `from`-bit value to `to` bits (up or down).
@@ -82,11 +85,16 @@ fn rescale(v: u16, from: u8, to: u8) -> u16 {
     if to >= from { v << (to - from) } else { v >> (from - to) }
 }
 
-/// The ROI of `frame` in `format`, little-endian. A frame already rendered at the
-/// ROI's size is sent whole; a larger one (the full sensor) is cropped at the offsets.
+/// The ROI of `frame` in `format`, little-endian. A frame rendered for this ROI is sent
+/// whole; one of the whole array is cropped at the offsets; one rendered for another ROI
+/// (the client moved it while the frame rendered) is refused.
 pub fn convert(frame: &EncodedFrame, roi: Roi, format: GevPixelFormat) -> Result<Vec<u8>, ConvertError> {
     let m = &frame.meta;
-    let (x0, y0) = if m.width == roi.width && m.height == roi.height {
+    let wanted = Window { x: roi.offset_x, y: roi.offset_y, width: roi.width, height: roi.height };
+    let (x0, y0) = if let Some(was) = frame.roi {
+        if was != wanted {
+            return Err(ConvertError::StaleRoi { seq: m.frame_seq, was, now: wanted });
+        }
         (0, 0)
     } else if u64::from(roi.offset_x) + u64::from(roi.width) <= u64::from(m.width)
         && u64::from(roi.offset_y) + u64::from(roi.height) <= u64::from(m.height)
@@ -170,14 +178,17 @@ mod tests {
     }
 
     #[test]
-    fn roi_crops_or_passes_a_frame_rendered_at_its_size() {
+    fn roi_crops_a_whole_frame_passes_one_rendered_for_it_and_refuses_a_stale_one() {
         let f = frame12(4, 3);
         let roi = Roi { offset_x: 1, offset_y: 1, width: 2, height: 2 };
         let m8 = convert(&f, roi, GevPixelFormat::Mono8).unwrap();
         assert_eq!(m8, vec![5, 6, 9, 10]);
-        let small = frame12(2, 2);
-        assert_eq!(convert(&small, roi, GevPixelFormat::Mono8).unwrap(), vec![0, 1, 2, 3]);
+        let small = EncodedFrame { roi: Some(Window { x: 1, y: 1, width: 2, height: 2 }), ..frame12(2, 2) };
+        assert_eq!(convert(&small, roi, GevPixelFormat::Mono8).unwrap(), vec![0, 1, 2, 3], "rendered for it");
         let off = Roi { offset_x: 3, offset_y: 0, width: 2, height: 2 };
         assert!(matches!(convert(&f, off, GevPixelFormat::Mono8), Err(ConvertError::Roi { .. })));
+        let moved = Roi { offset_x: 0, ..roi };
+        let e = convert(&small, moved, GevPixelFormat::Mono8).unwrap_err();
+        assert!(matches!(e, ConvertError::StaleRoi { .. }), "rendered for another ROI: {e}");
     }
 }

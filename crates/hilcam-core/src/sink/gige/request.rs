@@ -1,0 +1,77 @@
+//! A client's ExposureTime and ROI as the [`FrameRequest`] the serve loop renders.
+
+use super::{CameraSettings, GigeDevice};
+use crate::pipeline::FrameRequest;
+use crate::render::camera::Window;
+use tokio::sync::watch;
+
+/// The integration time (s) that `s` asks of the sensor, or `None` for the sensor's own
+/// (auto-exposure on, or the configured time the client has not changed — so a client
+/// that only reads leaves every frame's bytes as they were).
+pub fn integration_override(initial: &CameraSettings, s: &CameraSettings) -> Option<f64> {
+    let untouched = !initial.exposure_auto && s.exposure_us == initial.exposure_us;
+    (!s.exposure_auto && !untouched).then(|| f64::from(s.exposure_us) * 1e-6)
+}
+
+/// The region `s` asks for, or `None` for the whole sensor (`initial` is the whole).
+pub fn roi(initial: &CameraSettings, s: &CameraSettings) -> Option<Window> {
+    let w = Window { x: s.offset_x, y: s.offset_y, width: s.width, height: s.height };
+    let full = Window { x: 0, y: 0, width: initial.width, height: initial.height };
+    (w != full).then_some(w)
+}
+
+/// What `s` asks of each frame.
+pub fn frame_request(initial: &CameraSettings, s: &CameraSettings) -> FrameRequest {
+    FrameRequest { integration_s: integration_override(initial, s), roi: roi(initial, s) }
+}
+
+/// A channel of [`frame_request`] that follows the device's settings until the device
+/// stops; the scheduler reads it as each frame starts.
+pub fn follow_requests(device: &GigeDevice) -> watch::Receiver<FrameRequest> {
+    let mut settings = device.settings();
+    let initial = *settings.borrow();
+    let (tx, rx) = watch::channel(frame_request(&initial, &initial));
+    tokio::spawn(async move {
+        while settings.changed().await.is_ok() {
+            let r = frame_request(&initial, &settings.borrow_and_update());
+            if tx.send_if_modified(|v| std::mem::replace(v, r) != r) {
+                tracing::info!(
+                    integration_s = ?r.integration_s,
+                    roi = ?r.roi,
+                    "GigE Vision client changed the frame (None: the sensor's own exposure, the whole array)"
+                );
+            }
+            if tx.is_closed() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_a_changed_or_manual_exposure_overrides_the_sensor() {
+        let cam = crate::sink::gige::registers::tests::camera();
+        let fixed = CameraSettings { exposure_auto: false, exposure_us: 250.0, ..CameraSettings::initial(&cam) };
+        assert_eq!(integration_override(&fixed, &fixed), None, "untouched: the configured time, same bytes");
+        let written = CameraSettings { exposure_us: 500.0, ..fixed };
+        assert_eq!(integration_override(&fixed, &written), Some(500e-6));
+        let auto = CameraSettings { exposure_auto: true, ..fixed };
+        assert_eq!(integration_override(&auto, &auto), None, "auto-exposure runs");
+        let manual = CameraSettings { exposure_auto: false, ..auto };
+        assert_eq!(integration_override(&auto, &manual), Some(250e-6), "auto switched off: the written time");
+    }
+
+    #[test]
+    fn only_a_region_smaller_than_the_sensor_is_an_roi() {
+        let cam = crate::sink::gige::registers::tests::camera();
+        let full = CameraSettings::initial(&cam);
+        assert_eq!(frame_request(&full, &full), FrameRequest::default(), "the whole array: the configured frame");
+        let small = CameraSettings { width: 16, height: 8, offset_x: 4, offset_y: 2, ..full };
+        assert_eq!(roi(&full, &small), Some(Window { x: 4, y: 2, width: 16, height: 8 }));
+    }
+}
