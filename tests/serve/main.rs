@@ -12,6 +12,7 @@ mod end_to_end;
 mod gige;
 mod golden;
 mod hardening;
+mod line_formats;
 mod metrics;
 mod replay;
 mod session;
