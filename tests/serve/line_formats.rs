@@ -92,3 +92,40 @@ fn session_frame_line_is_pinned_byte_for_byte() {
     assert_eq!(line.encode(), expected);
     assert_eq!(SessionLine::decode(expected, Path::new("pin.session.jsonl"), 1).unwrap(), line);
 }
+
+/// A `frames.jsonl` reader skips fields it does not know (a newer hilcam's log still
+/// reads) but refuses an unknown pixel format, naming the file and line.
+#[test]
+fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel_format() {
+    let meta = FrameMeta {
+        frame_seq: 0,
+        pose_seq: 0,
+        pose_t_ns: 0,
+        pose_arrival_unix_ns: 0,
+        emit_unix_ns: 0,
+        width: 3,
+        height: 2,
+        format: PixelFormat::Mono16,
+        bit_depth: 12,
+        spp: Spp::ONE,
+        depth: 1,
+        integration_s: 0.0,
+        flags: FrameFlags::default(),
+    };
+    let line = |seq: u64| {
+        let m = FrameMeta { frame_seq: seq, ..meta };
+        serde_json::to_string(&FrameRecord::new(&m, &payload(), frame_file_name(seq, ImageFormat::Png))).unwrap()
+    };
+    let newer = line(0).replacen('{', r#"{"sensor_temp_c":21.5,"#, 1);
+    let back: FrameRecord = serde_json::from_str(&newer).unwrap();
+    assert_eq!((back.meta, back.payload_crc32), (meta, 585_609_882), "an unknown field is skipped");
+
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("frames.jsonl");
+    let bad = line(1).replace(r#""pixel_format":"Mono16""#, r#""pixel_format":"Mono12""#);
+    std::fs::write(&log, format!("{newer}\n{bad}\n")).unwrap();
+    let e = hilcam_core::replay::merge(dir.path()).unwrap_err().to_string();
+    let expected_start = format!("{}:2: not a frame record: unknown pixel_format \"Mono12\"", log.display());
+    assert!(e.starts_with(&expected_start), "{e}");
+    assert!(e.contains("expected Mono8, Mono16 or Float32"), "{e}");
+}

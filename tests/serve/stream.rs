@@ -547,8 +547,8 @@ fn recorder_writes_images_and_json_lines_that_parse_back() {
     let records: Vec<FrameRecord> = log.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(records.len() as u64, stats.written);
     for r in &records {
-        let f = frames.iter().find(|f| f.meta.frame_seq == r.frame_seq).unwrap();
-        assert_eq!(r.meta().unwrap(), f.meta);
+        let f = frames.iter().find(|f| f.meta.frame_seq == r.meta.frame_seq).unwrap();
+        assert_eq!(r.meta, f.meta);
         assert!(r.extrapolated && !r.late);
         assert_eq!(r.payload_crc32, decode_header(&f.bytes).unwrap().payload_crc);
         // The 16-bit PNG holds the DN values as they were.
@@ -580,7 +580,7 @@ fn recorder_counts_what_it_cannot_keep_up_with() {
     for l in lines.lines() {
         let r: FrameRecord = serde_json::from_str(l).unwrap();
         let img = hilcam_core::render::film::read_pfm(&dir.path().join(&r.file)).unwrap();
-        let Pixels::Float32(want) = float_frame(r.frame_seq, 128, 128).pixels() else { unreachable!() };
+        let Pixels::Float32(want) = float_frame(r.meta.frame_seq, 128, 128).pixels() else { unreachable!() };
         assert_eq!(img.data, want);
     }
 }

@@ -223,9 +223,9 @@ fn record(tap: Option<&SessionTap>, d: &Done) {
                 pose: (&j.pose).into(),
                 settings: (&j.settings).into(),
                 flags: flags.0,
-                late: flags.contains(FrameFlags::LATE),
-                extrapolated: flags.contains(FrameFlags::EXTRAPOLATED),
-                degraded: flags.contains(FrameFlags::DEGRADED),
+                late: flags.late(),
+                extrapolated: flags.extrapolated(),
+                degraded: flags.degraded(),
                 integration_s: d.integration_s,
                 payload_crc32: crc,
             });
@@ -288,26 +288,14 @@ fn render_job(
     };
     let late = job.reference.elapsed() > budget;
     let flags = if late { job.flags.with(FrameFlags::LATE) } else { job.flags };
-    let meta = FrameMeta {
-        frame_seq: job.index,
-        pose_seq: job.pose.seq,
-        pose_t_ns: job.pose.t_ns,
-        pose_arrival_unix_ns: job.arrival_unix_ns,
-        emit_unix_ns: 0,
-        width: f.width,
-        height: f.height,
-        format: f.pixels.format(),
-        bit_depth: 0,
-        spp: job.settings.spp,
-        depth: job.settings.depth.min(u32::from(u16::MAX)) as u16,
-        integration_s: f.integration_s.unwrap_or(0.0) as f32,
-        flags,
-    };
+    let meta =
+        FrameMeta { pose_arrival_unix_ns: job.arrival_unix_ns, ..FrameMeta::rendered(job.index, &job.pose, &f, flags) };
+    let integration_s = f.integration_s;
     let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
         fr.meta.emit_unix_ns = unix_ns_now();
         Arc::new(fr.encode())
     });
-    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), f.integration_s)
+    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), integration_s)
 }
 
 /// The text of a panic payload (`panic!` with a literal or a formatted message).
