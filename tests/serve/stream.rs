@@ -296,6 +296,24 @@ async fn every_client_receives_identical_frames() {
     }
 }
 
+/// Dropping the server without `shutdown()` stops it too: the listener closes and each
+/// client gets a clean close after its last whole frame.
+#[tokio::test]
+async fn dropping_the_server_closes_its_clients() {
+    let reg = Registry::new();
+    let server = StreamServer::bind(cfg(8), reg.clone(), None).await.unwrap();
+    let addr = server.local_addr();
+    let mut client = TcpStream::connect(addr).await.unwrap();
+    until(|| server.client_count() == 1).await;
+    let frame = float_frame(0, 16, 8);
+    server.publish(frame.clone());
+    assert_eq!(read_frame(&mut client).await.unwrap(), frame.bytes);
+    drop(server);
+    let closed = tokio::time::timeout(Duration::from_secs(10), read_frame(&mut client)).await;
+    assert!(closed.expect("the client was closed").is_none(), "clean close at a frame boundary");
+    until(|| counter(&reg, "hilcam_stream_clients") == 0).await;
+}
+
 /// A client that stops reading loses frames (oldest first) and never slows another.
 #[tokio::test]
 async fn stalled_client_drops_oldest_and_fast_client_gets_everything() {
