@@ -138,7 +138,10 @@ struct Done {
     integration_s: Option<f64>,
 }
 
-struct Metrics {
+/// The scheduler's metric series. Built once by `serve::run` before the server
+/// announces itself, so a `/metrics` scrape made before the first frame already lists
+/// every series (at zero), then handed to [`run_scheduler`].
+pub struct SchedulerMetrics {
     frames: Counter,
     late: Counter,
     degraded: Counter,
@@ -152,9 +155,9 @@ struct Metrics {
     depth: Gauge,
 }
 
-impl Metrics {
-    fn new(r: &Registry) -> Self {
-        Metrics {
+impl SchedulerMetrics {
+    pub fn new(r: &Registry) -> Self {
+        SchedulerMetrics {
             frames: r.counter("hilcam_frames_rendered_total", "Frames rendered and published", &[]),
             late: r.counter("hilcam_frames_late_total", "Frames emitted after their deadline", &[]),
             degraded: r.counter("hilcam_frames_degraded_total", "Frames rendered below the configured quality", &[]),
@@ -310,7 +313,7 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 /// The loop's state between events: what is due, what is rendering, what was counted.
 struct Loop {
     cfg: SchedulerConfig,
-    m: Metrics,
+    m: SchedulerMetrics,
     s: SchedulerSummary,
     sinks: Arc<Vec<Sink>>,
     governor: Governor,
@@ -332,11 +335,11 @@ struct Loop {
 }
 
 impl Loop {
-    fn new(cfg: SchedulerConfig, sinks: Arc<Vec<Sink>>, registry: &Registry) -> Self {
+    fn new(cfg: SchedulerConfig, sinks: Arc<Vec<Sink>>, m: SchedulerMetrics) -> Self {
         let best = Quality { spp: cfg.settings.spp, depth: cfg.settings.depth };
         Loop {
             governor: Governor::new(cfg.policy, cfg.budget, best),
-            m: Metrics::new(registry),
+            m,
             s: SchedulerSummary::default(),
             sinks,
             best,
@@ -557,27 +560,20 @@ async fn next_tick(ticker: &mut Option<tokio::time::Interval>) -> Option<Instant
 /// Run until `shutdown` is triggered, the inputs close (in `Pose`/`External` mode), or
 /// `max_frames` frames are out. The frame in flight is finished and published. However
 /// it stops (done, or the renderer failed), it triggers `shutdown` for the rest of the
-/// server.
-/// Create the scheduler's metric series (at zero) in `registry`, so a `/metrics` scrape
-/// made before the first frame already lists every series; [`run_scheduler`] then uses
-/// the same ones (a registry hands out one series per name and labels).
-pub fn register_metrics(registry: &Registry) {
-    Metrics::new(registry);
-}
-
+/// server. Counts into `metrics`.
 pub async fn run_scheduler(
     cfg: SchedulerConfig,
     pipeline: FramePipeline,
     mut inputs: mpsc::Receiver<InputEvent>,
     sinks: Arc<Vec<Sink>>,
-    registry: Arc<Registry>,
+    metrics: SchedulerMetrics,
     shutdown: Shutdown,
 ) -> SchedulerSummary {
     let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
     let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
     let renderer = spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx);
     let mut ticker = rate_ticker(&cfg);
-    let mut st = Loop::new(cfg, sinks, &registry);
+    let mut st = Loop::new(cfg, sinks, metrics);
     let renderer = match renderer {
         Ok(r) => r,
         Err(e) => {
