@@ -8,6 +8,7 @@
 
 mod pose_common;
 
+use hilcam_core::link::Shutdown;
 use hilcam_core::link::send::{MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking};
 use hilcam_core::link::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
 use hilcam_core::link::{InputCounters, InputEvent};
@@ -17,7 +18,6 @@ use hilcam_core::pose::trajectory::Trajectory;
 use pose_common::*;
 use socketcan::Socket;
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
@@ -143,14 +143,14 @@ async fn vcan_interface_down_and_up_is_recovered() {
     // Frames sent while the reopened socket was still binding may be lost;
     // resend until poses arrive, then check a full clean replay.
     let ok = wait_for_with(|| {
-        let _ = send_trajectory_blocking(&traj[..1], &opts, &mut w, &AtomicBool::new(false));
+        let _ = send_trajectory_blocking(&traj[..1], &opts, &mut w, &Shutdown::new());
         get(&r.c.accepted) > 0
     })
     .await;
     assert!(ok, "{}", r.c.to_prometheus());
     collect_until(&mut r.rx, &mut ev, |e| !poses(e).is_empty()).await;
     let before = get(&r.c.accepted);
-    send_trajectory_blocking(&traj[..100], &opts, &mut w, &AtomicBool::new(false)).unwrap();
+    send_trajectory_blocking(&traj[..100], &opts, &mut w, &Shutdown::new()).unwrap();
     assert!(wait_for(|| get(&r.c.accepted) >= before + 100).await, "{}", r.c.to_prometheus());
     r.finish().await;
 }

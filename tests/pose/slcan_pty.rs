@@ -3,6 +3,7 @@
 
 use crate::pose_common;
 
+use hilcam_core::link::Shutdown;
 use hilcam_core::link::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
 use hilcam_core::link::serial::SerialConfig;
 use hilcam_core::link::slcan::{SlcanConfig, run_slcan};
@@ -13,7 +14,6 @@ use hilcam_core::pose::trajectory::Trajectory;
 use pose_common::*;
 use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
@@ -112,7 +112,7 @@ fn slcan_sender_writes_what_an_adapter_expects() {
     .unwrap();
     let mut w = SlcanWriter::open(port, "pty", Some(1_000_000), CanIds::default(), false).unwrap();
     let opts = SendOptions { rate_hz: None, speed: f64::INFINITY };
-    let stats = send_trajectory_blocking(&sample, &opts, &mut w, &AtomicBool::new(false)).unwrap();
+    let stats = send_trajectory_blocking(&sample, &opts, &mut w, &Shutdown::new()).unwrap();
     assert_eq!(stats.poses, 20);
     // 20 poses × 6 frames (approach has no velocity/rate columns) after "C S8 O".
     let mut dec = SlcanDecoder::new();

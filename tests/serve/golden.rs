@@ -99,7 +99,7 @@ fn outputs() -> BTreeMap<String, u32> {
     let log = std::fs::read_to_string(dest.join("frames.jsonl")).unwrap();
     for line in log.lines() {
         let r: FrameRecord = serde_json::from_str(line).unwrap();
-        out.insert(format!("replay/satellite/frame{}", r.frame_seq), r.payload_crc32);
+        out.insert(format!("replay/satellite/frame{}", r.meta.frame_seq), r.payload_crc32);
     }
     out
 }

@@ -13,6 +13,7 @@ mod gige;
 mod gige_request;
 mod golden;
 mod hardening;
+mod line_formats;
 mod metrics;
 mod replay;
 mod session;

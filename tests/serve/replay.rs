@@ -5,7 +5,7 @@
 use crate::common;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
-use hilcam_core::frame::CRC32;
+use hilcam_core::frame::{CRC32, PixelFormat};
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::Pose;
 use hilcam_core::pose::trajectory::TrajectorySample;
@@ -94,9 +94,12 @@ fn writes_every_frame_and_matches_live_frames_bit_for_bit() {
         let f = live.frame(&s.to_pose(k as u32), &SETTINGS, k as u64).unwrap();
         let payload = f.pixels.to_le_bytes();
         assert!(payload.iter().any(|b| *b != 0), "frame {k} is not black");
-        assert_eq!((rec.frame_seq, rec.pose_seq, rec.pose_t_ns), (k as u64, k as u32, (k as u64) * 100_000_000));
+        assert_eq!(
+            (rec.meta.frame_seq, rec.meta.pose_seq, rec.meta.pose_t_ns),
+            (k as u64, k as u32, (k as u64) * 100_000_000)
+        );
         assert_eq!(rec.payload_crc32, CRC32.checksum(&payload), "frame {k} CRC");
-        assert_eq!((rec.width, rec.height, rec.spp, rec.depth), (12, 12, Spp::whole(2), 2));
+        assert_eq!((rec.meta.width, rec.meta.height, rec.meta.spp, rec.meta.depth), (12, 12, Spp::whole(2), 2));
         // The file holds the same f32 values (PFM is lossless for Float32).
         let img = hilcam_core::render::film::read_pfm(&dir.path().join(&rec.file)).unwrap();
         let bytes: Vec<u8> = img.data.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -121,7 +124,7 @@ fn resume_renders_only_the_missing_frame() {
     assert_eq!((resumed.rendered, resumed.skipped), (1, 3));
     let after = records(&dir.path().join("frames.jsonl"));
     assert_eq!(after.len(), 5);
-    assert_eq!(after[4].frame_seq, 2);
+    assert_eq!(after[4].meta.frame_seq, 2);
     assert_eq!(after[4].payload_crc32, before[2].payload_crc32, "the re-render is the same frame");
     assert!(dir.path().join(&before[2].file).exists());
 }
@@ -138,7 +141,7 @@ fn truncated_last_log_line_is_tolerated_and_cut() {
     let s = run(dir.path(), Shard::ALL, 3).unwrap();
     assert_eq!((s.rendered, s.skipped, s.truncated_lines), (1, 2, 0), "own log is cut before reading");
     let recs = records(&log);
-    assert_eq!(recs.iter().map(|r| r.frame_seq).collect::<Vec<_>>(), vec![0, 1, 2]);
+    assert_eq!(recs.iter().map(|r| r.meta.frame_seq).collect::<Vec<_>>(), vec![0, 1, 2]);
     // A bad line that is not the last is an error naming the file and line.
     std::fs::write(&log, format!("garbage\n{text}")).unwrap();
     let e = run(dir.path(), Shard::ALL, 3).unwrap_err().to_string();
@@ -188,7 +191,11 @@ fn shards_share_a_directory_and_merge() {
     let merged = records(&dir.path().join("frames.jsonl"));
     let reference = records(&whole.path().join("frames.jsonl"));
     for (x, y) in merged.iter().zip(&reference) {
-        assert_eq!((x.frame_seq, x.payload_crc32), (y.frame_seq, y.payload_crc32), "shards render the live bytes");
+        assert_eq!(
+            (x.meta.frame_seq, x.payload_crc32),
+            (y.meta.frame_seq, y.payload_crc32),
+            "shards render the live bytes"
+        );
     }
 }
 
@@ -261,8 +268,8 @@ fn auto_exposure_refuses_shards_and_resume_unless_pinned() {
     let st = replay(&mut p, &samples(3), &cfg(dir.path(), shard), |_| {}).unwrap();
     assert_eq!(st.rendered, 2);
     for r in records(&dir.path().join("frames.shard-0-of-2.jsonl")) {
-        assert_eq!(r.integration_s, 2e-3_f32);
-        assert_eq!((r.pixel_format.as_str(), r.bit_depth), ("Mono16", 10));
+        assert_eq!(r.meta.integration_s, 2e-3_f32);
+        assert_eq!((r.meta.format, r.meta.bit_depth), (PixelFormat::Mono16, 10));
     }
     let mut plain = plate_scene();
     assert!(matches!(pin_integration_time(&mut plain, 1e-3), Err(ReplayError::NoDetector)));
@@ -319,8 +326,8 @@ fn jobs_carry_their_own_settings_flags_and_expected_crc() {
     }
     replay_jobs(&mut pipeline(plate_scene()), &jobs, &cfg(dir.path(), Shard::ALL), |_| {}).unwrap();
     let recs = records(&dir.path().join("frames.jsonl"));
-    assert_eq!(recs.iter().map(|r| r.spp).collect::<Vec<_>>(), vec![Spp::whole(2), Spp::ONE, Spp::whole(2)]);
-    assert!(recs[1].extrapolated && recs[1].flags == FrameFlags::DEGRADED | FrameFlags::EXTRAPOLATED);
+    assert_eq!(recs.iter().map(|r| r.meta.spp).collect::<Vec<_>>(), vec![Spp::whole(2), Spp::ONE, Spp::whole(2)]);
+    assert!(recs[1].extrapolated && recs[1].meta.flags.0 == FrameFlags::DEGRADED | FrameFlags::EXTRAPOLATED);
     for (r, j) in recs.iter().zip(&jobs) {
         assert_eq!(Some(r.payload_crc32), j.expect_crc32);
     }

@@ -164,14 +164,17 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
         .collect();
     assert_eq!(recs.len(), FRAMES);
     for (r, f) in recs.iter().zip(&streamed) {
-        assert_eq!((r.frame_seq, r.pose_seq, r.pose_t_ns), (f.meta.frame_seq, f.meta.pose_seq, f.meta.pose_t_ns));
-        assert_eq!((r.spp, r.depth, r.flags), (f.meta.spp, f.meta.depth, f.meta.flags.0));
+        assert_eq!(
+            (r.meta.frame_seq, r.meta.pose_seq, r.meta.pose_t_ns),
+            (f.meta.frame_seq, f.meta.pose_seq, f.meta.pose_t_ns)
+        );
+        assert_eq!((r.meta.spp, r.meta.depth, r.meta.flags), (f.meta.spp, f.meta.depth, f.meta.flags));
         let img = hilcam_core::render::film::read_pfm(&out.join(&r.file)).unwrap();
         let dn: Vec<u16> = img.data.iter().map(|v| *v as u16).collect();
         assert!(img.data.iter().zip(&dn).all(|(v, d)| *v == f32::from(*d)), "integral DN");
         let bytes: Vec<u8> = dn.iter().flat_map(|v| v.to_le_bytes()).collect();
-        assert_eq!(bytes, f.pixels.to_le_bytes(), "frame {} bytes", r.frame_seq);
-        assert!(u16_payload(f).iter().any(|v| *v > 0), "frame {} is not black", r.frame_seq);
+        assert_eq!(bytes, f.pixels.to_le_bytes(), "frame {} bytes", r.meta.frame_seq);
+        assert!(u16_payload(f).iter().any(|v| *v > 0), "frame {} is not black", r.meta.frame_seq);
     }
 
     // Resume: nothing left to do. Another format into the same directory is refused.

@@ -296,6 +296,24 @@ async fn every_client_receives_identical_frames() {
     }
 }
 
+/// Dropping the server without `shutdown()` stops it too: the listener closes and each
+/// client gets a clean close after its last whole frame.
+#[tokio::test]
+async fn dropping_the_server_closes_its_clients() {
+    let reg = Registry::new();
+    let server = StreamServer::bind(cfg(8), reg.clone(), None).await.unwrap();
+    let addr = server.local_addr();
+    let mut client = TcpStream::connect(addr).await.unwrap();
+    until(|| server.client_count() == 1).await;
+    let frame = float_frame(0, 16, 8);
+    server.publish(frame.clone());
+    assert_eq!(read_frame(&mut client).await.unwrap(), frame.bytes);
+    drop(server);
+    let closed = tokio::time::timeout(Duration::from_secs(10), read_frame(&mut client)).await;
+    assert!(closed.expect("the client was closed").is_none(), "clean close at a frame boundary");
+    until(|| counter(&reg, "hilcam_stream_clients") == 0).await;
+}
+
 /// A client that stops reading loses frames (oldest first) and never slows another.
 #[tokio::test]
 async fn stalled_client_drops_oldest_and_fast_client_gets_everything() {
@@ -547,8 +565,8 @@ fn recorder_writes_images_and_json_lines_that_parse_back() {
     let records: Vec<FrameRecord> = log.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(records.len() as u64, stats.written);
     for r in &records {
-        let f = frames.iter().find(|f| f.meta.frame_seq == r.frame_seq).unwrap();
-        assert_eq!(r.meta().unwrap(), f.meta);
+        let f = frames.iter().find(|f| f.meta.frame_seq == r.meta.frame_seq).unwrap();
+        assert_eq!(r.meta, f.meta);
         assert!(r.extrapolated && !r.late);
         assert_eq!(r.payload_crc32, decode_header(&f.bytes).unwrap().payload_crc);
         // The 16-bit PNG holds the DN values as they were.
@@ -580,7 +598,7 @@ fn recorder_counts_what_it_cannot_keep_up_with() {
     for l in lines.lines() {
         let r: FrameRecord = serde_json::from_str(l).unwrap();
         let img = hilcam_core::render::film::read_pfm(&dir.path().join(&r.file)).unwrap();
-        let Pixels::Float32(want) = float_frame(r.frame_seq, 128, 128).pixels() else { unreachable!() };
+        let Pixels::Float32(want) = float_frame(r.meta.frame_seq, 128, 128).pixels() else { unreachable!() };
         assert_eq!(img.data, want);
     }
 }

@@ -6,15 +6,20 @@
 //! table is in `docs/protocol.md`, section "Frame stream (TCP)". Both checksums are
 //! CRC-32/ISO-HDLC (the "IEEE" CRC of zlib, Ethernet and PNG: `crc::CRC_32_ISO_HDLC`).
 
+use crate::pipeline::RenderedFrame;
+use crate::pose::Pose;
 use crate::render::film::Pixels;
 use crate::render::integrator::Spp;
+use serde::{Deserialize, Serialize};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 pub use crate::render::film::PixelFormat;
 
 /// Per-frame flag bits (header bytes 20..24). Unknown bits are preserved, not rejected,
-/// so that a newer sender's flags pass through an older receiver.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+/// so that a newer sender's flags pass through an older receiver. In JSON: the plain
+/// number.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
 pub struct FrameFlags(pub u32);
 
 impl FrameFlags {
@@ -31,11 +36,24 @@ impl FrameFlags {
     pub fn with(self, bit: u32) -> Self {
         FrameFlags(self.0 | bit)
     }
+    pub fn late(self) -> bool {
+        self.contains(Self::LATE)
+    }
+    pub fn extrapolated(self) -> bool {
+        self.contains(Self::EXTRAPOLATED)
+    }
+    pub fn degraded(self) -> bool {
+        self.contains(Self::DEGRADED)
+    }
 }
 
 /// Everything the header says about a frame except the payload's length and checksum
-/// (which are computed from the payload when encoding).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// (which are computed from the payload when encoding). The one metadata type: the TCP
+/// header, the recorder's and replay's `frames.jsonl` lines
+/// ([`crate::sink::recorder::FrameRecord`]) and `hilcam recv` all carry it. In JSON the
+/// fields keep their names except `format`, written `pixel_format` as its name
+/// ("Mono8", "Mono16", "Float32"); `flags` is the plain number.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FrameMeta {
     /// Frame counter of this run, starting at 0; gaps mean frames a receiver lost.
     pub frame_seq: u64,
@@ -49,6 +67,7 @@ pub struct FrameMeta {
     pub emit_unix_ns: u64,
     pub width: u32,
     pub height: u32,
+    #[serde(rename = "pixel_format", with = "pixel_format_name")]
     pub format: PixelFormat,
     /// Significant bits per pixel: 1..=8 (Mono8), 1..=16 (Mono16), 32 (Float32).
     pub bit_depth: u8,
@@ -64,10 +83,59 @@ pub struct FrameMeta {
 }
 
 impl FrameMeta {
+    /// The metadata of frame `index` rendered from `pose`: what a live frame's header
+    /// says, and what a replayed frame (a trajectory row, or a session `frame` line's
+    /// index, pose, settings and flags) implies. The wall-clock fields
+    /// (`pose_arrival_unix_ns`, `emit_unix_ns`) are 0: the caller stamps those it knows.
+    pub fn rendered(index: u64, pose: &Pose, f: &RenderedFrame, flags: FrameFlags) -> FrameMeta {
+        FrameMeta {
+            frame_seq: index,
+            pose_seq: pose.seq,
+            pose_t_ns: pose.t_ns,
+            pose_arrival_unix_ns: 0,
+            emit_unix_ns: 0,
+            width: f.width,
+            height: f.height,
+            format: f.pixels.format(),
+            bit_depth: bit_depth_of(&f.pixels),
+            spp: f.settings.spp,
+            depth: f.settings.depth.min(u32::from(u16::MAX)) as u16,
+            integration_s: f.integration_s.unwrap_or(0.0) as f32,
+            flags,
+        }
+    }
+
     /// Payload size in bytes implied by the dimensions and format.
     pub fn payload_len(&self) -> u64 {
         // Saturating: u32 × u32 × 4 can exceed u64, and a saturated length matches no payload.
         (self.width as u64).saturating_mul(self.height as u64).saturating_mul(self.format.bytes_per_pixel() as u64)
+    }
+}
+
+/// `PixelFormat` in JSON: its name. An unknown name is an error that lists the known ones.
+mod pixel_format_name {
+    use super::PixelFormat;
+    use serde::{Deserialize, Deserializer, Serializer, de::Error};
+
+    const ALL: [PixelFormat; 3] = [PixelFormat::Mono8, PixelFormat::Mono16, PixelFormat::Float32];
+
+    fn name(f: PixelFormat) -> &'static str {
+        match f {
+            PixelFormat::Mono8 => "Mono8",
+            PixelFormat::Mono16 => "Mono16",
+            PixelFormat::Float32 => "Float32",
+        }
+    }
+
+    pub fn serialize<S: Serializer>(f: &PixelFormat, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(name(*f))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<PixelFormat, D::Error> {
+        let text = String::deserialize(d)?;
+        ALL.into_iter().find(|f| name(*f) == text).ok_or_else(|| {
+            D::Error::custom(format!("unknown pixel_format \"{text}\" (expected Mono8, Mono16 or Float32)"))
+        })
     }
 }
 
@@ -92,11 +160,7 @@ impl Frame {
     /// (8 for Mono8, `bits` for Mono16, 32 for Float32), the size is checked.
     pub fn new(mut meta: FrameMeta, pixels: Pixels) -> Result<Frame, FrameError> {
         meta.format = pixels.format();
-        meta.bit_depth = match &pixels {
-            Pixels::Mono8(_) => 8,
-            Pixels::Mono16 { bits, .. } => *bits,
-            Pixels::Float32(_) => 32,
-        };
+        meta.bit_depth = bit_depth_of(&pixels);
         let expected = meta.width as u64 * meta.height as u64;
         if pixels.len() as u64 != expected {
             return Err(FrameError::SizeMismatch {
@@ -120,6 +184,16 @@ impl Frame {
         bytes.extend_from_slice(&encode_header(&self.meta, &payload));
         bytes.extend_from_slice(&payload);
         EncodedFrame { meta: self.meta, bytes, roi: None }
+    }
+}
+
+/// The bit depth a header gives `pixels`: 8 for Mono8, the sensor's bits for Mono16, 32
+/// for Float32.
+pub fn bit_depth_of(pixels: &Pixels) -> u8 {
+    match pixels {
+        Pixels::Mono8(_) => 8,
+        Pixels::Mono16 { bits, .. } => *bits,
+        Pixels::Float32(_) => 32,
     }
 }
 

@@ -3,6 +3,7 @@
 //! can hand any `std::io::Write`, e.g. one end of a pty pair, to
 //! [`SerialWriter`] or [`SlcanWriter`]).
 
+use super::Shutdown;
 use super::serial::{OpenError, open_port};
 use super::slcan::{BitrateError, open_commands};
 use super::socketcan::to_socketcan;
@@ -13,7 +14,6 @@ use crate::pose::slcan::encode_frame;
 use crate::pose::trajectory::{Trajectory, TrajectorySample};
 use std::io::Write;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Sending failed.
@@ -234,16 +234,7 @@ pub struct SendStats {
     pub elapsed: Duration,
 }
 
-fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {
-    let now = Instant::now();
-    if due > now {
-        super::sleep_unless_stopped(due - now, || stop.load(Ordering::Relaxed))
-    } else {
-        !stop.load(Ordering::Relaxed)
-    }
-}
-
-/// Replays `samples` through `w`, blocking, until done or `stop` is set.
+/// Replays `samples` through `w`, blocking, until done or `stop` is triggered.
 /// Pose `k` gets sequence number `k` and the sample's time (ns).
 ///
 /// # Errors
@@ -252,7 +243,7 @@ pub fn send_trajectory_blocking(
     samples: &[TrajectorySample],
     opts: &SendOptions,
     w: &mut dyn MessageWriter,
-    stop: &AtomicBool,
+    stop: &Shutdown,
 ) -> Result<SendStats, SendError> {
     if opts.speed.is_nan() || opts.speed <= 0.0 {
         return Err(SendError::Options(format!("speed must be > 0, got {}", opts.speed)));
@@ -275,10 +266,10 @@ pub fn send_trajectory_blocking(
     match opts.rate_hz {
         None => {
             for s in samples {
-                if paced && !sleep_until(due(s.time_s - first.time_s), stop) {
+                if paced && !stop.sleep_until(due(s.time_s - first.time_s)) {
                     break;
                 }
-                if stop.load(Ordering::Relaxed) {
+                if stop.is_triggered() {
                     break;
                 }
                 send(s, &mut seq)?;
@@ -291,10 +282,10 @@ pub fn send_trajectory_blocking(
                 if t > last.time_s {
                     break;
                 }
-                if paced && !sleep_until(due(sim_dt), stop) {
+                if paced && !stop.sleep_until(due(sim_dt)) {
                     break;
                 }
-                if stop.load(Ordering::Relaxed) {
+                if stop.is_triggered() {
                     break;
                 }
                 let i = Trajectory::index_at(samples, t).expect("t ≥ first sample");
@@ -315,13 +306,14 @@ pub async fn send_trajectory(
     mut w: Box<dyn MessageWriter>,
     shutdown: impl std::future::Future,
 ) -> Result<SendStats, SendError> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let stop2 = stop.clone();
-    let mut task = tokio::task::spawn_blocking(move || send_trajectory_blocking(&samples, &opts, w.as_mut(), &stop2));
+    let stop = Shutdown::new();
+    let for_thread = stop.clone();
+    let mut task =
+        tokio::task::spawn_blocking(move || send_trajectory_blocking(&samples, &opts, w.as_mut(), &for_thread));
     let joined = tokio::select! {
         r = &mut task => r,
         _ = shutdown => {
-            stop.store(true, Ordering::Relaxed);
+            stop.trigger();
             task.await
         }
     };
@@ -359,7 +351,7 @@ mod tests {
         let log = Arc::new(std::sync::Mutex::new(Vec::new()));
         let s = samples(5, 0.5);
         let opts = SendOptions { rate_hz: Some(3.0), speed: f64::INFINITY };
-        let st = send_trajectory_blocking(&s, &opts, &mut Record(log.clone()), &AtomicBool::new(false)).unwrap();
+        let st = send_trajectory_blocking(&s, &opts, &mut Record(log.clone()), &Shutdown::new()).unwrap();
         // Ticks at 0, 1/3, 2/3, … ≤ 2 s after the first sample: 7 sends.
         assert_eq!(st.poses, 7);
         let z: Vec<f64> = log
@@ -374,7 +366,7 @@ mod tests {
         // Sample k covers [0.5k, 0.5k + 0.5): ticks 0,.33 → 0; .67 → 1; 1.0,1.33 → 2; 1.67 → 3; 2.0 → 4.
         assert_eq!(z, vec![100.0, 100.0, 99.0, 98.0, 98.0, 97.0, 96.0]);
         let bad = SendOptions { rate_hz: None, speed: 0.0 };
-        assert!(send_trajectory_blocking(&s, &bad, &mut Record(log), &AtomicBool::new(false)).is_err());
+        assert!(send_trajectory_blocking(&s, &bad, &mut Record(log), &Shutdown::new()).is_err());
     }
 
     #[tokio::test]

@@ -3,10 +3,12 @@
 //!
 //! A cloneable handle over a `watch` channel: [`Shutdown::trigger`] from anywhere (async
 //! or not, any number of times); async tasks wait with [`Shutdown::wait`], blocking
-//! device loops poll [`Shutdown::is_triggered`] or sleep with [`Shutdown::sleep`].
+//! device loops poll [`Shutdown::is_triggered`] or sleep with [`Shutdown::sleep`] /
+//! [`Shutdown::sleep_until`]. A component that stops on its own (the frame stream's
+//! accept loop and clients, `hilcam send`'s pacing thread) owns an instance of its own.
 
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
 #[derive(Clone, Debug)]
@@ -65,6 +67,14 @@ impl Shutdown {
     pub fn sleep(&self, d: Duration) -> bool {
         super::sleep_unless_stopped(d, || self.is_triggered())
     }
+
+    /// [`Shutdown::sleep`] until `due` (no sleep if it has passed); `false` if triggered.
+    pub fn sleep_until(&self, due: Instant) -> bool {
+        match due.checked_duration_since(Instant::now()) {
+            Some(d) if !d.is_zero() => self.sleep(d),
+            _ => !self.is_triggered(),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -95,5 +105,19 @@ mod tests {
         assert!(!slept.await.unwrap(), "sleep reports the trigger");
         assert!(t0.elapsed() < Duration::from_secs(5), "the sleep ended early: {:?}", t0.elapsed());
         assert!(s.is_triggered());
+    }
+
+    #[test]
+    fn sleep_until_waits_for_the_deadline_unless_triggered() {
+        let s = Shutdown::new();
+        let t0 = Instant::now();
+        assert!(s.sleep_until(t0 + Duration::from_millis(30)), "not triggered: slept to the end");
+        assert!(t0.elapsed() >= Duration::from_millis(30), "{:?}", t0.elapsed());
+        assert!(s.sleep_until(t0), "a deadline in the past returns at once");
+        s.trigger();
+        let t1 = Instant::now();
+        assert!(!s.sleep_until(t1 + Duration::from_secs(30)), "triggered: reports it");
+        assert!(t1.elapsed() < Duration::from_secs(1), "{:?}", t1.elapsed());
+        assert!(!s.sleep_until(t1), "triggered, deadline passed: still reports it");
     }
 }

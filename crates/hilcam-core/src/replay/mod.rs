@@ -299,7 +299,7 @@ fn done_frames(
     let mut done = HashSet::new();
     for log in log_files(dir)? {
         for d in read_log(&log, &mut stats.truncated_lines)? {
-            let r = &d.rec;
+            let r = &d.rec.meta;
             let (want, (w, h)) = expected(r.frame_seq);
             let (found, expected) = (
                 format!("{}x{} spp {} depth {}", r.width, r.height, r.spp, r.depth),
@@ -308,7 +308,7 @@ fn done_frames(
             if found != expected {
                 return Err(ReplayError::Mismatch { path: d.path, line: d.line, frame: r.frame_seq, found, expected });
             }
-            let complete = std::fs::metadata(dir.join(&r.file)).is_ok_and(|m| m.len() > 0);
+            let complete = std::fs::metadata(dir.join(&d.rec.file)).is_ok_and(|m| m.len() > 0);
             if complete {
                 done.insert(r.frame_seq);
             }
@@ -355,7 +355,7 @@ pub fn session_jobs(session: &crate::session::Session, verify: bool) -> Vec<Fram
             index: f.index,
             pose: f.pose.to_pose(),
             settings: f.settings.to_settings(),
-            flags: FrameFlags(f.flags),
+            flags: f.frame_flags(),
             expect_crc32: verify.then_some(f.payload_crc32),
             request: f.request,
         })
@@ -470,8 +470,8 @@ pub fn replay_jobs_until(
             true => disk_full(e.to_string()),
             false => ReplayError::Image { frame: k, path: path.clone(), msg: e.to_string() },
         })?;
-        let mut meta = frame_meta(k, &job.pose, &f.pixels, f.width, f.height, &job.settings, f.integration_s);
-        meta.flags = job.flags;
+        let mut meta = FrameMeta::rendered(k, &job.pose, &f, job.flags);
+        meta.emit_unix_ns = unix_ns_now();
         let line =
             serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");
         if let Err(e) = log.append(&line) {
@@ -485,37 +485,6 @@ pub fn replay_jobs_until(
         progress(&stats);
     }
     Ok(stats)
-}
-
-fn frame_meta(
-    k: u64,
-    pose: &crate::pose::Pose,
-    px: &crate::render::film::Pixels,
-    width: u32,
-    height: u32,
-    s: &RenderSettings,
-    integration_s: Option<f64>,
-) -> FrameMeta {
-    let bit_depth = match px {
-        crate::render::film::Pixels::Mono8(_) => 8,
-        crate::render::film::Pixels::Mono16 { bits, .. } => *bits,
-        crate::render::film::Pixels::Float32(_) => 32,
-    };
-    FrameMeta {
-        frame_seq: k,
-        pose_seq: pose.seq,
-        pose_t_ns: pose.t_ns,
-        pose_arrival_unix_ns: 0,
-        emit_unix_ns: unix_ns_now(),
-        width,
-        height,
-        format: px.format(),
-        bit_depth,
-        spp: s.spp,
-        depth: s.depth.min(u16::MAX as u32) as u16,
-        integration_s: integration_s.unwrap_or(0.0) as f32,
-        flags: FrameFlags::default(),
-    }
 }
 
 /// What [`merge`] wrote.
@@ -537,7 +506,7 @@ pub fn merge(dir: &Path) -> Result<MergeStats, ReplayError> {
     let mut by_frame = BTreeMap::new();
     for log in &logs {
         for d in read_log(log, &mut truncated)? {
-            by_frame.insert(d.rec.frame_seq, d.rec);
+            by_frame.insert(d.rec.meta.frame_seq, d.rec);
         }
     }
     let tmp = dir.join(".frames.jsonl.merge");

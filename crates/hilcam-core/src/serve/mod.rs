@@ -97,14 +97,14 @@ pub async fn run(
     let out = Outputs::start(&cfg, &scene, &camera, &registry, inputs).await?;
     let session = session_file::start(&cfg, &camera, &settings, input_name, clock, &registry)?;
     let helpers = Helpers::start(&cfg, &registry, &counters, &shutdown).await?;
-    scheduler::register_metrics(&registry);
+    // Before the announcement: a scrape from then on lists the scheduler's series.
+    let metrics = scheduler::SchedulerMetrics::new(&registry);
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 
     let sched_cfg = scheduler_config(&cfg, settings, &mut embed, session.as_ref(), out.requests);
     let sinks = Arc::new(out.sinks);
-    let summary =
-        run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), registry.clone(), shutdown.clone()).await;
+    let summary = run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), metrics, shutdown.clone()).await;
 
     // Shut down: the inputs and helpers stop on the signal (the scheduler triggered it
     // when it stopped), then the sinks close (a clean close for clients).

@@ -138,7 +138,10 @@ struct Done {
     integration_s: Option<f64>,
 }
 
-struct Metrics {
+/// The scheduler's metric series. Built once by `serve::run` before the server
+/// announces itself, so a `/metrics` scrape made before the first frame already lists
+/// every series (at zero), then handed to [`run_scheduler`].
+pub struct SchedulerMetrics {
     frames: Counter,
     late: Counter,
     degraded: Counter,
@@ -152,9 +155,9 @@ struct Metrics {
     depth: Gauge,
 }
 
-impl Metrics {
-    fn new(r: &Registry) -> Self {
-        Metrics {
+impl SchedulerMetrics {
+    pub fn new(r: &Registry) -> Self {
+        SchedulerMetrics {
             frames: r.counter("hilcam_frames_rendered_total", "Frames rendered and published", &[]),
             late: r.counter("hilcam_frames_late_total", "Frames emitted after their deadline", &[]),
             degraded: r.counter("hilcam_frames_degraded_total", "Frames rendered below the configured quality", &[]),
@@ -223,9 +226,9 @@ fn record(tap: Option<&SessionTap>, d: &Done) {
                 pose: (&j.pose).into(),
                 settings: (&j.settings).into(),
                 flags: flags.0,
-                late: flags.contains(FrameFlags::LATE),
-                extrapolated: flags.contains(FrameFlags::EXTRAPOLATED),
-                degraded: flags.contains(FrameFlags::DEGRADED),
+                late: flags.late(),
+                extrapolated: flags.extrapolated(),
+                degraded: flags.degraded(),
                 integration_s: d.integration_s,
                 payload_crc32: crc,
                 request: j.request,
@@ -289,26 +292,14 @@ fn render_job(
     };
     let late = job.reference.elapsed() > budget;
     let flags = if late { job.flags.with(FrameFlags::LATE) } else { job.flags };
-    let meta = FrameMeta {
-        frame_seq: job.index,
-        pose_seq: job.pose.seq,
-        pose_t_ns: job.pose.t_ns,
-        pose_arrival_unix_ns: job.arrival_unix_ns,
-        emit_unix_ns: 0,
-        width: f.width,
-        height: f.height,
-        format: f.pixels.format(),
-        bit_depth: 0,
-        spp: job.settings.spp,
-        depth: job.settings.depth.min(u32::from(u16::MAX)) as u16,
-        integration_s: f.integration_s.unwrap_or(0.0) as f32,
-        flags,
-    };
+    let meta =
+        FrameMeta { pose_arrival_unix_ns: job.arrival_unix_ns, ..FrameMeta::rendered(job.index, &job.pose, &f, flags) };
+    let integration_s = f.integration_s;
     let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
         fr.meta.emit_unix_ns = unix_ns_now();
         Arc::new(EncodedFrame { roi: job.request.roi, ..fr.encode() })
     });
-    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), f.integration_s)
+    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), integration_s)
 }
 
 /// The text of a panic payload (`panic!` with a literal or a formatted message).
@@ -323,7 +314,7 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 /// The loop's state between events: what is due, what is rendering, what was counted.
 struct Loop {
     cfg: SchedulerConfig,
-    m: Metrics,
+    m: SchedulerMetrics,
     s: SchedulerSummary,
     sinks: Arc<Vec<Sink>>,
     governor: Governor,
@@ -345,11 +336,11 @@ struct Loop {
 }
 
 impl Loop {
-    fn new(cfg: SchedulerConfig, sinks: Arc<Vec<Sink>>, registry: &Registry) -> Self {
+    fn new(cfg: SchedulerConfig, sinks: Arc<Vec<Sink>>, m: SchedulerMetrics) -> Self {
         let best = Quality { spp: cfg.settings.spp, depth: cfg.settings.depth };
         Loop {
             governor: Governor::new(cfg.policy, cfg.budget, best),
-            m: Metrics::new(registry),
+            m,
             s: SchedulerSummary::default(),
             sinks,
             best,
@@ -570,27 +561,20 @@ async fn next_tick(ticker: &mut Option<tokio::time::Interval>) -> Option<Instant
 /// Run until `shutdown` is triggered, the inputs close (in `Pose`/`External` mode), or
 /// `max_frames` frames are out. The frame in flight is finished and published. However
 /// it stops (done, or the renderer failed), it triggers `shutdown` for the rest of the
-/// server.
-/// Create the scheduler's metric series (at zero) in `registry`, so a `/metrics` scrape
-/// made before the first frame already lists every series; [`run_scheduler`] then uses
-/// the same ones (a registry hands out one series per name and labels).
-pub fn register_metrics(registry: &Registry) {
-    Metrics::new(registry);
-}
-
+/// server. Counts into `metrics`.
 pub async fn run_scheduler(
     cfg: SchedulerConfig,
     pipeline: FramePipeline,
     mut inputs: mpsc::Receiver<InputEvent>,
     sinks: Arc<Vec<Sink>>,
-    registry: Arc<Registry>,
+    metrics: SchedulerMetrics,
     shutdown: Shutdown,
 ) -> SchedulerSummary {
     let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
     let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
     let renderer = spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx);
     let mut ticker = rate_ticker(&cfg);
-    let mut st = Loop::new(cfg, sinks, &registry);
+    let mut st = Loop::new(cfg, sinks, metrics);
     let renderer = match renderer {
         Ok(r) => r,
         Err(e) => {

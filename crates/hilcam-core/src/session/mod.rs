@@ -165,7 +165,19 @@ pub struct PoseLine {
     pub pose: PoseFields,
 }
 
-/// One rendered frame: exactly what went into it.
+/// One rendered frame: exactly what went into it (its inputs), where the frame's header,
+/// [`crate::frame::FrameMeta`], says what came out.
+///
+/// The values both carry, under these names: `index` = `frame_seq`; `pose.seq` =
+/// `pose_seq` (= `source_seq`: extrapolation keeps the seq); `pose.t_ns` = `pose_t_ns`;
+/// `settings.spp` = `spp`; `settings.depth` = `depth` (the header caps it at 65535);
+/// `flags` = `flags` (and `late`, `extrapolated`, `degraded` are its bits spelled out);
+/// `integration_s` = `integration_s` (the header's f32, 0 for None); `payload_crc32` =
+/// the header's payload CRC. [`crate::frame::FrameMeta::rendered`] builds the metadata a
+/// re-render of this line implies. Only here: the session clock times, the poses
+/// received, the extrapolation, the full pose and settings. Only in the frame header:
+/// the wall-clock times, the pixel format and bit depth, and the size (which the session
+/// header gives once).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FrameLine {
@@ -199,6 +211,13 @@ pub struct FrameLine {
     /// ROI); absent when it asked nothing, so the frame is the configured one.
     #[serde(default, skip_serializing_if = "FrameRequest::is_default")]
     pub request: FrameRequest,
+}
+
+impl FrameLine {
+    /// The flags as the frame carried them.
+    pub fn frame_flags(&self) -> crate::frame::FrameFlags {
+        crate::frame::FrameFlags(self.flags)
+    }
 }
 
 /// A frame whose sensor stage failed (nothing was streamed for this index).

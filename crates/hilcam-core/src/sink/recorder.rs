@@ -13,7 +13,7 @@
 
 use super::failure_log::{FailureLog, Reason};
 use super::line_log::LineLog;
-use crate::frame::{EncodedFrame, FrameFlags, FrameMeta, PixelFormat};
+use crate::frame::{EncodedFrame, FrameMeta};
 use crate::metrics::{Counter, Registry};
 use crate::render::film::{self, ImageWriteError, Pixels, RadianceImage};
 use serde::{Deserialize, Serialize};
@@ -79,26 +79,21 @@ pub fn write_frame_image(
     }
 }
 
-/// One line of `frames.jsonl`: every header field plus the image file name.
+/// One line of `frames.jsonl`: the frame's [`FrameMeta`] (its fields at the top level,
+/// `pixel_format` by name) followed by what the file adds: the LATE and EXTRAPOLATED bits
+/// of `flags` spelled out, the payload's length and CRC, and the image file's name.
+///
+/// Reading is forward-compatible: fields this version does not know are ignored, so a
+/// newer hilcam's log still reads (serde's `deny_unknown_fields` cannot be combined
+/// with the flattened metadata). A missing field, a wrong type or an unknown
+/// `pixel_format` is an error; readers ([`crate::replay`]) name the file and line.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct FrameRecord {
-    pub frame_seq: u64,
-    pub pose_seq: u32,
-    pub pose_t_ns: u64,
-    pub pose_arrival_unix_ns: u64,
-    pub emit_unix_ns: u64,
-    pub width: u32,
-    pub height: u32,
-    /// "Mono8", "Mono16" or "Float32".
-    pub pixel_format: String,
-    pub bit_depth: u8,
-    /// Average samples per pixel (a number, with a fraction when the budget had one).
-    pub spp: crate::render::integrator::Spp,
-    pub depth: u16,
-    pub integration_s: f32,
-    pub flags: u32,
+    #[serde(flatten)]
+    pub meta: FrameMeta,
+    /// `flags` has [`crate::frame::FrameFlags::LATE`].
     pub late: bool,
+    /// `flags` has [`crate::frame::FrameFlags::EXTRAPOLATED`].
     pub extrapolated: bool,
     pub payload_len: u64,
     /// CRC-32/ISO-HDLC of the payload, as in the header.
@@ -109,50 +104,13 @@ pub struct FrameRecord {
 impl FrameRecord {
     pub fn new(meta: &FrameMeta, payload: &[u8], file: String) -> FrameRecord {
         FrameRecord {
-            frame_seq: meta.frame_seq,
-            pose_seq: meta.pose_seq,
-            pose_t_ns: meta.pose_t_ns,
-            pose_arrival_unix_ns: meta.pose_arrival_unix_ns,
-            emit_unix_ns: meta.emit_unix_ns,
-            width: meta.width,
-            height: meta.height,
-            pixel_format: format!("{:?}", meta.format),
-            bit_depth: meta.bit_depth,
-            spp: meta.spp,
-            depth: meta.depth,
-            integration_s: meta.integration_s,
-            flags: meta.flags.0,
-            late: meta.flags.contains(FrameFlags::LATE),
-            extrapolated: meta.flags.contains(FrameFlags::EXTRAPOLATED),
+            meta: *meta,
+            late: meta.flags.late(),
+            extrapolated: meta.flags.extrapolated(),
             payload_len: payload.len() as u64,
             payload_crc32: crate::frame::CRC32.checksum(payload),
             file,
         }
-    }
-
-    /// The metadata this record describes (None if `pixel_format` is unknown).
-    pub fn meta(&self) -> Option<FrameMeta> {
-        let format = match self.pixel_format.as_str() {
-            "Mono8" => PixelFormat::Mono8,
-            "Mono16" => PixelFormat::Mono16,
-            "Float32" => PixelFormat::Float32,
-            _ => return None,
-        };
-        Some(FrameMeta {
-            frame_seq: self.frame_seq,
-            pose_seq: self.pose_seq,
-            pose_t_ns: self.pose_t_ns,
-            pose_arrival_unix_ns: self.pose_arrival_unix_ns,
-            emit_unix_ns: self.emit_unix_ns,
-            width: self.width,
-            height: self.height,
-            format,
-            bit_depth: self.bit_depth,
-            spp: self.spp,
-            depth: self.depth,
-            integration_s: self.integration_s,
-            flags: FrameFlags(self.flags),
-        })
     }
 }
 

@@ -19,6 +19,7 @@
 //! (`Arc<EncodedFrame>`), never copied per client.
 
 use crate::frame::EncodedFrame;
+use crate::link::Shutdown;
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
 use std::collections::VecDeque;
 use std::net::SocketAddr;
@@ -27,7 +28,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{Notify, watch};
+use tokio::sync::Notify;
 use tokio::task::JoinSet;
 
 /// Stream server settings.
@@ -145,12 +146,21 @@ struct Shared {
 }
 
 /// The frame stream server. Create with [`StreamServer::bind`], feed with
-/// [`StreamServer::publish`], end with [`StreamServer::shutdown`].
+/// [`StreamServer::publish`], end with [`StreamServer::shutdown`] (dropping it stops the
+/// accept loop and the clients too, without waiting for them).
 pub struct StreamServer {
     shared: Arc<Shared>,
     local_addr: SocketAddr,
-    shutdown: watch::Sender<bool>,
-    accept_task: tokio::task::JoinHandle<()>,
+    /// The server's own stop signal: the accept loop and every client task hold it.
+    stop: Shutdown,
+    /// Taken by [`StreamServer::shutdown`] to wait for the loop.
+    accept_task: Option<tokio::task::JoinHandle<()>>,
+}
+
+impl Drop for StreamServer {
+    fn drop(&mut self) {
+        self.stop.trigger();
+    }
 }
 
 impl StreamServer {
@@ -196,10 +206,10 @@ impl StreamServer {
             clients: Mutex::new(Vec::new()),
             next_id: AtomicU64::new(1),
         });
-        let (tx, rx) = watch::channel(false);
-        let accept_task = tokio::spawn(accept_loop(listener, shared.clone(), rx));
+        let stop = Shutdown::new();
+        let accept_task = tokio::spawn(accept_loop(listener, shared.clone(), stop.clone()));
         tracing::info!(%local_addr, "frame stream listening");
-        Ok(StreamServer { shared, local_addr, shutdown: tx, accept_task })
+        Ok(StreamServer { shared, local_addr, stop, accept_task: Some(accept_task) })
     }
 
     /// The bound address (useful with port 0).
@@ -259,21 +269,22 @@ impl StreamServer {
     /// Stop accepting, let every client finish the frame it is writing (up to
     /// `shutdown_grace`), close each connection cleanly, and wait for all of it.
     /// Frames still queued are discarded and counted (`reason="shutdown"`).
-    pub async fn shutdown(self) {
-        let _ = self.shutdown.send(true);
-        if let Err(e) = self.accept_task.await {
+    pub async fn shutdown(mut self) {
+        self.stop.trigger();
+        if let Some(task) = self.accept_task.take()
+            && let Err(e) = task.await
+        {
             tracing::error!("frame stream accept task failed: {e}");
         }
         tracing::info!(addr = %self.local_addr, "frame stream closed");
     }
 }
 
-async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, stop: watch::Receiver<bool>) {
+async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, stop: Shutdown) {
     let mut tasks = JoinSet::new();
-    let mut stopping = stop.clone();
     loop {
         tokio::select! {
-            _ = async { let _ = stopping.wait_for(|s| *s).await; } => break,
+            _ = stop.wait() => break,
             Some(done) = tasks.join_next(), if !tasks.is_empty() => {
                 if let Err(e) = done {
                     tracing::error!("stream client task failed: {e}");
@@ -378,7 +389,7 @@ async fn stalled(client: &Client, limit: Option<Duration>) -> Duration {
     }
 }
 
-async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream, mut stop: watch::Receiver<bool>) {
+async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream, stop: Shutdown) {
     // Frames are written whole; Nagle would only delay the tail of each frame.
     let _ = sock.set_nodelay(true);
     let (mut rd, mut wr) = sock.into_split();
@@ -388,7 +399,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
         // Wait for the next frame; meanwhile discard anything the client sends and
         // notice EOF (after which the client may still read, so keep writing).
         let frame = loop {
-            if *stop.borrow() {
+            if stop.is_triggered() {
                 break 'frames End::Shutdown;
             }
             if let Some(f) = client.take() {
@@ -396,9 +407,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
             }
             tokio::select! {
                 _ = client.notify.notified() => {}
-                r = stop.changed() => if r.is_err() {
-                    break 'frames End::Shutdown; // server dropped without shutdown()
-                },
+                _ = stop.wait() => break 'frames End::Shutdown,
                 r = rd.read(&mut scratch), if reading => {
                     if !matches!(r, Ok(n) if n > 0) {
                         reading = false;
@@ -409,7 +418,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
         // Write the whole frame; on shutdown, allow `shutdown_grace` to finish it.
         let write = wr.write_all(&frame.bytes);
         let grace = async {
-            let _ = stop.wait_for(|s| *s).await;
+            stop.wait().await;
             tokio::time::sleep(shared.cfg.shutdown_grace).await;
         };
         // A client that stopped reading blocks here, with its queue filling behind it.
