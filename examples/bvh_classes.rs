@@ -26,7 +26,9 @@ fn main() -> anyhow::Result<()> {
         .get(4)
         .map_or("bvh4,bvh8", String::as_str)
         .split(',')
-        .map(|s| hilcam_core::scene::file::parse_name::<BvhLayout>(s).map_err(anyhow::Error::msg))
+        .map(|s| {
+            hilcam_core::scene::file::parse_name::<BvhLayout>(s).and_then(BvhLayout::check).map_err(anyhow::Error::msg)
+        })
         .collect::<Result<_, _>>()?;
     let scene = hilcam_core::scene::file::load(std::path::Path::new(scene))?;
     let settings = RenderSettings {

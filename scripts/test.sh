@@ -56,5 +56,21 @@ if target/debug/hilcam bench --help >/dev/null 2>&1; then
   exit 1
 fi
 target/debug/hilcam serve --help >/dev/null
-echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands absent"
+# Its BVH is bvh8 only: a scene asking for a lab layout is refused by file, line, field
+# and the feature to build with (not an unknown name, not a silent fallback).
+lab_bvh_dir=$(mktemp -d)
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' >"$lab_bvh_dir/t.obj"
+printf '[[mesh]]\nobj = "t.obj"\nmaterial = "paint"\n[materials.paint]\nmodel = "lambert"\nrho = 0.5\n[camera]\nwidth = 8\nheight = 8\npitch_um = 10.0\nfocal_mm = 20.0\n[render]\nbvh = "bvh4"\n' \
+  >"$lab_bvh_dir/s.toml"
+if lab_bvh_err=$(target/debug/hilcam render "$lab_bvh_dir/s.toml" --out "$lab_bvh_dir/out.png" 2>&1); then
+  echo "test.sh: the --no-default-features binary rendered a scene asking for bvh4" >&2
+  exit 1
+fi
+expected="$lab_bvh_dir/s.toml:13: render.bvh: this build has only bvh8; bvh4 is a lab layout, build with the \`lab\` feature"
+if [[ "$lab_bvh_err" != *"$expected"* ]]; then
+  printf 'test.sh: bench build: bvh4 refusal reads\n%s\nnot\n%s\n' "$lab_bvh_err" "$expected" >&2
+  exit 1
+fi
+rm -r "$lab_bvh_dir"
+echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
 

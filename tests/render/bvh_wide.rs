@@ -191,7 +191,9 @@ fn matches_on_satellite_rays(layout: BvhLayout, reference: BvhLayout) {
 }
 
 /// `[render] bvh = "bvh8"` selects the layout; without the key it is the default (`bvh8`);
-/// `bvh4` stays selectable.
+/// `bvh4` stays selectable (in this, the lab build; without the `lab` feature it is refused
+/// by name, which scripts/test.sh checks on the `--no-default-features` binary); every
+/// layout's `name` is the name a scene file uses.
 #[test]
 fn scene_file_selects_bvh8() {
     let dir = tempfile::tempdir().unwrap();
@@ -213,6 +215,10 @@ fn scene_file_selects_bvh8() {
     assert_eq!(parts("bvh = \"bvh8\"").layout, BvhLayout::Bvh8);
     assert_eq!(parts("bvh = \"bvh4\"").layout, BvhLayout::Bvh4);
     assert_eq!(parts("spp = 2").layout, BvhLayout::Bvh8);
+    for layout in [BvhLayout::Bvh2, BvhLayout::Cwbvh, BvhLayout::Bvh4, BvhLayout::Bvh8] {
+        assert_eq!(hilcam_core::scene::file::parse_name::<BvhLayout>(layout.name()), Ok(layout));
+        assert!(layout.available(), "{layout:?}: the lab build has every layout");
+    }
     // The built tree answers like brute force on the one triangle.
     let s = hilcam_core::scene::Scene::build(parts("bvh = \"bvh8\""));
     let [a, b, c] = s.mesh.triangle(0);

@@ -33,7 +33,7 @@
 //! depth = 2
 //! sampler = "cosine"
 //! seed = 0
-//! bvh = "bvh8"                 # the default; or "bvh4", "bvh2", "cwbvh"
+//! bvh = "bvh8"                 # the default; the lab build also has "bvh4", "bvh2", "cwbvh"
 //! ```
 
 use super::limits;
@@ -209,8 +209,9 @@ struct RenderSection {
     adaptive: bool,
     #[serde(default)]
     seed: u64,
-    #[serde(default)]
-    bvh: BvhLayout,
+    /// Any of the four names; a lab layout in a build without it is refused below.
+    #[serde(default = "default_bvh")]
+    bvh: Spanned<BvhLayout>,
 }
 
 fn yes() -> bool {
@@ -223,6 +224,9 @@ fn default_spp() -> Spanned<f64> {
 fn default_depth() -> Spanned<u32> {
     Spanned::new(0..0, RenderSettings::default().depth)
 }
+fn default_bvh() -> Spanned<BvhLayout> {
+    Spanned::new(0..0, BvhLayout::default())
+}
 
 impl Default for RenderSection {
     fn default() -> Self {
@@ -234,7 +238,7 @@ impl Default for RenderSection {
             roulette: true,
             adaptive: true,
             seed: 0,
-            bvh: BvhLayout::default(),
+            bvh: default_bvh(),
         }
     }
 }
@@ -249,12 +253,14 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     load_with_layout(path, None)
 }
 
-/// Load a scene file, overriding its BVH layout.
+/// Load a scene file, overriding its BVH layout (refused, as in the file, when this build
+/// does not have it).
 pub fn load_with_layout(path: &Path, layout: Option<BvhLayout>) -> Result<Scene, SceneError> {
     let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
     let mut parts = parse(path, &src)?;
     if let Some(l) = layout {
-        parts.layout = l;
+        let refused = |message| SceneError::Missing { path: path.to_path_buf(), field: "render.bvh".into(), message };
+        parts.layout = l.check().map_err(refused)?;
     }
     Ok(Scene::build(parts))
 }
@@ -430,17 +436,8 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             format!("must be in 1..={} (1 = direct sunlight only), got {}", limits::MAX_DEPTH, render.depth),
         ));
     }
-    Ok(SceneParts {
-        mesh,
-        materials,
-        sun_irradiance: irradiance,
-        background,
-        camera,
-        sensor,
-        pose,
-        render,
-        layout: r.bvh,
-    })
+    let layout = r.bvh.get_ref().check().map_err(|m| field(r.bvh.span(), "render.bvh", m))?;
+    Ok(SceneParts { mesh, materials, sun_irradiance: irradiance, background, camera, sensor, pose, render, layout })
 }
 
 /// Read a camera file: its `[camera]` table and optional `[sensor]` table.

@@ -1,38 +1,40 @@
-//! The acceleration structure: obvhs BVHs over the scene's triangles. Only this module
-//! (and the lab's `sun_shadow`, which must run the very same triangle test) import obvhs.
+//! The acceleration structure: a BVH over the scene's triangles, built by obvhs. Only this
+//! module, `alt` (and the lab's `sun_shadow`, which must run the very same triangle test)
+//! import obvhs.
 //!
-//! Four layouts: obvhs's binary BVH2 (fastest on coherent primary rays), its 8-wide
-//! compressed CWBVH, our SSE 4-wide `bvh4` collapsed from the BVH2 (~11 % faster than the
-//! BVH2 on bounce and shadow rays, and it finds the hits of rays running along a box face
-//! that obvhs's box test can miss), and its 8-wide sibling `bvh8` (the default: the same
-//! box test in AVX2, eight lanes, two thirds of the levels; ~15 % cheaper bounce and
-//! shadow rays than `bvh4`, ~5 % faster frames). All run the same triangle test on the
-//! same triangle order. `hilcam bench render` measures them on the same rays
+//! The product traces `bvh8`: obvhs's binary `Bvh2`, collapsed into our 8-wide tree and
+//! walked eight boxes per step (AVX2; `wide` says why its hits are obvhs's). Builds with the
+//! `alt-bvh` feature (the lab's) also have three alternative layouts (`alt`): obvhs's own
+//! `Bvh2` and CWBVH traversals and our SSE 4-wide `bvh4`, which `bvh8` supersedes (~15 %
+//! cheaper bounce and shadow rays, ~5 % faster frames). All run the same triangle test on
+//! the same triangle order; `hilcam bench render` measures them on the same rays
 //! (`docs/performance.md`).
 
 use super::TriMesh;
-use super::bvh4::Bvh4;
+#[cfg(feature = "alt-bvh")]
+use super::alt::AltTree;
 use super::bvh8::Bvh8;
 use glam::{Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     bvh2::{Bvh2, builder::build_bvh2_from_tris},
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
     ray::{Ray as ObRay, RayHit},
     rt_triangle::RtTriangle,
     triangle::Triangle,
 };
 use std::time::Duration;
 
-/// Which obvhs tree layout to build.
+/// Which tree layout to build. Every build knows the four names; only `bvh8` is built
+/// without the `alt-bvh` feature ([`BvhLayout::check`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BvhLayout {
-    /// Binary BVH (obvhs `Bvh2`).
+    /// Binary BVH (obvhs `Bvh2`), a lab layout.
     Bvh2,
-    /// Compressed 8-wide BVH (obvhs `CwBvh`).
+    /// Compressed 8-wide BVH (obvhs `CwBvh`), a lab layout.
     Cwbvh,
-    /// 4-wide BVH collapsed from the obvhs `Bvh2`, four boxes per step in SSE (`Bvh4`).
+    /// 4-wide BVH collapsed from the obvhs `Bvh2`, four boxes per step in SSE (`Bvh4`), a
+    /// lab layout.
     Bvh4,
     /// 8-wide BVH collapsed from the obvhs `Bvh2`, eight boxes per step in AVX2 when the
     /// CPU has it, else a scalar loop (`Bvh8`): two thirds of the levels of `Bvh4`, the
@@ -40,6 +42,34 @@ pub enum BvhLayout {
     /// once primary hits are rasterised.
     #[default]
     Bvh8,
+}
+
+impl BvhLayout {
+    /// The name a scene file uses (`[render] bvh`).
+    pub fn name(self) -> &'static str {
+        match self {
+            BvhLayout::Bvh2 => "bvh2",
+            BvhLayout::Cwbvh => "cwbvh",
+            BvhLayout::Bvh4 => "bvh4",
+            BvhLayout::Bvh8 => "bvh8",
+        }
+    }
+
+    /// Whether this build can build the layout: `bvh8` always, the others with the
+    /// `alt-bvh` feature (which the binary's `lab` feature enables).
+    pub fn available(self) -> bool {
+        self == BvhLayout::Bvh8 || cfg!(feature = "alt-bvh")
+    }
+
+    /// `Err` with the reason when this build cannot build the layout ([`Accel::build`]
+    /// refuses it).
+    pub fn check(self) -> Result<Self, String> {
+        if self.available() {
+            Ok(self)
+        } else {
+            Err(format!("this build has only bvh8; {} is a lab layout, build with the `lab` feature", self.name()))
+        }
+    }
 }
 
 /// A ray in the render frame (f32). `dir` need not be normalised; `t` is in its units.
@@ -72,10 +102,9 @@ pub struct Leaf {
 }
 
 enum Tree {
-    Bvh2(Bvh2),
-    Cw(CwBvh),
-    Bvh4(Bvh4),
     Bvh8(Bvh8),
+    #[cfg(feature = "alt-bvh")]
+    Alt(AltTree),
 }
 
 /// A ray prepared once for many triangle tests ([`Accel::primitive_t`]).
@@ -87,6 +116,17 @@ impl TestRay {
     pub fn new(r: &Ray) -> Self {
         TestRay(Accel::ob_ray(r))
     }
+}
+
+/// The leaves of a `Bvh2` (which the wide trees keep).
+pub(super) fn bvh2_leaves(b: &Bvh2) -> Vec<Leaf> {
+    let leaf = |n: &obvhs::bvh2::node::Bvh2Node| Leaf {
+        min: n.aabb().min.into(),
+        max: n.aabb().max.into(),
+        first: n.first_index,
+        count: n.prim_count,
+    };
+    b.nodes.iter().filter(|n| n.is_leaf()).map(leaf).collect()
 }
 
 /// BVH plus the triangles laid out in the BVH's primitive order (no indirection while
@@ -107,7 +147,12 @@ pub struct Accel {
 }
 
 impl Accel {
+    /// Builds `layout` over the mesh. Panics on a layout this build does not have: callers
+    /// check [`BvhLayout::check`] first (scene files do, naming the field).
     pub fn build(mesh: &TriMesh, layout: BvhLayout) -> Self {
+        if let Err(m) = layout.check() {
+            panic!("Accel::build: {m}");
+        }
         let t0 = std::time::Instant::now();
         let tris: Vec<Triangle> = (0..mesh.indices.len())
             .map(|i| {
@@ -117,60 +162,27 @@ impl Accel {
             .collect();
         let params = BvhBuildParams::medium_build();
         let mut core = Duration::ZERO;
-        let of_bvh2 = |b: &Bvh2| -> Vec<Leaf> {
-            let leaf = |n: &obvhs::bvh2::node::Bvh2Node| Leaf {
-                min: n.aabb().min.into(),
-                max: n.aabb().max.into(),
-                first: n.first_index,
-                count: n.prim_count,
-            };
-            b.nodes.iter().filter(|n| n.is_leaf()).map(leaf).collect()
-        };
-        let mut leaves = Vec::new();
-        let (tree, original) = if tris.is_empty() {
-            (Tree::Bvh2(Bvh2::default()), Vec::new())
+        let (tree, original, leaves) = if tris.is_empty() {
+            (Tree::Bvh8(Bvh8::default()), Vec::new(), Vec::new())
         } else {
             match layout {
-                BvhLayout::Bvh2 => {
-                    let b = build_bvh2_from_tris(&tris, params, &mut core);
-                    leaves = of_bvh2(&b);
-                    let idx = b.primitive_indices.clone();
-                    (Tree::Bvh2(b), idx)
-                }
-                BvhLayout::Cwbvh => {
-                    let b = build_cwbvh_from_tris(&tris, params, &mut core);
-                    let idx = b.primitive_indices.clone();
-                    (Tree::Cw(b), idx)
-                }
-                BvhLayout::Bvh4 => {
-                    let b = build_bvh2_from_tris(&tris, params, &mut core);
-                    leaves = of_bvh2(&b);
-                    let idx = b.primitive_indices.clone();
-                    (Tree::Bvh4(Bvh4::from_bvh2(&b)), idx)
-                }
                 BvhLayout::Bvh8 => {
                     let b = build_bvh2_from_tris(&tris, params, &mut core);
-                    leaves = of_bvh2(&b);
-                    let idx = b.primitive_indices.clone();
-                    (Tree::Bvh8(Bvh8::from_bvh2(&b)), idx)
+                    let (tree, leaves) = (Tree::Bvh8(Bvh8::from_bvh2(&b)), bvh2_leaves(&b));
+                    (tree, b.primitive_indices, leaves)
                 }
+                #[cfg(feature = "alt-bvh")]
+                _ => {
+                    let (tree, original, leaves) = AltTree::build(layout, &tris, params, &mut core);
+                    (Tree::Alt(tree), original, leaves)
+                }
+                #[cfg(not(feature = "alt-bvh"))]
+                _ => unreachable!("refused above"),
             }
         };
         let rt = original.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
         let material = original.iter().map(|&i| mesh.material.get(i as usize).copied().unwrap_or(0)).collect();
         let vertices = original.iter().map(|&i| mesh.indices[i as usize]).collect();
-        if matches!(tree, Tree::Cw(_)) {
-            let tri = |(k, &i): (usize, &u32)| {
-                let t = &tris[i as usize];
-                Leaf {
-                    min: t.v0.min(t.v1).min(t.v2).into(),
-                    max: t.v0.max(t.v1).max(t.v2).into(),
-                    first: k as u32,
-                    count: 1,
-                }
-            };
-            leaves = original.iter().enumerate().map(tri).collect();
-        }
         Accel { tree, tris: rt, original, material, vertices, leaves, build_time: t0.elapsed() }
     }
 
@@ -193,10 +205,9 @@ impl Accel {
         let mut hit = RayHit::none();
         let tris = &self.tris;
         let found = match &self.tree {
-            Tree::Bvh2(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
-            Tree::Cw(b) => b.ray_traverse(ray, &mut hit, |ray, id| tris[id].intersect(ray)),
-            Tree::Bvh4(b) => b.intersect(&ray, tris).map(|(k, t)| (hit.primitive_id, hit.t) = (k, t)).is_some(),
             Tree::Bvh8(b) => b.intersect(&ray, tris).map(|(k, t)| (hit.primitive_id, hit.t) = (k, t)).is_some(),
+            #[cfg(feature = "alt-bvh")]
+            Tree::Alt(a) => a.intersect(ray, &mut hit, tris),
         };
         found.then(|| self.primitive_hit(hit.primitive_id, hit.t))
     }
@@ -248,21 +259,19 @@ impl Accel {
         }
         let ray = Self::ob_ray(r);
         let tris = &self.tris;
-        let miss = match &self.tree {
-            Tree::Bvh2(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
-            Tree::Cw(b) => b.ray_traverse_miss(ray, |ray, id| tris[id].intersect(ray)),
-            Tree::Bvh4(b) => !b.occluded(&ray, tris),
-            Tree::Bvh8(b) => !b.occluded(&ray, tris),
-        };
-        !miss
+        match &self.tree {
+            Tree::Bvh8(b) => b.occluded(&ray, tris),
+            #[cfg(feature = "alt-bvh")]
+            Tree::Alt(a) => a.occluded(ray, tris),
+        }
     }
 }
 
 impl Accel {
     /// Occlusion of up to [`shadow_packet::PACKET`](super::shadow_packet::PACKET) rays that
     /// share one direction (the shadow rays toward the sun): bit `i` set when ray `i` is
-    /// blocked, the same answers as [`Accel::occluded`] ray by ray. On the 4- and 8-wide
-    /// trees with AVX2 the rays walk it together (`shadow_packet`); otherwise one by one.
+    /// blocked, the same answers as [`Accel::occluded`] ray by ray. On the 8-wide (and the
+    /// lab's 4-wide) tree with AVX2 the rays walk it together (`shadow_packet`); otherwise one by one.
     pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
         use super::shadow_packet::{PACKET, one_by_one};
         let one_by_one = || one_by_one(rays, |r| self.occluded(r));
@@ -275,9 +284,9 @@ impl Accel {
         }
         let ob = &ob[..rays.len()];
         let walked = match &self.tree {
-            Tree::Bvh4(b) => b.occluded_packet(ob, &self.tris),
             Tree::Bvh8(b) => b.occluded_packet(ob, &self.tris),
-            _ => None,
+            #[cfg(feature = "alt-bvh")]
+            Tree::Alt(a) => a.occluded_packet(ob, &self.tris),
         };
         walked.unwrap_or_else(one_by_one)
     }
@@ -349,5 +358,34 @@ pub mod brute_force {
     pub fn occluded(mesh: &TriMesh, r: &Ray) -> bool {
         let ray = Accel::ob_ray(r);
         (0..mesh.indices.len()).any(|i| rt(mesh, i).intersect(&ray) < ray.tmax)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BvhLayout;
+
+    /// `bvh8` is in every build; the others exactly when the `alt-bvh` feature is on, and
+    /// otherwise refused with a message naming the layout and the feature to build with.
+    #[test]
+    fn layouts_this_build_has() {
+        assert_eq!(BvhLayout::Bvh8.check(), Ok(BvhLayout::Bvh8));
+        for layout in [BvhLayout::Bvh2, BvhLayout::Cwbvh, BvhLayout::Bvh4] {
+            if cfg!(feature = "alt-bvh") {
+                assert_eq!(layout.check(), Ok(layout));
+            } else {
+                let refusal = layout.check().unwrap_err();
+                let expected = format!("this build has only bvh8; {} is a lab layout", layout.name());
+                assert!(refusal.starts_with(&expected) && refusal.contains("`lab` feature"), "{refusal}");
+            }
+        }
+    }
+
+    /// Building a layout this build lacks panics with the refusal rather than falling back.
+    #[test]
+    #[cfg(not(feature = "alt-bvh"))]
+    #[should_panic(expected = "this build has only bvh8; bvh4 is a lab layout")]
+    fn build_refuses_a_missing_layout() {
+        super::Accel::build(&super::TriMesh::default(), BvhLayout::Bvh4);
     }
 }

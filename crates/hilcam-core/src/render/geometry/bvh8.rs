@@ -1,39 +1,17 @@
 //! An 8-wide BVH collapsed from obvhs's `Bvh2`, traversed eight child boxes per step (AVX2
-//! when the CPU has it, detected once when the tree is built; a scalar loop otherwise).
-//!
-//! The same guarantees as `bvh4`, and for the same reasons. Only the tree changes: leaves
-//! are the `Bvh2` leaves (ranges of the same primitive order) and every triangle is tested
-//! with obvhs's own `RtTriangle::intersect` on the same prepared ray, with obvhs's
-//! closest-hit rule (`t < current`). The box test is the only new arithmetic, and it is
-//! `bvh4`'s slab test lane for lane (sub then mul, no fused multiply-add; the same min/max
-//! operand order; the same slack on the exit distance), so it is exactly as conservative:
-//! it never culls a box holding a triangle the triangle test would accept, and the closest
-//! `t` equals the brute-force minimum bit for bit (up to the sign of a zero `t` when two
-//! triangles tie at the origin; which of exactly tied triangles is reported depends on
-//! visit order, which differs from `bvh4`'s).
-//!
-//! Zero direction components: the reciprocal is ±inf, and `(bound - origin) * inv` is NaN
-//! exactly when the origin lies on that bound's plane. Such an axis must not constrain the
-//! interval (the ray runs inside the slab's face), so the NaN is dropped by the
-//! min/max order (`_mm256_max_ps(x, acc)` returns `acc` when `x` is NaN, as `f32::max`
-//! ignores NaN). Not covered, as in `bvh4`: a tiny non-zero component with the origin
-//! exactly on a face, where the triangle test's rounding could accept a point just
-//! outside the box.
+//! when the CPU has it, detected once when the tree is built; a scalar loop otherwise): the
+//! product's tree. Its node layout, walk and the argument that its answers are obvhs's are
+//! `wide`'s; this file adds the AVX2 box test and chooses it per CPU.
 //!
 //! Why eight: traversal is branch-bound (`docs/performance.md`), and an 8-wide
 //! tree has two thirds of the levels of a 4-wide one (`log 8 / log 4`), so a ray makes
 //! about two thirds of the node visits (and their mispredicted branches) with one box
 //! test of eight lanes per visit (measured: 7.2 → 4.85 visits per closest-hit ray).
 
-use super::wide::{Entry, Node, collapse};
+use super::wide::{Entry, Node, SLACK, Scalar, collapse, stack_need, walk, with_stack};
 use obvhs::{bvh2::Bvh2, ray::Ray as ObRay, rt_triangle::RtTriangle};
 use std::mem::MaybeUninit;
 
-/// Exit distances are scaled by this before `entry <= exit` (`bvh4`'s value: covers the few
-/// roundings of the slab test and of the triangle's own `t`).
-const SLACK: f32 = 1.0 + 1.0 / (1u32 << 20) as f32;
-/// Traversal stack entries kept on the machine stack; deeper trees use a heap stack.
-const STACK: usize = 256;
 /// Children per node.
 const W: usize = 8;
 
@@ -50,72 +28,6 @@ pub struct Bvh8 {
     depth: usize,
     /// The box test runs in AVX2 (checked once, in `from_bvh2`).
     avx2: bool,
-}
-
-/// Per-ray constants of the slab test.
-struct Prep {
-    org: [f32; 3],
-    inv: [f32; 3],
-    /// 0 when the direction component is positive (near plane = min), else 1.
-    near: [usize; 3],
-}
-
-impl Prep {
-    #[inline(always)]
-    fn new(ray: &ObRay) -> Self {
-        let d = ray.direction.to_array();
-        let inv = d.map(|x| 1.0 / x);
-        Prep { org: ray.origin.to_array(), inv, near: d.map(|x| x.is_sign_negative() as usize) }
-    }
-}
-
-/// An 8-box slab test for one ray.
-trait Slab {
-    /// # Safety
-    /// The CPU has the features the implementation is compiled for.
-    unsafe fn new(p: &Prep, tmin: f32) -> Self;
-    /// Bit `i` set when child `i`'s box overlaps `[tmin, tmax]` (conservatively); the
-    /// entry distance of each child.
-    ///
-    /// # Safety
-    /// As [`Slab::new`].
-    unsafe fn test(&self, node: &Node8, p: &Prep, tmax: f32) -> (u32, [f32; W]);
-}
-
-/// The reference (and fallback) slab test.
-struct Scalar {
-    tmin: f32,
-}
-
-impl Slab for Scalar {
-    #[inline(always)]
-    unsafe fn new(_: &Prep, tmin: f32) -> Self {
-        Scalar { tmin }
-    }
-
-    #[inline(always)]
-    unsafe fn test(&self, node: &Node8, p: &Prep, tmax: f32) -> (u32, [f32; W]) {
-        scalar_test(node, p, self.tmin, tmax)
-    }
-}
-
-/// Reference form of the slab test, `bvh4`'s lane for lane; the AVX2 form does the same
-/// operations in the same order.
-#[inline(always)]
-fn scalar_test(node: &Node8, p: &Prep, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
-    let mut mask = 0;
-    let mut tnear = [0.0; W];
-    for (slot, entry) in tnear.iter_mut().enumerate() {
-        let t = |axis: usize, side: usize| (node.bounds[axis][side][slot] - p.org[axis]) * p.inv[axis];
-        let (nx, ny, nz) = (t(0, p.near[0]), t(1, p.near[1]), t(2, p.near[2]));
-        let (fx, fy, fz) = (t(0, 1 - p.near[0]), t(1, 1 - p.near[1]), t(2, 1 - p.near[2]));
-        // `f32::max`/`min` ignore a NaN operand (see the module comment).
-        let near = nx.max(ny.max(nz.max(tmin)));
-        let far = fx.min(fy.min(fz.min(tmax))) * SLACK;
-        mask |= ((near <= far) as u32) << slot;
-        *entry = near;
-    }
-    (mask, tnear)
 }
 
 impl Bvh8 {
@@ -154,29 +66,19 @@ impl Bvh8 {
 
     /// Stack entries a traversal can need: each level leaves at most seven siblings behind.
     fn stack_need(&self) -> usize {
-        (W - 1) * self.depth + 2
+        stack_need(W, self.depth)
     }
 
-    /// Closest hit within `[ray.tmin, ray.tmax)`: `(primitive index, t)`. A triangle
-    /// replaces the current hit only when its `t` is strictly smaller (as obvhs's `Bvh2`).
+    /// Closest hit within `[ray.tmin, ray.tmax)`: `(primitive index, t)` (`wide::walk`).
     #[inline]
     pub fn intersect(&self, ray: &ObRay, tris: &[RtTriangle]) -> Option<(u32, f32)> {
-        if self.stack_need() <= STACK {
-            self.dispatch::<false>(ray, tris, &mut [MaybeUninit::uninit(); STACK])
-        } else {
-            self.dispatch::<false>(ray, tris, &mut vec![MaybeUninit::uninit(); self.stack_need()])
-        }
+        with_stack(self.stack_need(), |stack| self.dispatch::<false>(ray, tris, stack))
     }
 
     /// True when any triangle is hit within `[ray.tmin, ray.tmax)` (stops at the first).
     #[inline]
     pub fn occluded(&self, ray: &ObRay, tris: &[RtTriangle]) -> bool {
-        let found = if self.stack_need() <= STACK {
-            self.dispatch::<true>(ray, tris, &mut [MaybeUninit::uninit(); STACK])
-        } else {
-            self.dispatch::<true>(ray, tris, &mut vec![MaybeUninit::uninit(); self.stack_need()])
-        };
-        found.is_some()
+        with_stack(self.stack_need(), |stack| self.dispatch::<true>(ray, tris, stack)).is_some()
     }
 
     /// Occlusion of up to eight rays sharing one direction (bit `i`: ray `i` is blocked),
@@ -215,10 +117,10 @@ impl Bvh8 {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU has AVX2 (`from_bvh2`).
-            return unsafe { self.traverse_avx2::<ANY>(ray, tris, stack) };
+            return unsafe { self.walk_avx2::<ANY>(ray, tris, stack) };
         }
         // SAFETY: the scalar test needs no CPU feature.
-        unsafe { self.traverse::<ANY, Scalar>(ray, tris, stack) }
+        unsafe { walk::<W, ANY, Scalar>(&self.nodes, ray, tris, stack) }
     }
 
     /// The whole walk compiled with AVX2 (the box test inlines into it).
@@ -227,156 +129,21 @@ impl Bvh8 {
     /// The CPU has AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn traverse_avx2<const ANY: bool>(
+    unsafe fn walk_avx2<const ANY: bool>(
         &self,
         ray: &ObRay,
         tris: &[RtTriangle],
         stack: &mut [MaybeUninit<Entry>],
     ) -> Option<(u32, f32)> {
         // SAFETY: the caller guarantees AVX2.
-        unsafe { self.traverse::<ANY, avx2::Ray8>(ray, tris, stack) }
-    }
-
-    /// `stack` is left uninitialised (zeroing it costs as much as a short traversal): only
-    /// entries below `sp` are read, and each was written first.
-    ///
-    /// # Safety
-    /// The CPU has the features `S` is compiled for.
-    #[inline(always)]
-    unsafe fn traverse<const ANY: bool, S: Slab>(
-        &self,
-        ray: &ObRay,
-        tris: &[RtTriangle],
-        stack: &mut [MaybeUninit<Entry>],
-    ) -> Option<(u32, f32)> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let p = Prep::new(ray);
-        // SAFETY: the caller guarantees `S`'s features.
-        let boxes = unsafe { S::new(&p, ray.tmin) };
-        let mut ray = *ray;
-        let mut best: Option<(u32, f32)> = None;
-        // Tests a leaf's triangles in order; true when one was hit.
-        let leaf = |c: &Entry, ray: &mut ObRay, best: &mut Option<(u32, f32)>| {
-            if c.t > ray.tmax * SLACK {
-                return false;
-            }
-            let mut found = false;
-            for k in c.index..c.index + c.count {
-                let t = tris[k as usize].intersect(ray);
-                if t < ray.tmax {
-                    ray.tmax = t;
-                    *best = Some((k, t));
-                    found = true;
-                    if ANY {
-                        break;
-                    }
-                }
-            }
-            found
-        };
-        let mut sp = 0;
-        let mut node = &self.nodes[0];
-        loop {
-            // SAFETY: as above.
-            let (mut mask, tnear) = unsafe { boxes.test(node, &p, ray.tmax) };
-            if ANY {
-                // A yes/no answer does not depend on the order, so nothing is sorted (as
-                // `bvh4`): leaves are tested as they come and inner children pushed as they
-                // come (`tmax` changes only when the walk ends).
-                let mut next = None;
-                while mask != 0 {
-                    let slot = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    if node.is_empty_slot(slot) {
-                        continue; // entered only by a ray with a NaN coordinate
-                    }
-                    let c = Entry { index: node.child[slot], count: node.count[slot], t: tnear[slot] };
-                    if c.count > 0 {
-                        if leaf(&c, &mut ray, &mut best) {
-                            return best;
-                        }
-                    } else if let Some(i) = next.replace(c.index) {
-                        stack[sp] = MaybeUninit::new(Entry { index: i, count: 0, t: 0.0 });
-                        sp += 1;
-                    }
-                }
-                let next = match next {
-                    Some(i) => i,
-                    None if sp == 0 => return best,
-                    None => {
-                        sp -= 1;
-                        // SAFETY: `stack[..sp]` has been written (pushed children).
-                        unsafe { stack[sp].assume_init() }.index
-                    }
-                };
-                node = &self.nodes[next as usize];
-                continue;
-            }
-            // Hit children sorted far to near (`hit[n - 1]` is the nearest).
-            // Left uninitialised past `n` (zeroing eight entries per visit costs more than
-            // the sort); `hit[..n]` has been written.
-            let mut hit = [MaybeUninit::<Entry>::uninit(); W];
-            let mut n = 0;
-            while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if node.is_empty_slot(slot) {
-                    continue;
-                }
-                let c = Entry { index: node.child[slot], count: node.count[slot], t: tnear[slot] };
-                let mut j = n;
-                // SAFETY: `j - 1 < n`: written.
-                while j > 0 && unsafe { hit[j - 1].assume_init() }.t < c.t {
-                    hit[j] = hit[j - 1];
-                    j -= 1;
-                }
-                hit[j] = MaybeUninit::new(c);
-                n += 1;
-            }
-            // SAFETY: `k < n`: written.
-            let hit_at = |k: usize| unsafe { hit[k].assume_init() };
-            // Leaves first, near to far (as obvhs's Bvh2 and `bvh4`): a hit shortens the ray
-            // before the inner children are visited. Only the leaves nearer than every inner
-            // child; farther ones wait on the stack in distance order.
-            let mut rest = n;
-            while rest > 0 && hit_at(rest - 1).count > 0 {
-                leaf(&hit_at(rest - 1), &mut ray, &mut best);
-                rest -= 1;
-            }
-            // The nearest of the rest next; the others pushed far to near. All seven slots
-            // are copied (as `bvh4` copies three), saving a branch per child; `rest - 1` of
-            // them count. In bounds: at tree level L at most 7(L - 1) entries are held, and
-            // the stack has room for 7·depth + 2.
-            let mut next = None;
-            if rest > 0 {
-                stack[sp..sp + W - 1].copy_from_slice(&hit[..W - 1]);
-                sp += rest - 1;
-                next = Some(hit_at(rest - 1));
-            }
-            let mut next = next.filter(|c| c.t <= ray.tmax * SLACK);
-            while next.is_none() {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                // SAFETY: `stack[..sp]` has been written (pushed children).
-                let e = unsafe { stack[sp].assume_init() };
-                if e.count > 0 {
-                    leaf(&e, &mut ray, &mut best);
-                } else {
-                    next = Some(e).filter(|c| c.t <= ray.tmax * SLACK);
-                }
-            }
-            node = &self.nodes[next.map_or(0, |c| c.index) as usize];
-        }
+        unsafe { walk::<W, ANY, avx2::Ray8>(&self.nodes, ray, tris, stack) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Node8, Prep, SLACK, Slab, W};
+    use super::super::wide::{Prep, SLACK, Slab};
+    use super::{Node8, W};
     use std::arch::x86_64::*;
 
     /// The ray's origin and reciprocal direction broadcast to eight lanes.
@@ -386,7 +153,7 @@ mod avx2 {
         tmin: __m256,
     }
 
-    impl Slab for Ray8 {
+    impl Slab<W> for Ray8 {
         #[inline]
         #[target_feature(enable = "avx2")]
         unsafe fn new(p: &Prep, tmin: f32) -> Self {
@@ -423,6 +190,7 @@ mod avx2 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::wide::{Prep, Slab, scalar_test};
     use super::*;
 
     /// The AVX2 slab test agrees with the scalar one bit for bit on random boxes and rays,

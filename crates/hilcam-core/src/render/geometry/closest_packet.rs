@@ -90,7 +90,7 @@ mod avx {
         for i in 0..PACKET {
             let r = &rays[if i < n { i } else { 0 }];
             let (o, d) = (r.origin, r.direction);
-            // As `bvh8::Prep`: the exact reciprocal, ±inf for a zero component.
+            // As `wide::Prep`: the exact reciprocal, ±inf for a zero component.
             let row = [o.x, o.y, o.z, d.x, d.y, d.z, 1.0 / d.x, 1.0 / d.y, 1.0 / d.z, r.tmin, r.tmax];
             for (k, x) in row.into_iter().enumerate() {
                 v[k][i] = x;

@@ -1,6 +1,10 @@
-//! Geometry: triangle meshes, bounds and the obvhs BVH.
+//! Geometry: triangle meshes, bounds and the BVH (the lab's alternative layouts behind the
+//! `alt-bvh` feature).
 
+#[cfg(feature = "alt-bvh")]
+mod alt;
 pub mod bvh;
+#[cfg(feature = "alt-bvh")]
 pub mod bvh4;
 pub mod bvh8;
 pub mod closest_packet;

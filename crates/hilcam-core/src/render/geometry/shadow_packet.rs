@@ -7,8 +7,8 @@
 //! (docs/performance.md) — are taken once per packet instead of once per ray.
 //!
 //! The answers are those of the single-ray walk: the box test is the same conservative slab
-//! test as `bvh4` (same operations in the same order per lane, so it culls no box holding a
-//! triangle the triangle test accepts), and the triangle test is obvhs's
+//! test as `wide`'s (same operations in the same order per lane, so it culls no box holding
+//! a triangle the triangle test accepts), and the triangle test is obvhs's
 //! `RtTriangle::intersect` lane by lane (`lane_triangle`, shared with `closest_packet`),
 //! so every (ray, triangle) pair gets the same yes/no (`tests/render/shadow_packet.rs` checks the
 //! walk against brute force and against single rays).
@@ -106,7 +106,7 @@ mod avx {
         let org = [ox, oy, oz];
         let d = rays[0].direction;
         let dir = d.to_array();
-        // As `bvh4::Prep`: the exact reciprocal, ±inf for a zero component.
+        // As `wide::Prep`: the exact reciprocal, ±inf for a zero component.
         let inv = dir.map(|x| _mm256_set1_ps(1.0 / x));
         let near = dir.map(|x| x.is_sign_negative() as usize);
         let slack = _mm256_set1_ps(slack);
@@ -126,7 +126,7 @@ mod avx {
                     let mut tn = tmin;
                     let mut tf = tmax;
                     // z, then y, then x: the accumulator is the second operand, so a NaN lane
-                    // of the first is dropped (the same order as `bvh4`'s SSE test).
+                    // of the first is dropped (the same order as `wide::scalar_test`).
                     for axis in [2, 1, 0] {
                         let b_near = _mm256_set1_ps(nd.bounds[axis][near[axis]][slot]);
                         let b_far = _mm256_set1_ps(nd.bounds[axis][1 - near[axis]][slot]);
