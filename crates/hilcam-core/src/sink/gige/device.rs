@@ -11,12 +11,13 @@
 
 use super::chunk;
 use super::control::Control;
+use super::exposure::integration_override;
 use super::genicam;
-use super::gvcp::{GVCP_PORT, Status};
+use super::gvcp::{self, GVCP_PORT, Status};
 use super::gvsp::{self, Block};
 use super::pixel::{self, Roi};
 use super::registers::{
-    AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
+    self as reg, AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
 };
 use crate::frame::{EncodedFrame, unix_ns_now};
 use crate::metrics::{Counter, Histogram, Registry};
@@ -49,6 +50,9 @@ pub struct GigeConfig {
     pub resend_ring: usize,
     /// Serve the XML zipped (stored) instead of plain.
     pub zip_xml: bool,
+    /// The longest a slow write waits for the renderer before its final acknowledge
+    /// (ms; the pending timeout register, and the time a PENDING_ACK announces).
+    pub pending_timeout_ms: u32,
 }
 
 impl Default for GigeConfig {
@@ -64,6 +68,7 @@ impl Default for GigeConfig {
             user_name: String::new(),
             resend_ring: 8,
             zip_xml: false,
+            pending_timeout_ms: 1000,
         }
     }
 }
@@ -88,6 +93,9 @@ struct Metrics {
     resend_requests: Counter,
     packets_resent: Counter,
     resend_unavailable: Counter,
+    pending_acks: Counter,
+    pending_timeouts: Counter,
+    pending_wait: Arc<Histogram>,
     dropped_not_acquiring: Counter,
     dropped_no_stream: Counter,
     dropped_untriggered: Counter,
@@ -134,6 +142,21 @@ impl Metrics {
                 "Resend requests for blocks no longer in the ring",
                 &[],
             ),
+            pending_acks: r.counter(
+                "hilcam_gige_pending_acks_total",
+                "PENDING_ACKs sent for writes the renderer applies at its next frame",
+                &[],
+            ),
+            pending_timeouts: r.counter(
+                "hilcam_gige_pending_timeouts_total",
+                "Pending writes acknowledged at the pending timeout, before a frame showed them",
+                &[],
+            ),
+            pending_wait: r.histogram(
+                "hilcam_gige_pending_wait_seconds",
+                "PENDING_ACK to the final acknowledge of the same command",
+                &[],
+            ),
             dropped_not_acquiring: dropped("not_acquiring"),
             dropped_no_stream: dropped("no_stream_channel"),
             dropped_untriggered: dropped("no_trigger"),
@@ -165,6 +188,13 @@ struct Shared {
     /// (pose time of the newest frame, when it was published): the device clock.
     clock: Mutex<(u64, Instant)>,
     trigger_hook: Mutex<Option<Box<dyn Fn() + Send + Sync>>>,
+    /// The settings the device started with (the exposure override is relative to them).
+    initial_settings: CameraSettings,
+    /// Whether a renderer follows the client's exposure (`exposure::follow_exposure`):
+    /// only then does an exposure write wait for a frame that shows it.
+    exposure_followed: AtomicBool,
+    /// The integration time (s) of the newest frame published.
+    published_integration: watch::Sender<Option<f32>>,
     metrics: Metrics,
     stop: AtomicBool,
 }
@@ -195,6 +225,15 @@ impl GigeDevice {
         camera: CameraDescription,
         registry: Arc<Registry>,
     ) -> Result<GigeDevice, GigeError> {
+        let pending_range = reg::PENDING_TIMEOUT_MIN_MS..=reg::PENDING_TIMEOUT_MAX_MS;
+        if !pending_range.contains(&cfg.pending_timeout_ms) {
+            return Err(GigeError::Config(format!(
+                "[output.gige] pending_timeout_ms {}: {}..={} ms",
+                cfg.pending_timeout_ms,
+                pending_range.start(),
+                pending_range.end()
+            )));
+        }
         let gvcp_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.gvcp_port));
         let gvcp = tokio::net::UdpSocket::bind(gvcp_bind).await.map_err(|source| GigeError::Bind {
             what: "GVCP",
@@ -230,6 +269,7 @@ impl GigeDevice {
         };
         let mut regs = Registers::new(identity, camera, cfg.packet_size, name, file).map_err(GigeError::Config)?;
         regs.stream.source_port = stream_addr.port();
+        regs.pending_timeout_ms = cfg.pending_timeout_ms;
         let settings = regs.settings;
         let (settings_tx, _) = watch::channel(settings);
         let (jobs_tx, jobs_rx) = mpsc::channel();
@@ -242,6 +282,9 @@ impl GigeDevice {
             next_due: Mutex::new(None),
             clock: Mutex::new((0, Instant::now())),
             trigger_hook: Mutex::new(None),
+            initial_settings: settings,
+            exposure_followed: AtomicBool::new(false),
+            published_integration: watch::channel(None).0,
             metrics: Metrics::new(&registry),
             stop: AtomicBool::new(false),
         });
@@ -287,6 +330,12 @@ impl GigeDevice {
         *self.shared.trigger_hook.lock().expect("trigger hook lock") = Some(hook);
     }
 
+    /// A renderer applies the client's exposure to the frames it starts from now on:
+    /// exposure writes then wait for a frame that shows them (pending acknowledge).
+    pub(super) fn mark_exposure_followed(&self) {
+        self.shared.exposure_followed.store(true, Ordering::Release);
+    }
+
     /// Whether a client has started acquisition.
     pub fn acquiring(&self) -> bool {
         self.shared.control.lock().expect("control lock").regs.acquiring
@@ -298,6 +347,8 @@ impl GigeDevice {
     pub fn publish(&self, frame: &Arc<EncodedFrame>) {
         let s = &self.shared;
         *s.clock.lock().expect("clock lock") = (frame.meta.pose_t_ns, Instant::now());
+        let t = Some(frame.meta.integration_s);
+        s.published_integration.send_if_modified(|v| std::mem::replace(v, t) != t);
         let m = &s.metrics;
         let (settings, channel) = {
             let mut c = s.control.lock().expect("control lock");
@@ -379,7 +430,23 @@ fn mac_from_serial(serial: &str) -> [u8; 6] {
     [0x02, 0x48, h[0], h[1], h[2], h[3]]
 }
 
+/// What to send back for one datagram.
+enum Reply {
+    None,
+    Now(Vec<u8>),
+    /// A write the renderer applies when it starts its next frame: PENDING_ACK now, the
+    /// final `ack` once a published frame integrates `target_s` (or at the timeout).
+    Pending {
+        ack_id: u16,
+        ack: Vec<u8>,
+        target_s: f32,
+        timeout_ms: u32,
+        published: watch::Receiver<Option<f32>>,
+    },
+}
+
 async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
+    let socket = Arc::new(socket);
     let mut buf = vec![0u8; 2048];
     let mut tick = tokio::time::interval(Duration::from_millis(100));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -393,11 +460,17 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
                         continue;
                     }
                 };
-                let reply = handle_datagram(&shared, &buf[..n], peer);
-                if let Some(reply) = reply
-                    && let Err(e) = socket.send_to(&reply, peer).await
-                {
-                    tracing::warn!(%peer, "GVCP acknowledge not sent: {e}");
+                match handle_datagram(&shared, &buf[..n], peer) {
+                    Reply::None => {}
+                    Reply::Now(reply) => send_ack(&socket, &reply, peer).await,
+                    Reply::Pending { ack_id, ack, target_s, timeout_ms, published } => {
+                        let announced = timeout_ms.min(u32::from(u16::MAX)) as u16;
+                        send_ack(&socket, &gvcp::pending_ack(ack_id, announced), peer).await;
+                        shared.metrics.pending_acks.inc();
+                        // The final acknowledge leaves within the announced time.
+                        let wait = Duration::from_millis(u64::from(timeout_ms) * 9 / 10);
+                        tokio::spawn(finish_pending(socket.clone(), shared.clone(), peer, ack, target_s, wait, published));
+                    }
                 }
             }
             _ = tick.tick() => {
@@ -414,10 +487,52 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
     }
 }
 
-fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option<Vec<u8>> {
+async fn send_ack(socket: &tokio::net::UdpSocket, ack: &[u8], peer: SocketAddr) {
+    if let Err(e) = socket.send_to(ack, peer).await {
+        tracing::warn!(%peer, "GVCP acknowledge not sent: {e}");
+    }
+}
+
+/// Whether a frame's integration time is the one a client wrote (f32 µs → s).
+fn same_integration(frame_s: f32, target_s: f32) -> bool {
+    (frame_s - target_s).abs() <= target_s * 1e-4
+}
+
+/// Wait until a published frame shows the written exposure (frames the renderer
+/// started before the write still carry the old one), then send the final acknowledge.
+/// At the timeout it is sent anyway (the value is stored and applies from the next
+/// frame the renderer starts), counted and logged.
+async fn finish_pending(
+    socket: Arc<tokio::net::UdpSocket>,
+    shared: Arc<Shared>,
+    peer: SocketAddr,
+    ack: Vec<u8>,
+    target_s: f32,
+    wait: Duration,
+    mut published: watch::Receiver<Option<f32>>,
+) {
+    let started = Instant::now();
+    let shown = published.wait_for(|t| t.is_some_and(|t| same_integration(t, target_s)));
+    let applied = matches!(tokio::time::timeout(wait, shown).await, Ok(Ok(_)));
+    let m = &shared.metrics;
+    m.pending_wait.record(started.elapsed().as_nanos() as u64);
+    if !applied {
+        m.pending_timeouts.inc();
+        tracing::warn!(
+            %peer,
+            integration_s = target_s,
+            waited_ms = wait.as_millis() as u64,
+            "GigE Vision exposure write acknowledged at the pending timeout: no frame with it was published yet"
+        );
+    }
+    shared.control.lock().expect("control lock").end_pending(peer, Instant::now());
+    send_ack(&socket, &ack, peer).await;
+}
+
+fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply {
     let m = &shared.metrics;
     m.commands.inc();
-    let (outcome, settings) = {
+    let (outcome, settings, pending) = {
         let mut c = shared.control.lock().expect("control lock");
         let before = c.controller();
         let mut o = c.handle(datagram, peer, Instant::now());
@@ -434,8 +549,19 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
             shared.pending_triggers.store(0, Ordering::Release);
         }
         let settings = c.regs.settings;
+        // Slow: an exposure the renderer applies at its next frame, for a client that
+        // accepts PENDING_ACK. (The auto-exposure's time is not known in advance.)
+        let slow = o.reply.is_some()
+            && o.error.is_none()
+            && o.effects.contains(&Effect::Exposure)
+            && c.regs.pending_ack_enabled()
+            && shared.exposure_followed.load(Ordering::Acquire);
+        let target = integration_override(&shared.initial_settings, &settings).filter(|_| slow);
+        if target.is_some() {
+            c.begin_pending();
+        }
         o.effects.dedup();
-        (o, settings)
+        (o, settings, target.map(|t| (t as f32, c.regs.pending_timeout_ms)))
     };
     if let Some(status) = outcome.error {
         let malformed = matches!(status, Status::InvalidHeader | Status::NotImplemented)
@@ -449,7 +575,7 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
     }
     for e in &outcome.effects {
         match e {
-            Effect::Settings => {
+            Effect::Settings | Effect::Exposure => {
                 shared.settings_tx.send_replace(settings);
             }
             Effect::SoftwareTrigger => {
@@ -467,7 +593,15 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
         m.resend_requests.inc();
         let _ = shared.jobs.send(StreamJob::Resend { block_id, first, last });
     }
-    outcome.reply
+    match (outcome.reply, pending) {
+        (Some(ack), Some((target_s, timeout_ms))) => {
+            let ack_id = u16::from_be_bytes([ack[6], ack[7]]);
+            let published = shared.published_integration.subscribe();
+            Reply::Pending { ack_id, ack, target_s, timeout_ms, published }
+        }
+        (Some(ack), None) => Reply::Now(ack),
+        (None, _) => Reply::None,
+    }
 }
 
 /// Paces packets by the negotiated inter-packet delay. The schedule is absolute and

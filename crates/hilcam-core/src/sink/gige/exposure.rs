@@ -12,8 +12,11 @@ pub fn integration_override(initial: &CameraSettings, s: &CameraSettings) -> Opt
 }
 
 /// A channel of [`integration_override`] that follows the device's settings until the
-/// device stops; the scheduler reads it as each frame starts.
+/// device stops; the scheduler reads it as each frame starts. From then on an exposure
+/// write from a client that accepts PENDING_ACK is acknowledged once a frame with it is
+/// published.
 pub fn follow_exposure(device: &GigeDevice) -> watch::Receiver<Option<f64>> {
+    device.mark_exposure_followed();
     let mut settings = device.settings();
     let initial = *settings.borrow();
     let (tx, rx) = watch::channel(integration_override(&initial, &initial));
