@@ -11,6 +11,7 @@
 
 use super::chunk;
 use super::control::Control;
+use super::discovery;
 use super::exposure::integration_override;
 use super::genicam;
 use super::gvcp::{self, GVCP_PORT, Status};
@@ -53,6 +54,13 @@ pub struct GigeConfig {
     /// The longest a slow write waits for the renderer before its final acknowledge
     /// (ms; the pending timeout register, and the time a PENDING_ACK announces).
     pub pending_timeout_ms: u32,
+    /// Answer DISCOVERY_CMD sent to a broadcast address (an extra socket on
+    /// `discovery_address`, port `gvcp_port`).
+    pub broadcast_discovery: bool,
+    /// Where broadcast discovery is heard (default: the subnet broadcast of `address`,
+    /// 127.255.255.255 on loopback; 0.0.0.0 also hears 255.255.255.255 but needs the
+    /// GVCP port free on every address).
+    pub discovery_address: Option<Ipv4Addr>,
 }
 
 impl Default for GigeConfig {
@@ -69,6 +77,8 @@ impl Default for GigeConfig {
             resend_ring: 8,
             zip_xml: false,
             pending_timeout_ms: 1000,
+            broadcast_discovery: true,
+            discovery_address: None,
         }
     }
 }
@@ -96,6 +106,9 @@ struct Metrics {
     pending_acks: Counter,
     pending_timeouts: Counter,
     pending_wait: Arc<Histogram>,
+    broadcast_discoveries: Counter,
+    broadcast_acks: Counter,
+    broadcast_refused: Counter,
     dropped_not_acquiring: Counter,
     dropped_no_stream: Counter,
     dropped_untriggered: Counter,
@@ -157,6 +170,21 @@ impl Metrics {
                 "PENDING_ACK to the final acknowledge of the same command",
                 &[],
             ),
+            broadcast_discoveries: r.counter(
+                "hilcam_gige_broadcast_discoveries_total",
+                "DISCOVERY_CMDs heard on the discovery (broadcast) address",
+                &[],
+            ),
+            broadcast_acks: r.counter(
+                "hilcam_gige_broadcast_acks_total",
+                "DISCOVERY_ACK copies broadcast for clients that allow it",
+                &[],
+            ),
+            broadcast_refused: r.counter(
+                "hilcam_gige_commands_rejected_total",
+                "GVCP commands answered with an error status",
+                &[("reason", "broadcast")],
+            ),
             dropped_not_acquiring: dropped("not_acquiring"),
             dropped_no_stream: dropped("no_stream_channel"),
             dropped_untriggered: dropped("no_trigger"),
@@ -212,6 +240,7 @@ impl Shared {
 pub struct GigeDevice {
     shared: Arc<Shared>,
     gvcp_addr: SocketAddr,
+    discovery_addr: Option<SocketAddr>,
     stream_addr: SocketAddr,
     control_task: Option<tokio::task::JoinHandle<()>>,
     stream_thread: Option<std::thread::JoinHandle<()>>,
@@ -242,6 +271,21 @@ impl GigeDevice {
         })?;
         let gvcp_addr =
             gvcp.local_addr().map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
+        // Broadcast acknowledges leave from the control socket.
+        gvcp.set_broadcast(true).map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
+        let broadcast = discovery::subnet_broadcast(cfg.address);
+        let discovery_socket = if cfg.broadcast_discovery {
+            let ip = cfg.discovery_address.unwrap_or(broadcast);
+            let addr = SocketAddr::V4(SocketAddrV4::new(ip, gvcp_addr.port()));
+            Some(discovery::bind(ip, gvcp_addr.port()).map_err(|source| GigeError::Bind {
+                what: "GVCP discovery",
+                addr,
+                source,
+            })?)
+        } else {
+            None
+        };
+        let discovery_addr = discovery_socket.as_ref().and_then(|s| s.local_addr().ok());
         let stream_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.stream_port));
         let stream = UdpSocket::bind(stream_bind).map_err(|source| GigeError::Bind {
             what: "GVSP",
@@ -294,11 +338,12 @@ impl GigeDevice {
             .name("gige-stream".into())
             .spawn(move || stream_loop(stream, jobs_rx, thread_shared, ring))
             .map_err(|e| GigeError::Config(format!("cannot start the GVSP thread: {e}")))?;
-        let control_task = tokio::spawn(control_loop(gvcp, shared.clone()));
-        tracing::info!(%gvcp_addr, %stream_addr, "GigE Vision device up (GVCP, GVSP source)");
+        let control_task = tokio::spawn(control_loop(gvcp, discovery_socket, broadcast, shared.clone()));
+        tracing::info!(%gvcp_addr, %stream_addr, discovery = ?discovery_addr, "GigE Vision device up (GVCP, GVSP source, broadcast discovery)");
         Ok(GigeDevice {
             shared,
             gvcp_addr,
+            discovery_addr,
             stream_addr,
             control_task: Some(control_task),
             stream_thread: Some(stream_thread),
@@ -308,6 +353,11 @@ impl GigeDevice {
 
     pub fn gvcp_addr(&self) -> SocketAddr {
         self.gvcp_addr
+    }
+
+    /// Where broadcast DISCOVERY_CMDs are heard (None: broadcast discovery off).
+    pub fn discovery_addr(&self) -> Option<SocketAddr> {
+        self.discovery_addr
     }
 
     pub fn stream_addr(&self) -> SocketAddr {
@@ -445,9 +495,15 @@ enum Reply {
     },
 }
 
-async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
+async fn control_loop(
+    socket: tokio::net::UdpSocket,
+    discovery: Option<tokio::net::UdpSocket>,
+    broadcast: Ipv4Addr,
+    shared: Arc<Shared>,
+) {
     let socket = Arc::new(socket);
     let mut buf = vec![0u8; 2048];
+    let mut dbuf = vec![0u8; 2048];
     let mut tick = tokio::time::interval(Duration::from_millis(100));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
@@ -462,7 +518,12 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
                 };
                 match handle_datagram(&shared, &buf[..n], peer) {
                     Reply::None => {}
-                    Reply::Now(reply) => send_ack(&socket, &reply, peer).await,
+                    Reply::Now(reply) => {
+                        send_ack(&socket, &reply, peer).await;
+                        if discovery::broadcast_ack_allowed(&buf[..n]) {
+                            broadcast_ack(&socket, &shared, &reply, broadcast, peer).await;
+                        }
+                    }
                     Reply::Pending { ack_id, ack, target_s, timeout_ms, published } => {
                         let announced = timeout_ms.min(u32::from(u16::MAX)) as u16;
                         send_ack(&socket, &gvcp::pending_ack(ack_id, announced), peer).await;
@@ -470,6 +531,28 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
                         // The final acknowledge leaves within the announced time.
                         let wait = Duration::from_millis(u64::from(timeout_ms) * 9 / 10);
                         tokio::spawn(finish_pending(socket.clone(), shared.clone(), peer, ack, target_s, wait, published));
+                    }
+                }
+            }
+            r = recv_discovery(discovery.as_ref(), &mut dbuf) => {
+                let (n, peer) = match r {
+                    Ok(x) => x,
+                    Err(e) => {
+                        tracing::warn!("GVCP discovery receive: {e}");
+                        continue;
+                    }
+                };
+                let datagram = &dbuf[..n];
+                if !discovery::is_discovery(datagram) {
+                    shared.metrics.broadcast_refused.inc();
+                    tracing::warn!(%peer, "GVCP command on the broadcast discovery address ignored: only DISCOVERY_CMD is answered there");
+                    continue;
+                }
+                shared.metrics.broadcast_discoveries.inc();
+                if let Reply::Now(reply) = handle_datagram(&shared, datagram, peer) {
+                    send_ack(&socket, &reply, peer).await;
+                    if discovery::broadcast_ack_allowed(datagram) {
+                        broadcast_ack(&socket, &shared, &reply, broadcast, peer).await;
                     }
                 }
             }
@@ -485,6 +568,30 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
             break;
         }
     }
+}
+
+/// A datagram from the discovery socket; never ready when there is none.
+async fn recv_discovery(
+    socket: Option<&tokio::net::UdpSocket>,
+    buf: &mut [u8],
+) -> std::io::Result<(usize, SocketAddr)> {
+    match socket {
+        Some(s) => s.recv_from(buf).await,
+        None => std::future::pending().await,
+    }
+}
+
+/// The broadcast copy of a DISCOVERY_ACK, for a client that allows one.
+async fn broadcast_ack(
+    socket: &tokio::net::UdpSocket,
+    shared: &Shared,
+    ack: &[u8],
+    broadcast: Ipv4Addr,
+    peer: SocketAddr,
+) {
+    let to = discovery::broadcast_destination(broadcast, peer);
+    shared.metrics.broadcast_acks.inc();
+    send_ack(socket, ack, to).await;
 }
 
 async fn send_ack(socket: &tokio::net::UdpSocket, ack: &[u8], peer: SocketAddr) {
