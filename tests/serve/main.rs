@@ -10,6 +10,7 @@ mod serve_common;
 mod cli;
 mod end_to_end;
 mod gige;
+mod gige_demo;
 mod gige_discovery;
 mod gige_pending;
 mod golden;
