@@ -19,6 +19,7 @@ impl Drop for Demo {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn demo_gige_streams_to_arv_camera_test_with_no_missing_packets() {
+    let _alone = crate::gige::LOOPBACK_STREAM.lock().await;
     let out = tempfile::tempdir().unwrap();
     let ip = "127.0.0.36";
     let mut child = Command::new(env!("CARGO_BIN_EXE_hilcam"))

@@ -81,3 +81,22 @@ async fn broadcast_discovery_is_answered_with_the_control_address_and_arv_tool_s
         run("arv-tool-0.8", vec!["-a".into(), ip.to_string(), "control".into(), "SensorWidth".into()]).await;
     assert!(ok && out.contains("SensorWidth = 320"), "{out}");
 }
+
+#[tokio::test]
+async fn unusable_discovery_and_pending_settings_are_refused_by_name() {
+    use hilcam_core::metrics::Registry;
+    use hilcam_core::sink::gige::{GigeConfig, GigeDevice};
+    let ip = Ipv4Addr::new(127, 0, 0, 35);
+    let refused = |cfg: GigeConfig| async move {
+        match GigeDevice::start(&cfg, crate::gige::camera(64, 48), Registry::new()).await {
+            Ok(_) => panic!("{cfg:?} accepted"),
+            Err(e) => e.to_string(),
+        }
+    };
+    let e =
+        refused(GigeConfig { address: ip, discovery_address: Some(Ipv4Addr::UNSPECIFIED), ..GigeConfig::default() })
+            .await;
+    assert!(e.contains("discovery_address 0.0.0.0") && e.contains("127.255.255.255"), "{e}");
+    let e = refused(GigeConfig { address: ip, pending_timeout_ms: 70_000, ..GigeConfig::default() }).await;
+    assert!(e.contains("pending_timeout_ms 70000") && e.contains("10..=65535"), "{e}");
+}

@@ -58,8 +58,8 @@ pub struct GigeConfig {
     /// `discovery_address`, port `gvcp_port`).
     pub broadcast_discovery: bool,
     /// Where broadcast discovery is heard (default: the subnet broadcast of `address`,
-    /// 127.255.255.255 on loopback; 0.0.0.0 also hears 255.255.255.255 but needs the
-    /// GVCP port free on every address).
+    /// 127.255.255.255 on loopback). Not 0.0.0.0: Linux refuses it while the control
+    /// socket holds the port on `address`.
     pub discovery_address: Option<Ipv4Addr>,
 }
 
@@ -261,6 +261,15 @@ impl GigeDevice {
                 cfg.pending_timeout_ms,
                 pending_range.start(),
                 pending_range.end()
+            )));
+        }
+        if cfg.broadcast_discovery && cfg.discovery_address.is_some_and(|a| a.is_unspecified()) {
+            return Err(GigeError::Config(format!(
+                "[output.gige] discovery_address 0.0.0.0: the port {} is already the control socket's on {}, \
+                 so it cannot also be bound on every address; use the subnet's broadcast address (the default, {})",
+                cfg.gvcp_port,
+                cfg.address,
+                discovery::subnet_broadcast(cfg.address)
             )));
         }
         let gvcp_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.gvcp_port));
