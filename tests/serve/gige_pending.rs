@@ -112,3 +112,72 @@ async fn aravis_waits_through_a_pending_ack_longer_than_its_ack_timeout() {
     assert_eq!(rig.counter("hilcam_gige_pending_timeouts_total", &[]), 0);
     assert_eq!(rig.device.settings().borrow().exposure_us, 250.0);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn through_serve_the_final_ack_follows_the_first_frame_rendered_with_the_new_exposure() {
+    use crate::serve_common;
+    use hilcam_core::link::InputEvent;
+    use hilcam_core::serve::config::{InputConfig, TriggerConfig};
+    let ip = Ipv4Addr::new(127, 0, 0, 38);
+    let dir = tempfile::tempdir().unwrap();
+    let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
+                  [sensor.adc]\nbits = 16\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
+    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, sensor);
+    let mut cfg = serve_common::config(scene, InputConfig::default(), TriggerConfig::default(), Default::default());
+    cfg.output.gige = Some(rig_config(ip, 5000));
+    let (tx, rx) = tokio::sync::mpsc::channel(64);
+    let server = serve_common::start(cfg, Some(rx)).await;
+    let mut reader = serve_common::Reader::connect(server.info.stream).await;
+    // Poses every 40 ms: the serve loop renders one frame per pose.
+    let poses = tokio::spawn(async move {
+        for seq in 1u32.. {
+            let pose = serve_common::pose(seq, glam::DVec3::new(0.0, 0.0, 10.0), glam::DVec3::NEG_Z);
+            if tx.send(InputEvent::Pose { pose, arrival: Instant::now() }).await.is_err() || seq > 150 {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(40)).await;
+        }
+    });
+    let (frames_tx, mut frames_rx) = tokio::sync::mpsc::unbounded_channel();
+    let collect = tokio::spawn(async move {
+        loop {
+            let f = reader.next().await;
+            if frames_tx.send((f.meta.integration_s, f.meta.emit_unix_ns)).is_err() {
+                break;
+            }
+        }
+    });
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let addr = std::net::SocketAddr::from((ip, gvcp::GVCP_PORT));
+    let (waited, acked_unix_ns) = tokio::task::spawn_blocking(move || {
+        let mut c = RawClient::new(addr);
+        c.sock.set_read_timeout(Some(Duration::from_secs(8))).unwrap();
+        assert_eq!(c.write(reg::GVCP_CONFIG, reg::GVCP_CONFIG_PENDING_ACK_ENABLE), 0);
+        c.send_raw(&writereg(reg::EXPOSURE_TIME, 5f32.to_bits(), 0x0777));
+        let sent = Instant::now();
+        let pending = c.recv().expect("PENDING_ACK");
+        assert_eq!((pending.answer, pending.ack_id), (code::PENDING_ACK, 0x0777));
+        let fin = c.recv().expect("final acknowledge");
+        let acked = hilcam_core::frame::unix_ns_now();
+        assert_eq!((fin.answer, fin.status, fin.ack_id), (code::WRITEREG_ACK, 0, 0x0777));
+        (sent.elapsed(), acked)
+    })
+    .await
+    .unwrap();
+    assert!(waited < Duration::from_millis(4500), "acknowledged by a frame, not at the timeout: {waited:?}");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    poses.abort();
+    collect.abort();
+    let mut frames = Vec::new();
+    while let Ok(f) = frames_rx.try_recv() {
+        frames.push(f);
+    }
+    let first_new =
+        frames.iter().position(|&(t, _)| t == 5e-6).unwrap_or_else(|| panic!("no frame at 5 µs: {frames:?}"));
+    assert!(first_new > 0 && frames[..first_new].iter().all(|&(t, _)| t == 2e-5), "{frames:?}");
+    assert!(
+        frames[first_new].1 <= acked_unix_ns,
+        "the first frame with the new exposure was emitted before the final acknowledge arrived"
+    );
+    server.finish().await;
+}
