@@ -3,18 +3,22 @@
 //! A built-in pose source replays the shipped fly-around over a real pseudo-terminal
 //! serial pair into the server; the server renders the shipped satellite at the
 //! navigation camera's geometry and streams over loopback TCP to a built-in client,
-//! which writes the frames and a latency summary.
+//! which writes the frames and a latency summary. With `--gige` the server is also a
+//! GigE Vision camera (docs/gige.md) that Aravis can watch, until Ctrl-C.
 
 use anyhow::{Context, bail};
 use hilcam_core::link::send::{SendOptions, SerialWriter, send_trajectory};
 use hilcam_core::pose::trajectory::Trajectory;
-use hilcam_core::serve::config::{GovernorConfig, RenderOverrides};
+use hilcam_core::serve::config::{GovernorConfig, OutputSection, RenderOverrides};
 use hilcam_core::serve::config::{InputConfig, MetricsSection, SerialInput, ServeConfig, StreamSection, TriggerConfig};
 use hilcam_core::serve::governor::Policy;
 use hilcam_core::serve::scheduler::TriggerMode;
 use hilcam_core::serve::{Embed, run};
+use hilcam_core::sink::gige::GigeConfig;
+use hilcam_core::sink::gige::gvcp::GVCP_PORT;
 use hilcam_core::sink::{ImageFormat, RecvOptions, receive};
 use serialport::SerialPort;
+use std::net::{Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -30,6 +34,18 @@ pub struct DemoArgs {
     /// Frame rate of the server (fixed-rate governor keeps each frame in budget).
     #[arg(long, default_value_t = 2.0)]
     pub rate: f64,
+    /// Also be a GigE Vision camera (watch it with Aravis); runs until Ctrl-C or --duration.
+    #[arg(long)]
+    pub gige: bool,
+    /// The GigE Vision camera's address (any 127.x.y.z; a NIC's address to reach it from a board).
+    #[arg(long, default_value = "127.0.0.1", requires = "gige")]
+    pub gige_address: Ipv4Addr,
+    /// Its GVCP port (Aravis only talks to 3956; 0 = any free port, for other clients).
+    #[arg(long, alias = "port", default_value_t = GVCP_PORT, requires = "gige")]
+    pub gige_port: u16,
+    /// With --gige: stop after this many seconds instead of at Ctrl-C.
+    #[arg(long, requires = "gige")]
+    pub duration: Option<f64>,
 }
 
 /// The repository's `scenes/` folder: next to the working directory, or the source tree.
@@ -56,6 +72,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     let (master, slave) = serialport::TTYPort::pair().context("creating a pseudo-terminal pair")?;
     let device = slave.name().context("pty has no name")?;
     println!("demo: serial link {device} (pty), scene scenes/satellite.toml, {} frames at {} Hz", a.frames, a.rate);
+    let gige = if a.gige { Some(gige_config(a.gige_address, a.gige_port)?) } else { None };
 
     let cfg = ServeConfig {
         scene: root.join("scenes/satellite.toml"),
@@ -67,7 +84,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         stream: StreamSection { listen: "127.0.0.1:0".parse()?, ..Default::default() },
         record: None,
         metrics: MetricsSection { listen: None, print_interval_s: 2.0 },
-        output: Default::default(),
+        output: OutputSection { gige: gige.clone() },
     };
     cfg.validate().map_err(|(f, m)| anyhow::anyhow!("{f}: {m}"))?;
 
@@ -85,20 +102,43 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     let client = tokio::spawn(receive(info.stream, opts));
     tokio::time::sleep(Duration::from_millis(100)).await;
 
-    // The pose source: the fly-around at 30× speed (poses at 60 Hz).
+    if let Some(g) = &gige {
+        announce_gige(SocketAddr::from((g.address, g.gvcp_port)));
+    }
+
+    // The pose source: the fly-around (600 s) at 30× speed, or 5× (2 minutes) for a
+    // GigE Vision client to watch; poses at 60 Hz × speed / 30.
+    let speed = if a.gige { 5.0 } else { 30.0 };
     let samples: Arc<[_]> = Trajectory::load(root.join("scenes/trajectories/flyaround.csv"))?.into();
     let (send_stop_tx, send_stop_rx) = tokio::sync::oneshot::channel::<()>();
     let sender = tokio::spawn(send_trajectory(
         samples,
-        SendOptions { rate_hz: None, speed: 30.0 },
+        SendOptions { rate_hz: None, speed },
         Box::new(SerialWriter::new(master, "demo pty")),
         send_stop_rx,
     ));
 
     let client_abort = client.abort_handle();
-    let (received, interrupted) = tokio::select! {
-        r = tokio::time::timeout(Duration::from_secs(50), client) => (Some(r), None),
-        name = signals.recv() => (None, Some(name)),
+    let (received, interrupted) = if a.gige {
+        // The camera serves until Ctrl-C (the normal end here) or --duration; the TCP
+        // client takes its frames meanwhile.
+        let until = async {
+            match a.duration {
+                Some(s) => tokio::time::sleep(Duration::from_secs_f64(s.max(0.0))).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            name = signals.recv() => println!("demo: {name}, stopping"),
+            _ = until => println!("demo: --duration reached, stopping"),
+        }
+        let got = if client.is_finished() { Some(Ok(client.await)) } else { None };
+        (got, None)
+    } else {
+        tokio::select! {
+            r = tokio::time::timeout(Duration::from_secs(50), client) => (Some(r), None),
+            name = signals.recv() => (None, Some(name)),
+        }
     };
     client_abort.abort();
     // Stop the server before the pose source, so the pty is not pulled from under it.
@@ -113,6 +153,12 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     }
     let summary = match received {
         Some(Ok(r)) => r??,
+        _ if a.gige => {
+            println!("poses sent {} over the pty", sent.poses);
+            super::serve::print_report(&report);
+            println!("client: fewer than {} frames over TCP before the stop; nothing written", a.frames);
+            return Ok(());
+        }
         _ => bail!("no {} frames within 50 s", a.frames),
     };
 
@@ -138,6 +184,44 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         preview.display()
     );
     Ok(())
+}
+
+/// The `[output.gige]` of the demo camera. Port 0 is resolved here so the address can
+/// be announced; a taken port is refused with what to do instead.
+fn gige_config(address: Ipv4Addr, port: u16) -> anyhow::Result<GigeConfig> {
+    let probe = std::net::UdpSocket::bind((address, port)).map_err(|e| {
+        anyhow::anyhow!(
+            "--gige: cannot bind UDP {address}:{port}: {e}. Another GigE Vision camera (or hilcam) may hold it: \
+             pick another loopback address (--gige-address 127.0.0.2; Aravis only talks to port 3956), or \
+             --gige-port 0 for any free port (clients other than Aravis). Ports below 1024 need root or \
+             `setcap cap_net_bind_service=+ep` on the binary"
+        )
+    })?;
+    let gvcp_port = probe.local_addr()?.port();
+    drop(probe);
+    Ok(GigeConfig { address, gvcp_port, serial: "HILCAMDEMO".into(), ..GigeConfig::default() })
+}
+
+/// Where the camera is and the commands that watch it.
+fn announce_gige(at: SocketAddr) {
+    let ip = at.ip();
+    println!("demo: GigE Vision camera on {at} (GVCP); watch it with");
+    println!("  arv-tool-0.8 -a {ip} control Width Height PixelFormat ExposureTime");
+    println!("  arv-camera-test-0.8 -n {ip} --no-packet-socket -a --gv-packet-delay=20000");
+    if on_path("arv-viewer-0.8") {
+        println!("  arv-viewer-0.8        (needs a display; lists the cameras its discovery reaches)");
+    }
+    if at.port() != GVCP_PORT {
+        println!("  (Aravis only talks to port {GVCP_PORT}: these need --gige-port {GVCP_PORT})");
+    }
+    if !on_path("arv-tool-0.8") {
+        println!("  (Aravis is not installed: scripts/setup-aravis.sh)");
+    }
+    println!("demo: Ctrl-C stops it");
+}
+
+fn on_path(tool: &str) -> bool {
+    std::env::var_os("PATH").is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()))
 }
 
 fn write_summary(dir: &Path, s: &hilcam_core::sink::RecvSummary) -> anyhow::Result<()> {

@@ -23,7 +23,12 @@ use std::time::{Duration, Instant};
 
 const RATE_HZ: f64 = 10.0;
 
-fn camera(w: u32, h: u32) -> CameraDescription {
+/// Held by the tests that stream 1024² frames over loopback and require zero missing
+/// packets: run together (one of them renders on every core) they starve each other's
+/// receivers, and the kernel drops packets.
+pub(crate) static LOOPBACK_STREAM: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
+pub(crate) fn camera(w: u32, h: u32) -> CameraDescription {
     CameraDescription {
         sensor_width: w,
         sensor_height: h,
@@ -79,27 +84,43 @@ fn synthetic_frame(k: u64, w: u32, h: u32) -> EncodedFrame {
 }
 
 /// A device fed by a frame source at RATE_HZ cycling through 8 synthetic images.
-struct Rig {
-    device: Arc<GigeDevice>,
+pub(crate) struct Rig {
+    pub(crate) device: Arc<GigeDevice>,
     registry: Arc<Registry>,
     stop: Arc<AtomicBool>,
     producer: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Rig {
-    async fn start(ip: Ipv4Addr, w: u32, h: u32) -> Rig {
+    pub(crate) async fn start(ip: Ipv4Addr, w: u32, h: u32) -> Rig {
+        Rig::start_with(GigeConfig { address: ip, ..GigeConfig::default() }, w, h, None).await
+    }
+
+    /// With `exposure_lag: Some(n)` the source follows the client's exposure like the
+    /// serve loop's renderer, `n` frames late (the frames already in the pipeline):
+    /// frame k integrates the exposure set when frame k − n started.
+    pub(crate) async fn start_with(cfg: GigeConfig, w: u32, h: u32, exposure_lag: Option<usize>) -> Rig {
         let registry = Registry::new();
-        let cfg = GigeConfig { address: ip, ..GigeConfig::default() };
         let device = Arc::new(GigeDevice::start(&cfg, camera(w, h), registry.clone()).await.expect("device starts"));
+        let exposure = exposure_lag.map(|n| (n, hilcam_core::sink::gige::request::follow_requests(&device)));
         let stop = Arc::new(AtomicBool::new(false));
         let (d, s) = (device.clone(), stop.clone());
         let producer = std::thread::spawn(move || {
             let images: Vec<EncodedFrame> = (0..8).map(|k| synthetic_frame(k, w, h)).collect();
+            let mut in_flight = std::collections::VecDeque::new();
             let mut seq = 0u64;
             while !s.load(Ordering::Acquire) {
                 let mut f = images[(seq % 8) as usize].clone();
                 f.meta.frame_seq = seq;
                 f.meta.pose_arrival_unix_ns = hilcam_core::frame::unix_ns_now();
+                if let Some((lag, rx)) = &exposure {
+                    in_flight.push_back(rx.borrow().integration_s);
+                    if in_flight.len() > *lag
+                        && let Some(Some(t)) = in_flight.pop_front()
+                    {
+                        f.meta.integration_s = t as f32;
+                    }
+                }
                 d.publish(&Arc::new(f));
                 seq += 1;
                 std::thread::sleep(Duration::from_secs_f64(1.0 / RATE_HZ));
@@ -108,7 +129,7 @@ impl Rig {
         Rig { device, registry, stop, producer: Some(producer) }
     }
 
-    fn counter(&self, name: &str, labels: &[(&str, &str)]) -> u64 {
+    pub(crate) fn counter(&self, name: &str, labels: &[(&str, &str)]) -> u64 {
         self.registry.counter(name, "", labels).get()
     }
 }
@@ -122,7 +143,7 @@ impl Drop for Rig {
     }
 }
 
-fn require_tool(tool: &str) {
+pub(crate) fn require_tool(tool: &str) {
     let ok = Command::new("sh").arg("-c").arg(format!("command -v {tool}")).output().is_ok_and(|o| o.status.success());
     assert!(
         ok,
@@ -130,7 +151,7 @@ fn require_tool(tool: &str) {
     );
 }
 
-async fn run(cmd: &'static str, args: Vec<String>) -> (bool, String) {
+pub(crate) async fn run(cmd: &'static str, args: Vec<String>) -> (bool, String) {
     require_tool(cmd);
     tokio::task::spawn_blocking(move || {
         let out = Command::new(cmd).args(&args).output().unwrap_or_else(|e| panic!("{cmd}: {e}"));
@@ -188,6 +209,7 @@ async fn arv_tool_lists_the_device_and_reads_and_writes_features() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn arv_camera_test_streams_1024_mono16_with_no_missing_packets() {
+    let _alone = LOOPBACK_STREAM.lock().await;
     let ip = Ipv4Addr::new(127, 0, 0, 22);
     let rig = Rig::start(ip, 1024, 1024).await;
     // 20 µs between 1500-byte packets (75 MB/s, below a GigE link's 125 MB/s): a
@@ -262,30 +284,30 @@ async fn software_trigger_sends_one_frame_per_trigger() {
 }
 
 /// A raw GVCP client (what Aravis does under the hood, without its retries).
-struct RawClient {
-    sock: UdpSocket,
+pub(crate) struct RawClient {
+    pub(crate) sock: UdpSocket,
     device: SocketAddr,
     id: u16,
 }
 
 impl RawClient {
-    fn new(device: SocketAddr) -> Self {
+    pub(crate) fn new(device: SocketAddr) -> Self {
         let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
         sock.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
         RawClient { sock, device, id: 0 }
     }
 
-    fn send_raw(&self, bytes: &[u8]) {
+    pub(crate) fn send_raw(&self, bytes: &[u8]) {
         self.sock.send_to(bytes, self.device).unwrap();
     }
 
-    fn recv(&self) -> Option<gvcp::Ack> {
+    pub(crate) fn recv(&self) -> Option<gvcp::Ack> {
         let mut buf = [0u8; 1024];
         let n = self.sock.recv(&mut buf).ok()?;
         gvcp::decode_ack(&buf[..n])
     }
 
-    fn cmd(&mut self, code: u16, payload: &[u8]) -> gvcp::Ack {
+    pub(crate) fn cmd(&mut self, code: u16, payload: &[u8]) -> gvcp::Ack {
         self.id = self.id.wrapping_add(1).max(1);
         self.send_raw(&gvcp::encode_command(FLAG_ACK_REQUIRED, code, self.id, payload));
         let ack = self.recv().expect("acknowledge");
@@ -293,13 +315,13 @@ impl RawClient {
         ack
     }
 
-    fn write(&mut self, addr: u32, v: u32) -> u16 {
+    pub(crate) fn write(&mut self, addr: u32, v: u32) -> u16 {
         let mut p = addr.to_be_bytes().to_vec();
         p.extend_from_slice(&v.to_be_bytes());
         self.cmd(code::WRITEREG_CMD, &p).status
     }
 
-    fn read(&mut self, addr: u32) -> (u16, u32) {
+    pub(crate) fn read(&mut self, addr: u32) -> (u16, u32) {
         let a = self.cmd(code::READREG_CMD, &addr.to_be_bytes());
         (a.status, a.payload.get(..4).map(|b| u32::from_be_bytes(b.try_into().unwrap())).unwrap_or(0))
     }

@@ -36,11 +36,29 @@ pub struct Outcome {
 pub struct Control {
     pub regs: Registers,
     controller: Option<(SocketAddr, Instant)>,
+    /// Commands answered with PENDING_ACK whose final acknowledge has not gone out. A
+    /// client waiting for one sends no heartbeat, so none expires meanwhile.
+    pending: u32,
 }
 
 impl Control {
     pub fn new(regs: Registers) -> Self {
-        Control { regs, controller: None }
+        Control { regs, controller: None, pending: 0 }
+    }
+
+    /// A command from `peer` was answered with PENDING_ACK.
+    pub fn begin_pending(&mut self) {
+        self.pending += 1;
+    }
+
+    /// Its final acknowledge went out at `now`: the controller's heartbeat counts from here.
+    pub fn end_pending(&mut self, peer: SocketAddr, now: Instant) {
+        self.pending = self.pending.saturating_sub(1);
+        if let Some((addr, ref mut last)) = self.controller
+            && addr == peer
+        {
+            *last = now;
+        }
     }
 
     pub fn controller(&self) -> Option<SocketAddr> {
@@ -51,7 +69,7 @@ impl Control {
     /// Returns true when it did (acquisition stopped, stream closed).
     pub fn expire(&mut self, now: Instant) -> bool {
         let Some((_, last)) = self.controller else { return false };
-        if self.regs.heartbeat_disabled() {
+        if self.regs.heartbeat_disabled() || self.pending > 0 {
             return false;
         }
         if now.saturating_duration_since(last) > Duration::from_millis(u64::from(self.regs.heartbeat_timeout_ms)) {
@@ -224,6 +242,19 @@ mod tests {
         assert_eq!(c.controller(), None);
         assert_eq!(status(&c.handle(&writereg(reg::CCP, reg::CCP_CONTROL, 6), b, t0 + Duration::from_secs(6))), 0);
         assert_eq!(c.controller(), Some(b));
+    }
+
+    #[test]
+    fn no_heartbeat_expires_while_a_pending_command_waits() {
+        let mut c = Control::new(registers());
+        let a: SocketAddr = "127.0.0.1:5000".parse().unwrap();
+        let t0 = Instant::now();
+        c.handle(&writereg(reg::CCP, reg::CCP_CONTROL, 1), a, t0);
+        c.begin_pending();
+        assert!(!c.expire(t0 + Duration::from_secs(10)), "the client is waiting for our acknowledge");
+        c.end_pending(a, t0 + Duration::from_secs(10));
+        assert!(!c.expire(t0 + Duration::from_secs(12)), "the heartbeat counts from the final acknowledge");
+        assert!(c.expire(t0 + Duration::from_millis(13_100)));
     }
 
     #[test]

@@ -11,12 +11,14 @@
 
 use super::chunk;
 use super::control::Control;
+use super::discovery;
+use super::request::integration_override;
 use super::genicam;
-use super::gvcp::{GVCP_PORT, Status};
+use super::gvcp::{self, GVCP_PORT, Status};
 use super::gvsp::{self, Block};
 use super::pixel::{self, Roi};
 use super::registers::{
-    AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
+    self as reg, AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
 };
 use crate::frame::{EncodedFrame, unix_ns_now};
 use crate::metrics::{Counter, Histogram, Registry};
@@ -49,6 +51,16 @@ pub struct GigeConfig {
     pub resend_ring: usize,
     /// Serve the XML zipped (stored) instead of plain.
     pub zip_xml: bool,
+    /// The longest a slow write waits for the renderer before its final acknowledge
+    /// (ms; the pending timeout register, and the time a PENDING_ACK announces).
+    pub pending_timeout_ms: u32,
+    /// Answer DISCOVERY_CMD sent to a broadcast address (an extra socket on
+    /// `discovery_address`, port `gvcp_port`).
+    pub broadcast_discovery: bool,
+    /// Where broadcast discovery is heard (default: the subnet broadcast of `address`,
+    /// 127.255.255.255 on loopback). Not 0.0.0.0: Linux refuses it while the control
+    /// socket holds the port on `address`.
+    pub discovery_address: Option<Ipv4Addr>,
 }
 
 impl Default for GigeConfig {
@@ -64,6 +76,9 @@ impl Default for GigeConfig {
             user_name: String::new(),
             resend_ring: 8,
             zip_xml: false,
+            pending_timeout_ms: 1000,
+            broadcast_discovery: true,
+            discovery_address: None,
         }
     }
 }
@@ -88,6 +103,12 @@ struct Metrics {
     resend_requests: Counter,
     packets_resent: Counter,
     resend_unavailable: Counter,
+    pending_acks: Counter,
+    pending_timeouts: Counter,
+    pending_wait: Arc<Histogram>,
+    broadcast_discoveries: Counter,
+    broadcast_acks: Counter,
+    broadcast_refused: Counter,
     dropped_not_acquiring: Counter,
     dropped_no_stream: Counter,
     dropped_untriggered: Counter,
@@ -134,6 +155,36 @@ impl Metrics {
                 "Resend requests for blocks no longer in the ring",
                 &[],
             ),
+            pending_acks: r.counter(
+                "hilcam_gige_pending_acks_total",
+                "PENDING_ACKs sent for writes the renderer applies at its next frame",
+                &[],
+            ),
+            pending_timeouts: r.counter(
+                "hilcam_gige_pending_timeouts_total",
+                "Pending writes acknowledged at the pending timeout, before a frame showed them",
+                &[],
+            ),
+            pending_wait: r.histogram(
+                "hilcam_gige_pending_wait_seconds",
+                "PENDING_ACK to the final acknowledge of the same command",
+                &[],
+            ),
+            broadcast_discoveries: r.counter(
+                "hilcam_gige_broadcast_discoveries_total",
+                "DISCOVERY_CMDs heard on the discovery (broadcast) address",
+                &[],
+            ),
+            broadcast_acks: r.counter(
+                "hilcam_gige_broadcast_acks_total",
+                "DISCOVERY_ACK copies broadcast for clients that allow it",
+                &[],
+            ),
+            broadcast_refused: r.counter(
+                "hilcam_gige_commands_rejected_total",
+                "GVCP commands answered with an error status",
+                &[("reason", "broadcast")],
+            ),
             dropped_not_acquiring: dropped("not_acquiring"),
             dropped_no_stream: dropped("no_stream_channel"),
             dropped_untriggered: dropped("no_trigger"),
@@ -165,6 +216,13 @@ struct Shared {
     /// (pose time of the newest frame, when it was published): the device clock.
     clock: Mutex<(u64, Instant)>,
     trigger_hook: Mutex<Option<Box<dyn Fn() + Send + Sync>>>,
+    /// The settings the device started with (the exposure override is relative to them).
+    initial_settings: CameraSettings,
+    /// Whether a renderer follows the client's exposure (`request::follow_requests`):
+    /// only then does an exposure write wait for a frame that shows it.
+    exposure_followed: AtomicBool,
+    /// The integration time (s) of the newest frame published.
+    published_integration: watch::Sender<Option<f32>>,
     metrics: Metrics,
     stop: AtomicBool,
 }
@@ -182,6 +240,7 @@ impl Shared {
 pub struct GigeDevice {
     shared: Arc<Shared>,
     gvcp_addr: SocketAddr,
+    discovery_addr: Option<SocketAddr>,
     stream_addr: SocketAddr,
     control_task: Option<tokio::task::JoinHandle<()>>,
     stream_thread: Option<std::thread::JoinHandle<()>>,
@@ -195,6 +254,24 @@ impl GigeDevice {
         camera: CameraDescription,
         registry: Arc<Registry>,
     ) -> Result<GigeDevice, GigeError> {
+        let pending_range = reg::PENDING_TIMEOUT_MIN_MS..=reg::PENDING_TIMEOUT_MAX_MS;
+        if !pending_range.contains(&cfg.pending_timeout_ms) {
+            return Err(GigeError::Config(format!(
+                "[output.gige] pending_timeout_ms {}: {}..={} ms",
+                cfg.pending_timeout_ms,
+                pending_range.start(),
+                pending_range.end()
+            )));
+        }
+        if cfg.broadcast_discovery && cfg.discovery_address.is_some_and(|a| a.is_unspecified()) {
+            return Err(GigeError::Config(format!(
+                "[output.gige] discovery_address 0.0.0.0: the port {} is already the control socket's on {}, \
+                 so it cannot also be bound on every address; use the subnet's broadcast address (the default, {})",
+                cfg.gvcp_port,
+                cfg.address,
+                discovery::subnet_broadcast(cfg.address)
+            )));
+        }
         let gvcp_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.gvcp_port));
         let gvcp = tokio::net::UdpSocket::bind(gvcp_bind).await.map_err(|source| GigeError::Bind {
             what: "GVCP",
@@ -203,6 +280,21 @@ impl GigeDevice {
         })?;
         let gvcp_addr =
             gvcp.local_addr().map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
+        // Broadcast acknowledges leave from the control socket.
+        gvcp.set_broadcast(true).map_err(|source| GigeError::Bind { what: "GVCP", addr: gvcp_bind, source })?;
+        let broadcast = discovery::subnet_broadcast(cfg.address);
+        let discovery_socket = if cfg.broadcast_discovery {
+            let ip = cfg.discovery_address.unwrap_or(broadcast);
+            let addr = SocketAddr::V4(SocketAddrV4::new(ip, gvcp_addr.port()));
+            Some(discovery::bind(ip, gvcp_addr.port()).map_err(|source| GigeError::Bind {
+                what: "GVCP discovery",
+                addr,
+                source,
+            })?)
+        } else {
+            None
+        };
+        let discovery_addr = discovery_socket.as_ref().and_then(|s| s.local_addr().ok());
         let stream_bind = SocketAddr::V4(SocketAddrV4::new(cfg.address, cfg.stream_port));
         let stream = UdpSocket::bind(stream_bind).map_err(|source| GigeError::Bind {
             what: "GVSP",
@@ -230,6 +322,7 @@ impl GigeDevice {
         };
         let mut regs = Registers::new(identity, camera, cfg.packet_size, name, file).map_err(GigeError::Config)?;
         regs.stream.source_port = stream_addr.port();
+        regs.pending_timeout_ms = cfg.pending_timeout_ms;
         let settings = regs.settings;
         let (settings_tx, _) = watch::channel(settings);
         let (jobs_tx, jobs_rx) = mpsc::channel();
@@ -242,6 +335,9 @@ impl GigeDevice {
             next_due: Mutex::new(None),
             clock: Mutex::new((0, Instant::now())),
             trigger_hook: Mutex::new(None),
+            initial_settings: settings,
+            exposure_followed: AtomicBool::new(false),
+            published_integration: watch::channel(None).0,
             metrics: Metrics::new(&registry),
             stop: AtomicBool::new(false),
         });
@@ -251,11 +347,12 @@ impl GigeDevice {
             .name("gige-stream".into())
             .spawn(move || stream_loop(stream, jobs_rx, thread_shared, ring))
             .map_err(|e| GigeError::Config(format!("cannot start the GVSP thread: {e}")))?;
-        let control_task = tokio::spawn(control_loop(gvcp, shared.clone()));
-        tracing::info!(%gvcp_addr, %stream_addr, "GigE Vision device up (GVCP, GVSP source)");
+        let control_task = tokio::spawn(control_loop(gvcp, discovery_socket, broadcast, shared.clone()));
+        tracing::info!(%gvcp_addr, %stream_addr, discovery = ?discovery_addr, "GigE Vision device up (GVCP, GVSP source, broadcast discovery)");
         Ok(GigeDevice {
             shared,
             gvcp_addr,
+            discovery_addr,
             stream_addr,
             control_task: Some(control_task),
             stream_thread: Some(stream_thread),
@@ -265,6 +362,11 @@ impl GigeDevice {
 
     pub fn gvcp_addr(&self) -> SocketAddr {
         self.gvcp_addr
+    }
+
+    /// Where broadcast DISCOVERY_CMDs are heard (None: broadcast discovery off).
+    pub fn discovery_addr(&self) -> Option<SocketAddr> {
+        self.discovery_addr
     }
 
     pub fn stream_addr(&self) -> SocketAddr {
@@ -287,6 +389,12 @@ impl GigeDevice {
         *self.shared.trigger_hook.lock().expect("trigger hook lock") = Some(hook);
     }
 
+    /// A renderer applies the client's exposure to the frames it starts from now on:
+    /// exposure writes then wait for a frame that shows them (pending acknowledge).
+    pub(super) fn mark_exposure_followed(&self) {
+        self.shared.exposure_followed.store(true, Ordering::Release);
+    }
+
     /// Whether a client has started acquisition.
     pub fn acquiring(&self) -> bool {
         self.shared.control.lock().expect("control lock").regs.acquiring
@@ -298,6 +406,8 @@ impl GigeDevice {
     pub fn publish(&self, frame: &Arc<EncodedFrame>) {
         let s = &self.shared;
         *s.clock.lock().expect("clock lock") = (frame.meta.pose_t_ns, Instant::now());
+        let t = Some(frame.meta.integration_s);
+        s.published_integration.send_if_modified(|v| std::mem::replace(v, t) != t);
         let m = &s.metrics;
         let (settings, channel) = {
             let mut c = s.control.lock().expect("control lock");
@@ -379,8 +489,30 @@ fn mac_from_serial(serial: &str) -> [u8; 6] {
     [0x02, 0x48, h[0], h[1], h[2], h[3]]
 }
 
-async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
+/// What to send back for one datagram.
+enum Reply {
+    None,
+    Now(Vec<u8>),
+    /// A write the renderer applies when it starts its next frame: PENDING_ACK now, the
+    /// final `ack` once a published frame integrates `target_s` (or at the timeout).
+    Pending {
+        ack_id: u16,
+        ack: Vec<u8>,
+        target_s: f32,
+        timeout_ms: u32,
+        published: watch::Receiver<Option<f32>>,
+    },
+}
+
+async fn control_loop(
+    socket: tokio::net::UdpSocket,
+    discovery: Option<tokio::net::UdpSocket>,
+    broadcast: Ipv4Addr,
+    shared: Arc<Shared>,
+) {
+    let socket = Arc::new(socket);
     let mut buf = vec![0u8; 2048];
+    let mut dbuf = vec![0u8; 2048];
     let mut tick = tokio::time::interval(Duration::from_millis(100));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
@@ -393,11 +525,44 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
                         continue;
                     }
                 };
-                let reply = handle_datagram(&shared, &buf[..n], peer);
-                if let Some(reply) = reply
-                    && let Err(e) = socket.send_to(&reply, peer).await
-                {
-                    tracing::warn!(%peer, "GVCP acknowledge not sent: {e}");
+                match handle_datagram(&shared, &buf[..n], peer) {
+                    Reply::None => {}
+                    Reply::Now(reply) => {
+                        send_ack(&socket, &reply, peer).await;
+                        if discovery::broadcast_ack_allowed(&buf[..n]) {
+                            broadcast_ack(&socket, &shared, &reply, broadcast, peer).await;
+                        }
+                    }
+                    Reply::Pending { ack_id, ack, target_s, timeout_ms, published } => {
+                        let announced = timeout_ms.min(u32::from(u16::MAX)) as u16;
+                        send_ack(&socket, &gvcp::pending_ack(ack_id, announced), peer).await;
+                        shared.metrics.pending_acks.inc();
+                        // The final acknowledge leaves within the announced time.
+                        let wait = Duration::from_millis(u64::from(timeout_ms) * 9 / 10);
+                        tokio::spawn(finish_pending(socket.clone(), shared.clone(), peer, ack, target_s, wait, published));
+                    }
+                }
+            }
+            r = recv_discovery(discovery.as_ref(), &mut dbuf) => {
+                let (n, peer) = match r {
+                    Ok(x) => x,
+                    Err(e) => {
+                        tracing::warn!("GVCP discovery receive: {e}");
+                        continue;
+                    }
+                };
+                let datagram = &dbuf[..n];
+                if !discovery::is_discovery(datagram) {
+                    shared.metrics.broadcast_refused.inc();
+                    tracing::warn!(%peer, "GVCP command on the broadcast discovery address ignored: only DISCOVERY_CMD is answered there");
+                    continue;
+                }
+                shared.metrics.broadcast_discoveries.inc();
+                if let Reply::Now(reply) = handle_datagram(&shared, datagram, peer) {
+                    send_ack(&socket, &reply, peer).await;
+                    if discovery::broadcast_ack_allowed(datagram) {
+                        broadcast_ack(&socket, &shared, &reply, broadcast, peer).await;
+                    }
                 }
             }
             _ = tick.tick() => {
@@ -414,10 +579,76 @@ async fn control_loop(socket: tokio::net::UdpSocket, shared: Arc<Shared>) {
     }
 }
 
-fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option<Vec<u8>> {
+/// A datagram from the discovery socket; never ready when there is none.
+async fn recv_discovery(
+    socket: Option<&tokio::net::UdpSocket>,
+    buf: &mut [u8],
+) -> std::io::Result<(usize, SocketAddr)> {
+    match socket {
+        Some(s) => s.recv_from(buf).await,
+        None => std::future::pending().await,
+    }
+}
+
+/// The broadcast copy of a DISCOVERY_ACK, for a client that allows one.
+async fn broadcast_ack(
+    socket: &tokio::net::UdpSocket,
+    shared: &Shared,
+    ack: &[u8],
+    broadcast: Ipv4Addr,
+    peer: SocketAddr,
+) {
+    let to = discovery::broadcast_destination(broadcast, peer);
+    shared.metrics.broadcast_acks.inc();
+    send_ack(socket, ack, to).await;
+}
+
+async fn send_ack(socket: &tokio::net::UdpSocket, ack: &[u8], peer: SocketAddr) {
+    if let Err(e) = socket.send_to(ack, peer).await {
+        tracing::warn!(%peer, "GVCP acknowledge not sent: {e}");
+    }
+}
+
+/// Whether a frame's integration time is the one a client wrote (f32 µs → s).
+fn same_integration(frame_s: f32, target_s: f32) -> bool {
+    (frame_s - target_s).abs() <= target_s * 1e-4
+}
+
+/// Wait until a published frame shows the written exposure (frames the renderer
+/// started before the write still carry the old one), then send the final acknowledge.
+/// At the timeout it is sent anyway (the value is stored and applies from the next
+/// frame the renderer starts), counted and logged.
+async fn finish_pending(
+    socket: Arc<tokio::net::UdpSocket>,
+    shared: Arc<Shared>,
+    peer: SocketAddr,
+    ack: Vec<u8>,
+    target_s: f32,
+    wait: Duration,
+    mut published: watch::Receiver<Option<f32>>,
+) {
+    let started = Instant::now();
+    let shown = published.wait_for(|t| t.is_some_and(|t| same_integration(t, target_s)));
+    let applied = matches!(tokio::time::timeout(wait, shown).await, Ok(Ok(_)));
+    let m = &shared.metrics;
+    m.pending_wait.record(started.elapsed().as_nanos() as u64);
+    if !applied {
+        m.pending_timeouts.inc();
+        tracing::warn!(
+            %peer,
+            integration_s = target_s,
+            waited_ms = wait.as_millis() as u64,
+            "GigE Vision exposure write acknowledged at the pending timeout: no frame with it was published yet"
+        );
+    }
+    shared.control.lock().expect("control lock").end_pending(peer, Instant::now());
+    send_ack(&socket, &ack, peer).await;
+}
+
+fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply {
     let m = &shared.metrics;
     m.commands.inc();
-    let (outcome, settings) = {
+    let (outcome, settings, pending) = {
         let mut c = shared.control.lock().expect("control lock");
         let before = c.controller();
         let mut o = c.handle(datagram, peer, Instant::now());
@@ -434,8 +665,19 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
             shared.pending_triggers.store(0, Ordering::Release);
         }
         let settings = c.regs.settings;
+        // Slow: an exposure the renderer applies at its next frame, for a client that
+        // accepts PENDING_ACK. (The auto-exposure's time is not known in advance.)
+        let slow = o.reply.is_some()
+            && o.error.is_none()
+            && o.effects.contains(&Effect::Exposure)
+            && c.regs.pending_ack_enabled()
+            && shared.exposure_followed.load(Ordering::Acquire);
+        let target = integration_override(&shared.initial_settings, &settings).filter(|_| slow);
+        if target.is_some() {
+            c.begin_pending();
+        }
         o.effects.dedup();
-        (o, settings)
+        (o, settings, target.map(|t| (t as f32, c.regs.pending_timeout_ms)))
     };
     if let Some(status) = outcome.error {
         let malformed = matches!(status, Status::InvalidHeader | Status::NotImplemented)
@@ -449,7 +691,7 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
     }
     for e in &outcome.effects {
         match e {
-            Effect::Settings => {
+            Effect::Settings | Effect::Exposure => {
                 shared.settings_tx.send_replace(settings);
             }
             Effect::SoftwareTrigger => {
@@ -467,7 +709,15 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Option
         m.resend_requests.inc();
         let _ = shared.jobs.send(StreamJob::Resend { block_id, first, last });
     }
-    outcome.reply
+    match (outcome.reply, pending) {
+        (Some(ack), Some((target_s, timeout_ms))) => {
+            let ack_id = u16::from_be_bytes([ack[6], ack[7]]);
+            let published = shared.published_integration.subscribe();
+            Reply::Pending { ack_id, ack, target_s, timeout_ms, published }
+        }
+        (Some(ack), None) => Reply::Now(ack),
+        (None, _) => Reply::None,
+    }
 }
 
 /// Paces packets by the negotiated inter-packet delay. The schedule is absolute and

@@ -155,6 +155,8 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
             "GevSCPSPacketSize",
             "GevSCPD",
             "GevHeartbeatTimeout",
+            "GevGVCPPendingAck",
+            "GevGVCPPendingTimeout",
         ],
     );
     let mut chunk_features = vec!["ChunkModeActive"];
@@ -221,6 +223,18 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         u64::from(reg::HEARTBEAT_MAX_MS),
         1,
     );
+
+    // GVCP configuration bit 1 (bit 30 counted from the MSB): PENDING_ACK accepted.
+    let _ = writeln!(
+        x,
+        "<Boolean Name=\"GevGVCPPendingAck\" NameSpace=\"Standard\"><pValue>GevGVCPPendingAckReg</pValue>\
+         <OnValue>1</OnValue><OffValue>0</OffValue></Boolean>\n\
+         <MaskedIntReg Name=\"GevGVCPPendingAckReg\"><Address>{:#x}</Address><Length>4</Length>\
+         <AccessMode>RW</AccessMode><pPort>Device</pPort><Cachable>NoCache</Cachable>\
+         <Bit>30</Bit><Endianess>BigEndian</Endianess></MaskedIntReg>",
+        reg::GVCP_CONFIG
+    );
+    integer(&mut x, "GevGVCPPendingTimeout", reg::PENDING_TIMEOUT, Access::Ro, 0, u64::from(u32::MAX), 1);
 
     let _ = writeln!(
         x,

@@ -4,6 +4,7 @@
 //!
 //! Pure codecs first, the I/O shell last:
 //! - [`gvcp`]: GVCP command / acknowledge codec (fuzzed).
+//! - [`discovery`]: broadcast discovery (the discovery socket, broadcast acknowledges).
 //! - [`registers`]: bootstrap + feature register map, validation → effects.
 //! - [`control`]: control privilege, heartbeat, command dispatch.
 //! - [`genicam`]: the GenICam XML, from the camera description.
@@ -22,6 +23,7 @@ pub mod chunk;
 pub mod control;
 pub mod describe;
 pub mod device;
+pub mod discovery;
 pub mod genicam;
 pub mod gvcp;
 pub mod gvsp;

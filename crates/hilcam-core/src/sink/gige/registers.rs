@@ -42,6 +42,9 @@ pub const TIMESTAMP_CONTROL: u32 = 0x0944;
 pub const TIMESTAMP_VALUE_HIGH: u32 = 0x0948;
 pub const TIMESTAMP_VALUE_LOW: u32 = 0x094C;
 pub const GVCP_CONFIG: u32 = 0x0954;
+/// Pending timeout (ms, read-only): the longest a command takes before its final
+/// acknowledge when the client has enabled pending acknowledges.
+pub const PENDING_TIMEOUT: u32 = 0x0958;
 pub const CCP: u32 = 0x0A00;
 pub const MCP: u32 = 0x0B00;
 pub const MCDA: u32 = 0x0B10;
@@ -103,6 +106,9 @@ pub const CCP_CONTROL: u32 = 1 << 1;
 pub const TIMESTAMP_LATCH: u32 = 1 << 1;
 /// GVCP configuration bit 0: heartbeat disabled.
 pub const GVCP_CONFIG_HEARTBEAT_DISABLE: u32 = 1 << 0;
+/// GVCP configuration bit 1: the client accepts PENDING_ACK (GigE Vision 2.0); without
+/// it a slow write is acknowledged as soon as it is stored.
+pub const GVCP_CONFIG_PENDING_ACK_ENABLE: u32 = 1 << 1;
 /// SCPS bit 31: fire a test packet (not implemented; the XML does not offer it).
 pub const SCPS_FIRE_TEST: u32 = 1 << 31;
 pub const SCPS_DO_NOT_FRAGMENT: u32 = 1 << 30;
@@ -116,6 +122,9 @@ pub const PACKET_SIZE_INC: u32 = 4;
 /// Heartbeat timeouts accepted (ms).
 pub const HEARTBEAT_MIN_MS: u32 = 500;
 pub const HEARTBEAT_MAX_MS: u32 = 600_000;
+/// Pending timeouts a device may be configured with (ms; PENDING_ACK carries 16 bits).
+pub const PENDING_TIMEOUT_MIN_MS: u32 = 10;
+pub const PENDING_TIMEOUT_MAX_MS: u32 = 65_535;
 /// Frame rates accepted (Hz).
 pub const FRAME_RATE_MIN: f32 = 0.01;
 pub const FRAME_RATE_MAX: f32 = 1000.0;
@@ -239,6 +248,9 @@ pub enum Effect {
     TimestampLatch,
     /// A camera setting changed (publish the new settings).
     Settings,
+    /// ExposureTime / ExposureAuto changed: a setting the renderer applies when it
+    /// starts its next frame (a slow write: see `device.rs`, pending acknowledge).
+    Exposure,
     /// The stream channel changed (destination, packet size, delay).
     Stream,
 }
@@ -253,6 +265,8 @@ pub struct Registers {
     pub ccp: u32,
     pub heartbeat_timeout_ms: u32,
     pub gvcp_config: u32,
+    /// Pending timeout register (ms).
+    pub pending_timeout_ms: u32,
     pub acquiring: bool,
     pub latched_timestamp: u64,
     /// Capability register value.
@@ -299,11 +313,13 @@ impl Registers {
             ccp: 0,
             heartbeat_timeout_ms: 3000,
             gvcp_config: 0,
+            pending_timeout_ms: 1000,
             acquiring: false,
             latched_timestamp: 0,
             capability: capability::CONCATENATION
                 | capability::WRITE_MEMORY
                 | capability::PACKET_RESEND
+                | capability::PENDING_ACK
                 | capability::HEARTBEAT_DISABLE
                 | capability::SERIAL_NUMBER,
             xml_url,
@@ -317,6 +333,10 @@ impl Registers {
 
     pub fn heartbeat_disabled(&self) -> bool {
         self.gvcp_config & GVCP_CONFIG_HEARTBEAT_DISABLE != 0
+    }
+
+    pub fn pending_ack_enabled(&self) -> bool {
+        self.gvcp_config & GVCP_CONFIG_PENDING_ACK_ENABLE != 0
     }
 
     /// One 32-bit register.
@@ -351,6 +371,7 @@ impl Registers {
             TIMESTAMP_VALUE_HIGH => (self.latched_timestamp >> 32) as u32,
             TIMESTAMP_VALUE_LOW => self.latched_timestamp as u32,
             GVCP_CONFIG => self.gvcp_config,
+            PENDING_TIMEOUT => self.pending_timeout_ms,
             CCP => self.ccp,
             SCP0 => u32::from(self.stream.host_port),
             SCPS0 => self.stream.packet_size | if self.stream.do_not_fragment { SCPS_DO_NOT_FRAGMENT } else { 0 },
@@ -458,7 +479,7 @@ impl Registers {
                 }
             }
             GVCP_CONFIG => {
-                self.gvcp_config = v & GVCP_CONFIG_HEARTBEAT_DISABLE;
+                self.gvcp_config = v & (GVCP_CONFIG_HEARTBEAT_DISABLE | GVCP_CONFIG_PENDING_ACK_ENABLE);
                 Effect::None
             }
             SCP0 => {
@@ -589,7 +610,7 @@ impl Registers {
                 }
                 s.exposure_us = us;
                 s.exposure_auto = false;
-                Effect::Settings
+                Effect::Exposure
             }
             EXPOSURE_AUTO => {
                 s.exposure_auto = match v {
@@ -597,7 +618,7 @@ impl Registers {
                     2 => true,
                     _ => return Err(Status::InvalidParameter),
                 };
-                Effect::Settings
+                Effect::Exposure
             }
             FRAME_RATE => {
                 let hz = f32::from_bits(v);
@@ -698,7 +719,7 @@ pub(crate) mod tests {
         assert_eq!(r.write_u32(EXPOSURE_TIME, 0.5f32.to_bits()), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(EXPOSURE_TIME, f32::NAN.to_bits()), Err(Status::InvalidParameter));
         assert!(r.settings.exposure_auto);
-        assert_eq!(r.write_u32(EXPOSURE_TIME, 250.0f32.to_bits()), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 250.0f32.to_bits()), Ok(Effect::Exposure));
         assert!(!r.settings.exposure_auto, "writing ExposureTime turns auto-exposure off");
         assert_eq!(r.write_u32(SENSOR_WIDTH, 1), Err(Status::WriteProtect));
         assert_eq!(r.write_u32(0x3_0000, 1), Err(Status::InvalidAddress));
@@ -712,6 +733,6 @@ pub(crate) mod tests {
         let mut r = registers();
         r.acquiring = true;
         assert_eq!(r.write_u32(WIDTH, 16), Err(Status::WriteProtect));
-        assert_eq!(r.write_u32(EXPOSURE_TIME, 10.0f32.to_bits()), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 10.0f32.to_bits()), Ok(Effect::Exposure));
     }
 }

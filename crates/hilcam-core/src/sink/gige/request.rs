@@ -26,8 +26,11 @@ pub fn frame_request(initial: &CameraSettings, s: &CameraSettings) -> FrameReque
 }
 
 /// A channel of [`frame_request`] that follows the device's settings until the device
-/// stops; the scheduler reads it as each frame starts.
+/// stops; the scheduler reads it as each frame starts. From then on an exposure write
+/// from a client that accepts PENDING_ACK is acknowledged once a frame with it is
+/// published.
 pub fn follow_requests(device: &GigeDevice) -> watch::Receiver<FrameRequest> {
+    device.mark_exposure_followed();
     let mut settings = device.settings();
     let initial = *settings.borrow();
     let (tx, rx) = watch::channel(frame_request(&initial, &initial));
