@@ -12,7 +12,6 @@
 use super::chunk;
 use super::control::Control;
 use super::discovery;
-use super::request::integration_override;
 use super::genicam;
 use super::gvcp::{self, GVCP_PORT, Status};
 use super::gvsp::{self, Block};
@@ -20,6 +19,7 @@ use super::pixel::{self, Roi};
 use super::registers::{
     self as reg, AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
 };
+use super::request::integration_override;
 use crate::frame::{EncodedFrame, unix_ns_now};
 use crate::metrics::{Counter, Histogram, Registry};
 use std::collections::VecDeque;
