@@ -3,6 +3,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Wall time of each step, printed at the end (also when a step fails).
+laps=()
+lap_start=$SECONDS
+lap() {
+  laps+=("$(printf '%-44s %5ds' "$1" $((SECONDS - lap_start)))")
+  lap_start=$SECONDS
+}
+print_laps() {
+  local rc=$?
+  echo "test.sh: wall time by step"
+  printf '  %s\n' "${laps[@]}"
+  printf '  %-44s %5ds (exit %d)\n' "total" "$SECONDS" "$rc"
+}
+trap print_laps EXIT
+
 # --- pose input (issue 4) -------------------------------------------------
 # Python with pyserial + python-can for the interoperability tests (a venv,
 # created once; see scripts/setup-python.sh).
@@ -30,8 +45,10 @@ fi
 # GigE Vision (tests/serve/gige.rs): a real third-party client, Debian's Aravis tools and
 # its Python bindings.
 scripts/setup-aravis.sh
+lap "setup (python venv, vcan check, Aravis)"
 
 cargo test --all-targets
+lap "cargo test --all-targets (build + run)"
 
 # --- pose input (issue 4), continued --------------------------------------
 if [ "$vcan_mode" = vm ]; then
@@ -43,9 +60,11 @@ if [ "$vcan_mode" = vm ]; then
 else
   cargo test --test can_socketcan -- --include-ignored
 fi
+lap "SocketCAN tests ($vcan_mode)"
 # Fuzz each decoder briefly (cargo-fuzz needs nightly features: RUSTC_BOOTSTRAP
 # lets the stable toolchain use them). HILCAM_FUZZ_SECONDS=0 skips, with a note.
 scripts/fuzz.sh "${HILCAM_FUZZ_SECONDS:-10}"
+lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # ---------------------------------------------------------------------------
 
 # The bench build: the binary without the lab (--no-default-features) builds, and its
@@ -73,4 +92,5 @@ if [[ "$lab_bvh_err" != *"$expected"* ]]; then
 fi
 rm -r "$lab_bvh_dir"
 echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
+lap "bench build (--no-default-features) + checks"
 
