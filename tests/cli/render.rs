@@ -60,3 +60,24 @@ fn a_fractional_budget_renders_and_is_reported() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("--spp") && err.contains("at least 1"), "{err}");
 }
+
+#[test]
+fn an_roi_is_the_full_frames_pixels_there_and_one_outside_the_sensor_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (full, part) = (dir.path().join("full.pfm"), dir.path().join("roi.pfm"));
+    render(&full, &["--sensor", "--no-adaptive"]);
+    let said = render(&part, &["--sensor", "--no-adaptive", "--roi", "20,30,40,24", "--repeat", "2"]);
+    assert!(said.contains("roi.pfm: 40x24 spp 2"), "{said}");
+    let (full, part) =
+        (hilcam_core::render::film::read_pfm(&full).unwrap(), hilcam_core::render::film::read_pfm(&part).unwrap());
+    assert_eq!((part.width, part.height), (40, 24));
+    for row in 0..24 {
+        let want = &full.data[(30 + row) * 96 + 20..(30 + row) * 96 + 60];
+        assert_eq!(&part.data[row * 40..(row + 1) * 40], want, "row {row} of the ROI");
+    }
+    assert!(part.data.iter().any(|v| *v > 0.0), "the ROI sees the target");
+    let o = run("2", &dir.path().join("x.pfm"), &["--sensor", "--roi", "90,0,10,10"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--roi: window 10x10 at (90, 0) is not inside the 96x96 sensor"), "{err}");
+}
