@@ -182,7 +182,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
     enumeration(&mut x, "AcquisitionMode", reg::ACQUISITION_MODE, &[("Continuous", 0), ("SingleFrame", 1)]);
     command(&mut x, "AcquisitionStart", reg::ACQUISITION_START, 1);
     command(&mut x, "AcquisitionStop", reg::ACQUISITION_STOP, 1);
-    float(&mut x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, reg::FRAME_RATE_MAX, "Hz");
+    float(&mut x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, cam.frame_rate_max_hz, "Hz");
     enumeration(&mut x, "TriggerSelector", reg::TRIGGER_SELECTOR, &[("FrameStart", 0)]);
     enumeration(&mut x, "TriggerMode", reg::TRIGGER_MODE, &[("Off", 0), ("On", 1)]);
     enumeration(&mut x, "TriggerSource", reg::TRIGGER_SOURCE, &[("Software", 0)]);

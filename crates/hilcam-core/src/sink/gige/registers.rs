@@ -154,7 +154,11 @@ pub struct CameraDescription {
     pub exposure_max_us: f32,
     /// Whether the sensor model starts in auto-exposure.
     pub auto_exposure: bool,
+    /// AcquisitionFrameRate at start (Hz).
     pub frame_rate_hz: f32,
+    /// The highest AcquisitionFrameRate a client may write (Hz; the XML's Max): the
+    /// configured rate when it sets the renderer's rate, [`FRAME_RATE_MAX`] otherwise.
+    pub frame_rate_max_hz: f32,
 }
 
 impl CameraDescription {
@@ -622,7 +626,7 @@ impl Registers {
             }
             FRAME_RATE => {
                 let hz = f32::from_bits(v);
-                if !(hz.is_finite() && (FRAME_RATE_MIN..=FRAME_RATE_MAX).contains(&hz)) {
+                if !(hz.is_finite() && (FRAME_RATE_MIN..=cam.frame_rate_max_hz).contains(&hz)) {
                     return Err(Status::InvalidParameter);
                 }
                 s.frame_rate_hz = hz;
@@ -676,6 +680,7 @@ pub(crate) mod tests {
             exposure_max_us: 1e6,
             auto_exposure: true,
             frame_rate_hz: 10.0,
+            frame_rate_max_hz: FRAME_RATE_MAX,
         }
     }
 
