@@ -33,12 +33,15 @@ fn median_interval_ms(t: &[f64]) -> f64 {
     d[d.len() / 2]
 }
 
-async fn metric(addr: SocketAddr, name: &str) -> i64 {
+pub(crate) async fn metric(addr: SocketAddr, name: &str) -> i64 {
     let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
     s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
     let mut text = String::new();
     s.read_to_string(&mut text).await.unwrap();
-    let line = text.lines().find(|l| l.starts_with(name)).unwrap_or_else(|| panic!("no {name} in:\n{text}"));
+    let line = text
+        .lines()
+        .find(|l| l.strip_prefix(name).is_some_and(|r| r.starts_with(" ")))
+        .unwrap_or_else(|| panic!("no {name} in:\n{text}"));
     line.rsplit(' ').next().unwrap().parse().unwrap()
 }
 

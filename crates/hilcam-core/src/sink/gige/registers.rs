@@ -255,6 +255,9 @@ pub enum Effect {
     /// ExposureTime / ExposureAuto changed: a setting the renderer applies when it
     /// starts its next frame (a slow write: see `device.rs`, pending acknowledge).
     Exposure,
+    /// Width / Height / OffsetX / OffsetY changed: the renderer renders the new region
+    /// from its next frame (a slow write, like the exposure).
+    Roi,
     /// The stream channel changed (destination, packet size, delay).
     Stream,
 }
@@ -525,28 +528,28 @@ impl Registers {
                     return Err(Status::InvalidParameter);
                 }
                 s.width = v;
-                Effect::Settings
+                Effect::Roi
             }
             HEIGHT => {
                 if v == 0 || u64::from(v) + u64::from(s.offset_y) > u64::from(cam.sensor_height) {
                     return Err(Status::InvalidParameter);
                 }
                 s.height = v;
-                Effect::Settings
+                Effect::Roi
             }
             OFFSET_X => {
                 if u64::from(v) + u64::from(s.width) > u64::from(cam.sensor_width) {
                     return Err(Status::InvalidParameter);
                 }
                 s.offset_x = v;
-                Effect::Settings
+                Effect::Roi
             }
             OFFSET_Y => {
                 if u64::from(v) + u64::from(s.height) > u64::from(cam.sensor_height) {
                     return Err(Status::InvalidParameter);
                 }
                 s.offset_y = v;
-                Effect::Settings
+                Effect::Roi
             }
             PIXEL_FORMAT => {
                 let f = GevPixelFormat::from_pfnc(v)
@@ -714,8 +717,8 @@ pub(crate) mod tests {
     fn roi_and_ranges_are_validated() {
         let mut r = registers();
         assert_eq!(r.write_u32(WIDTH, 65), Err(Status::InvalidParameter));
-        assert_eq!(r.write_u32(WIDTH, 32), Ok(Effect::Settings));
-        assert_eq!(r.write_u32(OFFSET_X, 32), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(WIDTH, 32), Ok(Effect::Roi));
+        assert_eq!(r.write_u32(OFFSET_X, 32), Ok(Effect::Roi));
         assert_eq!(r.write_u32(OFFSET_X, 33), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(WIDTH, 33), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(PIXEL_FORMAT, GevPixelFormat::Mono10.pfnc()), Err(Status::InvalidParameter));

@@ -33,11 +33,11 @@ pub fn rate_override(initial: &CameraSettings, s: &CameraSettings) -> Option<f64
 }
 
 /// A channel of [`frame_request`] that follows the device's settings until the device
-/// stops; the scheduler reads it as each frame starts. From then on an exposure write
-/// from a client that accepts PENDING_ACK is acknowledged once a frame with it is
-/// published.
+/// stops; the scheduler reads it as each frame starts. From then on an exposure or ROI
+/// write from a client that accepts PENDING_ACK is acknowledged once a frame showing it
+/// is published.
 pub fn follow_requests(device: &GigeDevice) -> watch::Receiver<FrameRequest> {
-    device.mark_exposure_followed();
+    device.mark_requests_followed();
     follow(device, frame_request, |r| {
         tracing::info!(
             integration_s = ?r.integration_s,
