@@ -285,6 +285,11 @@ mod tests {
         }
         assert!(!x.contains("Mono10"), "a 12-bit ADC offers Mono12, not Mono10");
         assert!(x.contains("<Max>64</Max>"));
+        let rate =
+            |x: &str| x[x.find("\"AcquisitionFrameRate\"").unwrap()..].split("</Max>").next().unwrap().to_string();
+        assert!(rate(&x).ends_with("<Max>1000"), "{}", rate(&x));
+        let capped = xml(&r.identity, &CameraDescription { frame_rate_max_hz: 20.0, ..camera() });
+        assert!(rate(&capped).ends_with("<Max>20"), "the configured rate as the maximum: {}", rate(&capped));
         assert_eq!(x.matches("<RegisterDescription").count(), 1);
         assert!(x.trim_end().ends_with("</RegisterDescription>"));
     }

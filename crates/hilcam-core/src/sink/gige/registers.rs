@@ -737,6 +737,18 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn the_frame_rate_is_bounded_by_the_cameras_maximum() {
+        let mut r = registers();
+        assert_eq!(r.write_u32(FRAME_RATE, 500.0f32.to_bits()), Ok(Effect::Settings));
+        let cam = CameraDescription { frame_rate_max_hz: 20.0, ..camera() };
+        r.camera = cam;
+        assert_eq!(r.write_u32(FRAME_RATE, 20.0f32.to_bits()), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(FRAME_RATE, 20.5f32.to_bits()), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(FRAME_RATE, 0.001f32.to_bits()), Err(Status::InvalidParameter));
+        assert_eq!(r.settings.frame_rate_hz, 20.0, "a refused write keeps the rate");
+    }
+
+    #[test]
     fn geometry_is_locked_while_acquiring() {
         let mut r = registers();
         r.acquiring = true;
