@@ -87,6 +87,9 @@ async fn acquisition_frame_rate_sets_the_rate_serve_renders_at() {
     emit_times_ms(&mut reader, Duration::from_millis(300)).await;
     let back = median_interval_ms(&emit_times_ms(&mut reader, Duration::from_millis(600)).await);
     assert!((40.0..=60.0).contains(&back), "20 Hz again: median interval {back:.1} ms");
+    eprintln!(
+        "median frame interval: {configured:.1} ms at 20 Hz configured, {interval:.1} ms after 5 Hz written, {back:.1} ms back at 20 Hz"
+    );
     drop(tx);
     server.finish().await;
 }
