@@ -11,13 +11,13 @@ use hilcam_core::sink::gige::registers as reg;
 use std::net::Ipv4Addr;
 use std::time::{Duration, Instant};
 
-fn writereg(addr: u32, v: u32, id: u16) -> Vec<u8> {
+pub(crate) fn writereg(addr: u32, v: u32, id: u16) -> Vec<u8> {
     let mut p = addr.to_be_bytes().to_vec();
     p.extend_from_slice(&v.to_be_bytes());
     gvcp::encode_command(FLAG_ACK_REQUIRED, code::WRITEREG_CMD, id, &p)
 }
 
-fn rig_config(ip: Ipv4Addr, pending_timeout_ms: u32) -> GigeConfig {
+pub(crate) fn rig_config(ip: Ipv4Addr, pending_timeout_ms: u32) -> GigeConfig {
     GigeConfig { address: ip, pending_timeout_ms, ..GigeConfig::default() }
 }
 
@@ -52,7 +52,8 @@ async fn exposure_write_gets_a_pending_ack_then_the_final_ack_with_the_same_id()
         assert_eq!(fin.payload, [0, 0, 0, 1], "one register written");
 
         // Not slow (applied to the next frame the device sends): a plain acknowledge.
-        let ack = c.cmd(code::WRITEREG_CMD, &[&reg::WIDTH.to_be_bytes()[..], &64u32.to_be_bytes()].concat());
+        let mono8 = hilcam_core::sink::gige::GevPixelFormat::Mono8.pfnc();
+        let ack = c.cmd(code::WRITEREG_CMD, &[&reg::PIXEL_FORMAT.to_be_bytes()[..], &mono8.to_be_bytes()].concat());
         assert_eq!((ack.answer, ack.status), (code::WRITEREG_ACK, 0));
         waited
     })

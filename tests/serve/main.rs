@@ -13,6 +13,8 @@ mod gige;
 mod gige_demo;
 mod gige_discovery;
 mod gige_pending;
+mod gige_pending_roi;
+mod gige_rate;
 mod gige_request;
 mod golden;
 mod hardening;

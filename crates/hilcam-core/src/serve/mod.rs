@@ -102,7 +102,7 @@ pub async fn run(
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 
-    let sched_cfg = scheduler_config(&cfg, settings, &mut embed, session.as_ref(), out.requests);
+    let sched_cfg = scheduler_config(&cfg, settings, &mut embed, session.as_ref(), out.requests, out.rate_requests);
     let sinks = Arc::new(out.sinks);
     let summary = run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), metrics, shutdown.clone()).await;
 
@@ -148,6 +148,7 @@ fn scheduler_config(
     embed: &mut Embed,
     session: Option<&SessionWriter>,
     requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
+    rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
 ) -> SchedulerConfig {
     SchedulerConfig {
         trigger: cfg.trigger.mode,
@@ -160,6 +161,7 @@ fn scheduler_config(
         session: session.map(SessionWriter::tap),
         fault: embed.render_fault.take(),
         requests,
+        rate_requests,
     }
 }
 

@@ -20,6 +20,8 @@ pub(super) struct Outputs {
     pub inputs: mpsc::Receiver<InputEvent>,
     /// What a GigE client asks of each frame (see [`super::scheduler::SchedulerConfig::requests`]).
     pub requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
+    /// The frame rate a GigE client asks for (see [`super::scheduler::SchedulerConfig::rate_requests`]).
+    pub rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
 }
 
 impl Outputs {
@@ -37,7 +39,14 @@ impl Outputs {
         );
         let stream = start_stream(cfg, registry, latency.clone()).await?;
         let stream_addr = stream.local_addr();
-        let mut out = Outputs { sinks: vec![Sink::Stream(stream)], stream_addr, latency, inputs, requests: None };
+        let mut out = Outputs {
+            sinks: vec![Sink::Stream(stream)],
+            stream_addr,
+            latency,
+            inputs,
+            requests: None,
+            rate_requests: None,
+        };
         if let Some(r) = &cfg.record
             && let Some(dir) = &r.dir
         {
@@ -58,14 +67,16 @@ impl Outputs {
         registry: &Arc<Registry>,
     ) -> anyhow::Result<()> {
         use crate::sink::gige::{CameraDescription, GigeDevice, request, triggers};
-        let desc =
-            CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz).map_err(anyhow::Error::msg)?;
+        let rate_sets_schedule = cfg.trigger.mode == super::scheduler::TriggerMode::Rate;
+        let desc = CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz, rate_sets_schedule)
+            .map_err(anyhow::Error::msg)?;
         let device = GigeDevice::start(g, desc, registry.clone()).await?;
         let dropped =
             registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
         let inputs = std::mem::replace(&mut self.inputs, mpsc::channel(1).1);
         self.inputs = triggers::merge_software_triggers(inputs, &device, dropped);
         self.requests = Some(request::follow_requests(&device));
+        self.rate_requests = Some(request::follow_frame_rate(&device));
         self.sinks.push(Sink::Gige(device));
         Ok(())
     }

@@ -60,6 +60,11 @@ pub struct SchedulerConfig {
     /// What a camera client asks of each frame (a GigE Vision client's ExposureTime and
     /// ROI), read as each frame starts; the default request: the configured frame.
     pub requests: Option<tokio::sync::watch::Receiver<FrameRequest>>,
+    /// A camera client's frame rate (Hz; a GigE Vision client's AcquisitionFrameRate):
+    /// in `Rate` mode the ticker runs at it from the next tick on; `None` inside = back
+    /// to `rate_hz`. The device bounds it (the configured rate is its maximum). Ignored
+    /// in the other modes, where frames follow poses or triggers.
+    pub rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
 }
 
 /// See [`SchedulerConfig::fault`].
@@ -153,6 +158,7 @@ pub struct SchedulerMetrics {
     spp: Gauge,
     spp_milli: Gauge,
     depth: Gauge,
+    rate_millihz: Gauge,
 }
 
 impl SchedulerMetrics {
@@ -197,6 +203,11 @@ impl SchedulerMetrics {
                 &[],
             ),
             depth: r.gauge("hilcam_frame_depth", "Path depth of the last frame", &[]),
+            rate_millihz: r.gauge(
+                "hilcam_frame_rate_setting_millihz",
+                "Rate the scheduler renders at in rate trigger mode, in mHz (0 in pose / external mode)",
+                &[],
+            ),
         }
     }
 }
@@ -539,15 +550,75 @@ impl Loop {
     }
 }
 
-/// A `Rate` mode ticker (None in the other modes: frames wait for a pose or a trigger).
-fn rate_ticker(cfg: &SchedulerConfig) -> Option<tokio::time::Interval> {
+/// The configured `Rate` mode rate (None in the other modes: frames wait for a pose or
+/// a trigger).
+fn configured_rate(cfg: &SchedulerConfig) -> Option<f64> {
     match (cfg.trigger, cfg.rate_hz) {
-        (TriggerMode::Rate, Some(hz)) if hz > 0.0 => {
-            let mut t = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
-            t.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-            Some(t)
-        }
+        (TriggerMode::Rate, Some(hz)) if hz > 0.0 => Some(hz),
         _ => None,
+    }
+}
+
+/// A ticker at `hz` whose first tick is at `first`.
+fn ticker_at(hz: f64, first: tokio::time::Instant) -> tokio::time::Interval {
+    let mut t = tokio::time::interval_at(first, Duration::from_secs_f64(1.0 / hz));
+    t.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    t
+}
+
+/// The `Rate` mode rate the scheduler follows: the configured one, or a camera client's.
+struct TickRate {
+    configured: f64,
+    current: f64,
+    requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    /// The newest tick (the next one under a new rate is one new period after it).
+    last_tick: Option<Instant>,
+}
+
+impl TickRate {
+    fn new(configured: f64, mut requests: Option<tokio::sync::watch::Receiver<Option<f64>>>) -> Self {
+        let current = requests.as_mut().and_then(|r| *r.borrow_and_update()).unwrap_or(configured);
+        TickRate { configured, current, requests, last_tick: None }
+    }
+
+    /// The next requested rate; never ready without a request channel (or once it closed).
+    async fn changed(&mut self) -> Option<f64> {
+        match self.requests.as_mut() {
+            Some(rx) => match rx.changed().await {
+                Ok(()) => Some(rx.borrow_and_update().unwrap_or(self.configured)),
+                Err(_) => {
+                    self.requests = None;
+                    std::future::pending().await
+                }
+            },
+            None => std::future::pending().await,
+        }
+    }
+
+    /// Switch to `hz`: the ticker to run from now on, or None when the rate is unchanged
+    /// (or not usable: the device refuses such writes, this only guards the division).
+    fn switch(&mut self, hz: f64, m: &SchedulerMetrics) -> Option<tokio::time::Interval> {
+        if hz == self.current || !(hz.is_finite() && hz > 0.0) {
+            return None;
+        }
+        tracing::info!(
+            from_hz = self.current,
+            to_hz = hz,
+            configured_hz = self.configured,
+            "frame rate set by the camera client"
+        );
+        self.current = hz;
+        m.rate_millihz.set((hz * 1e3).round() as i64);
+        let now = Instant::now();
+        let next = self.last_tick.map_or(now, |t| (t + Duration::from_secs_f64(1.0 / hz)).max(now));
+        Some(ticker_at(hz, tokio::time::Instant::from_std(next)))
+    }
+}
+
+async fn next_rate(rate: &mut Option<TickRate>) -> Option<f64> {
+    match rate.as_mut() {
+        Some(r) => r.changed().await,
+        None => std::future::pending().await,
     }
 }
 
@@ -573,7 +644,9 @@ pub async fn run_scheduler(
     let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
     let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
     let renderer = spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx);
-    let mut ticker = rate_ticker(&cfg);
+    let mut rate = configured_rate(&cfg).map(|hz| TickRate::new(hz, cfg.rate_requests.clone()));
+    let mut ticker = rate.as_ref().map(|r| ticker_at(r.current, tokio::time::Instant::now()));
+    metrics.rate_millihz.set(rate.as_ref().map_or(0, |r| (r.current * 1e3).round() as i64));
     let mut st = Loop::new(cfg, sinks, metrics);
     let renderer = match renderer {
         Ok(r) => r,
@@ -589,7 +662,17 @@ pub async fn run_scheduler(
         tokio::select! {
             _ = &mut stopped => break,
             ev = inputs.recv(), if st.inputs_open => st.on_input(ev),
-            Some(tick) = next_tick(&mut ticker), if ticker.is_some() => st.on_tick(tick),
+            Some(tick) = next_tick(&mut ticker), if ticker.is_some() => {
+                if let Some(r) = rate.as_mut() {
+                    r.last_tick = Some(tick);
+                }
+                st.on_tick(tick)
+            }
+            Some(hz) = next_rate(&mut rate) => {
+                if let Some(t) = rate.as_mut().and_then(|r| r.switch(hz, &st.m)) {
+                    ticker = Some(t);
+                }
+            }
             d = done_rx.recv(), if st.busy => {
                 if !st.on_done(d) {
                     break;

@@ -1,6 +1,6 @@
 //! The camera a GigE Vision client sees, from hilcam's camera and sensor config.
 
-use super::registers::CameraDescription;
+use super::registers::{CameraDescription, FRAME_RATE_MAX};
 use crate::render::camera::CameraModel;
 use crate::sensor::SensorConfig;
 
@@ -12,7 +12,17 @@ impl CameraDescription {
     /// `sensor` (`[sensor.adc]`, `[sensor.detector]`, `[sensor.auto_exposure]`).
     /// Without an ADC the stream would carry radiance, which GigE Vision cannot:
     /// the caller refuses that configuration ([`CameraDescription::from_scene`] errs).
-    pub fn from_scene(camera: &CameraModel, sensor: &SensorConfig, rate_hz: Option<f64>) -> Result<Self, String> {
+    ///
+    /// `rate_hz` is AcquisitionFrameRate at start. With `rate_sets_schedule` (the serve
+    /// loop renders at a fixed rate, which the client's AcquisitionFrameRate then sets)
+    /// it is also the highest rate a client may write: the frame budget is made for it.
+    /// Otherwise the rate only thins the frames and may be anything up to the XML's max.
+    pub fn from_scene(
+        camera: &CameraModel,
+        sensor: &SensorConfig,
+        rate_hz: Option<f64>,
+        rate_sets_schedule: bool,
+    ) -> Result<Self, String> {
         let adc = sensor.adc.as_ref().ok_or_else(|| {
             "[output.gige] needs a sensor with an ADC ([sensor.adc]): GigE Vision streams digital numbers".to_string()
         })?;
@@ -31,6 +41,10 @@ impl CameraDescription {
             exposure_max_us: (max_s * 1e6) as f32,
             auto_exposure: ae.is_some_and(|a| a.enabled),
             frame_rate_hz: rate_hz.map(|r| r as f32).unwrap_or(DEFAULT_RATE_HZ),
+            frame_rate_max_hz: match rate_hz {
+                Some(r) if rate_sets_schedule => r as f32,
+                _ => FRAME_RATE_MAX,
+            },
         })
     }
 }

@@ -15,11 +15,11 @@ use super::discovery;
 use super::genicam;
 use super::gvcp::{self, GVCP_PORT, Status};
 use super::gvsp::{self, Block};
+use super::pending::{Awaited, Shown};
 use super::pixel::{self, Roi};
 use super::registers::{
     self as reg, AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
 };
-use super::request::integration_override;
 use crate::frame::{EncodedFrame, unix_ns_now};
 use crate::metrics::{Counter, Histogram, Registry};
 use std::collections::VecDeque;
@@ -216,13 +216,15 @@ struct Shared {
     /// (pose time of the newest frame, when it was published): the device clock.
     clock: Mutex<(u64, Instant)>,
     trigger_hook: Mutex<Option<Box<dyn Fn() + Send + Sync>>>,
-    /// The settings the device started with (the exposure override is relative to them).
+    /// The settings the device started with (the exposure override and the ROI are
+    /// relative to them).
     initial_settings: CameraSettings,
-    /// Whether a renderer follows the client's exposure (`request::follow_requests`):
-    /// only then does an exposure write wait for a frame that shows it.
-    exposure_followed: AtomicBool,
-    /// The integration time (s) of the newest frame published.
-    published_integration: watch::Sender<Option<f32>>,
+    /// Whether a renderer follows the client's exposure and ROI
+    /// (`request::follow_requests`): only then does such a write wait for a frame that
+    /// shows it.
+    requests_followed: AtomicBool,
+    /// What the newest frame published shows (integration time, ROI).
+    published: watch::Sender<Option<Shown>>,
     metrics: Metrics,
     stop: AtomicBool,
 }
@@ -336,8 +338,8 @@ impl GigeDevice {
             clock: Mutex::new((0, Instant::now())),
             trigger_hook: Mutex::new(None),
             initial_settings: settings,
-            exposure_followed: AtomicBool::new(false),
-            published_integration: watch::channel(None).0,
+            requests_followed: AtomicBool::new(false),
+            published: watch::channel(None).0,
             metrics: Metrics::new(&registry),
             stop: AtomicBool::new(false),
         });
@@ -389,10 +391,10 @@ impl GigeDevice {
         *self.shared.trigger_hook.lock().expect("trigger hook lock") = Some(hook);
     }
 
-    /// A renderer applies the client's exposure to the frames it starts from now on:
-    /// exposure writes then wait for a frame that shows them (pending acknowledge).
-    pub(super) fn mark_exposure_followed(&self) {
-        self.shared.exposure_followed.store(true, Ordering::Release);
+    /// A renderer applies the client's exposure and ROI to the frames it starts from now
+    /// on: such writes then wait for a frame that shows them (pending acknowledge).
+    pub(super) fn mark_requests_followed(&self) {
+        self.shared.requests_followed.store(true, Ordering::Release);
     }
 
     /// Whether a client has started acquisition.
@@ -406,8 +408,8 @@ impl GigeDevice {
     pub fn publish(&self, frame: &Arc<EncodedFrame>) {
         let s = &self.shared;
         *s.clock.lock().expect("clock lock") = (frame.meta.pose_t_ns, Instant::now());
-        let t = Some(frame.meta.integration_s);
-        s.published_integration.send_if_modified(|v| std::mem::replace(v, t) != t);
+        let shown = Some(Shown::of(frame));
+        s.published.send_if_modified(|v| std::mem::replace(v, shown) != shown);
         let m = &s.metrics;
         let (settings, channel) = {
             let mut c = s.control.lock().expect("control lock");
@@ -494,13 +496,13 @@ enum Reply {
     None,
     Now(Vec<u8>),
     /// A write the renderer applies when it starts its next frame: PENDING_ACK now, the
-    /// final `ack` once a published frame integrates `target_s` (or at the timeout).
+    /// final `ack` once a published frame shows `awaited` (or at the timeout).
     Pending {
         ack_id: u16,
         ack: Vec<u8>,
-        target_s: f32,
+        awaited: Awaited,
         timeout_ms: u32,
-        published: watch::Receiver<Option<f32>>,
+        published: watch::Receiver<Option<Shown>>,
     },
 }
 
@@ -533,13 +535,13 @@ async fn control_loop(
                             broadcast_ack(&socket, &shared, &reply, broadcast, peer).await;
                         }
                     }
-                    Reply::Pending { ack_id, ack, target_s, timeout_ms, published } => {
+                    Reply::Pending { ack_id, ack, awaited, timeout_ms, published } => {
                         let announced = timeout_ms.min(u32::from(u16::MAX)) as u16;
                         send_ack(&socket, &gvcp::pending_ack(ack_id, announced), peer).await;
                         shared.metrics.pending_acks.inc();
                         // The final acknowledge leaves within the announced time.
                         let wait = Duration::from_millis(u64::from(timeout_ms) * 9 / 10);
-                        tokio::spawn(finish_pending(socket.clone(), shared.clone(), peer, ack, target_s, wait, published));
+                        tokio::spawn(finish_pending(socket.clone(), shared.clone(), peer, ack, awaited, wait, published));
                     }
                 }
             }
@@ -609,13 +611,8 @@ async fn send_ack(socket: &tokio::net::UdpSocket, ack: &[u8], peer: SocketAddr) 
     }
 }
 
-/// Whether a frame's integration time is the one a client wrote (f32 µs → s).
-fn same_integration(frame_s: f32, target_s: f32) -> bool {
-    (frame_s - target_s).abs() <= target_s * 1e-4
-}
-
-/// Wait until a published frame shows the written exposure (frames the renderer
-/// started before the write still carry the old one), then send the final acknowledge.
+/// Wait until a published frame shows the written exposure / ROI (frames the renderer
+/// started before the write still carry the old ones), then send the final acknowledge.
 /// At the timeout it is sent anyway (the value is stored and applies from the next
 /// frame the renderer starts), counted and logged.
 async fn finish_pending(
@@ -623,12 +620,12 @@ async fn finish_pending(
     shared: Arc<Shared>,
     peer: SocketAddr,
     ack: Vec<u8>,
-    target_s: f32,
+    awaited: Awaited,
     wait: Duration,
-    mut published: watch::Receiver<Option<f32>>,
+    mut published: watch::Receiver<Option<Shown>>,
 ) {
     let started = Instant::now();
-    let shown = published.wait_for(|t| t.is_some_and(|t| same_integration(t, target_s)));
+    let shown = published.wait_for(|f| f.as_ref().is_some_and(|f| awaited.shown_by(f)));
     let applied = matches!(tokio::time::timeout(wait, shown).await, Ok(Ok(_)));
     let m = &shared.metrics;
     m.pending_wait.record(started.elapsed().as_nanos() as u64);
@@ -636,9 +633,10 @@ async fn finish_pending(
         m.pending_timeouts.inc();
         tracing::warn!(
             %peer,
-            integration_s = target_s,
+            integration_s = ?awaited.integration_s,
+            roi = ?awaited.roi,
             waited_ms = wait.as_millis() as u64,
-            "GigE Vision exposure write acknowledged at the pending timeout: no frame with it was published yet"
+            "GigE Vision write acknowledged at the pending timeout: no frame showing it was published yet"
         );
     }
     shared.control.lock().expect("control lock").end_pending(peer, Instant::now());
@@ -665,19 +663,18 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply 
             shared.pending_triggers.store(0, Ordering::Release);
         }
         let settings = c.regs.settings;
-        // Slow: an exposure the renderer applies at its next frame, for a client that
-        // accepts PENDING_ACK. (The auto-exposure's time is not known in advance.)
+        // Slow: an exposure or ROI the renderer applies at its next frame, for a client
+        // that accepts PENDING_ACK (`pending::Awaited` says which writes).
         let slow = o.reply.is_some()
             && o.error.is_none()
-            && o.effects.contains(&Effect::Exposure)
             && c.regs.pending_ack_enabled()
-            && shared.exposure_followed.load(Ordering::Acquire);
-        let target = integration_override(&shared.initial_settings, &settings).filter(|_| slow);
-        if target.is_some() {
+            && shared.requests_followed.load(Ordering::Acquire);
+        let awaited = Awaited::of(&shared.initial_settings, &settings, &o.effects).filter(|_| slow);
+        if awaited.is_some() {
             c.begin_pending();
         }
         o.effects.dedup();
-        (o, settings, target.map(|t| (t as f32, c.regs.pending_timeout_ms)))
+        (o, settings, awaited.map(|a| (a, c.regs.pending_timeout_ms)))
     };
     if let Some(status) = outcome.error {
         let malformed = matches!(status, Status::InvalidHeader | Status::NotImplemented)
@@ -691,7 +688,7 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply 
     }
     for e in &outcome.effects {
         match e {
-            Effect::Settings | Effect::Exposure => {
+            Effect::Settings | Effect::Exposure | Effect::Roi => {
                 shared.settings_tx.send_replace(settings);
             }
             Effect::SoftwareTrigger => {
@@ -710,10 +707,10 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply 
         let _ = shared.jobs.send(StreamJob::Resend { block_id, first, last });
     }
     match (outcome.reply, pending) {
-        (Some(ack), Some((target_s, timeout_ms))) => {
+        (Some(ack), Some((awaited, timeout_ms))) => {
             let ack_id = u16::from_be_bytes([ack[6], ack[7]]);
-            let published = shared.published_integration.subscribe();
-            Reply::Pending { ack_id, ack, target_s, timeout_ms, published }
+            let published = shared.published.subscribe();
+            Reply::Pending { ack_id, ack, awaited, timeout_ms, published }
         }
         (Some(ack), None) => Reply::Now(ack),
         (None, _) => Reply::None,

@@ -182,7 +182,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
     enumeration(&mut x, "AcquisitionMode", reg::ACQUISITION_MODE, &[("Continuous", 0), ("SingleFrame", 1)]);
     command(&mut x, "AcquisitionStart", reg::ACQUISITION_START, 1);
     command(&mut x, "AcquisitionStop", reg::ACQUISITION_STOP, 1);
-    float(&mut x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, reg::FRAME_RATE_MAX, "Hz");
+    float(&mut x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, cam.frame_rate_max_hz, "Hz");
     enumeration(&mut x, "TriggerSelector", reg::TRIGGER_SELECTOR, &[("FrameStart", 0)]);
     enumeration(&mut x, "TriggerMode", reg::TRIGGER_MODE, &[("Off", 0), ("On", 1)]);
     enumeration(&mut x, "TriggerSource", reg::TRIGGER_SOURCE, &[("Software", 0)]);
@@ -285,6 +285,11 @@ mod tests {
         }
         assert!(!x.contains("Mono10"), "a 12-bit ADC offers Mono12, not Mono10");
         assert!(x.contains("<Max>64</Max>"));
+        let rate =
+            |x: &str| x[x.find("\"AcquisitionFrameRate\"").unwrap()..].split("</Max>").next().unwrap().to_string();
+        assert!(rate(&x).ends_with("<Max>1000"), "{}", rate(&x));
+        let capped = xml(&r.identity, &CameraDescription { frame_rate_max_hz: 20.0, ..camera() });
+        assert!(rate(&capped).ends_with("<Max>20"), "the configured rate as the maximum: {}", rate(&capped));
         assert_eq!(x.matches("<RegisterDescription").count(), 1);
         assert!(x.trim_end().ends_with("</RegisterDescription>"));
     }

@@ -15,7 +15,9 @@
 //! - [`describe`]: the camera description from hilcam's camera and sensor config.
 //! - [`device`]: sockets, the stream thread, the resend ring.
 //! - [`triggers`]: software triggers into the serve loop's inputs.
-//! - [`request`]: the client's ExposureTime and ROI as what each frame renders.
+//! - [`request`]: the client's ExposureTime and ROI as what each frame renders, its
+//!   AcquisitionFrameRate as the rate frames are rendered at.
+//! - [`pending`]: what a slow write waits for a published frame to show.
 //!
 //! Reference: `docs/gige.md`.
 
@@ -27,6 +29,7 @@ pub mod discovery;
 pub mod genicam;
 pub mod gvcp;
 pub mod gvsp;
+pub mod pending;
 pub mod pixel;
 pub mod registers;
 pub mod request;

@@ -154,7 +154,11 @@ pub struct CameraDescription {
     pub exposure_max_us: f32,
     /// Whether the sensor model starts in auto-exposure.
     pub auto_exposure: bool,
+    /// AcquisitionFrameRate at start (Hz).
     pub frame_rate_hz: f32,
+    /// The highest AcquisitionFrameRate a client may write (Hz; the XML's Max): the
+    /// configured rate when it sets the renderer's rate, [`FRAME_RATE_MAX`] otherwise.
+    pub frame_rate_max_hz: f32,
 }
 
 impl CameraDescription {
@@ -251,6 +255,9 @@ pub enum Effect {
     /// ExposureTime / ExposureAuto changed: a setting the renderer applies when it
     /// starts its next frame (a slow write: see `device.rs`, pending acknowledge).
     Exposure,
+    /// Width / Height / OffsetX / OffsetY changed: the renderer renders the new region
+    /// from its next frame (a slow write, like the exposure).
+    Roi,
     /// The stream channel changed (destination, packet size, delay).
     Stream,
 }
@@ -521,28 +528,28 @@ impl Registers {
                     return Err(Status::InvalidParameter);
                 }
                 s.width = v;
-                Effect::Settings
+                Effect::Roi
             }
             HEIGHT => {
                 if v == 0 || u64::from(v) + u64::from(s.offset_y) > u64::from(cam.sensor_height) {
                     return Err(Status::InvalidParameter);
                 }
                 s.height = v;
-                Effect::Settings
+                Effect::Roi
             }
             OFFSET_X => {
                 if u64::from(v) + u64::from(s.width) > u64::from(cam.sensor_width) {
                     return Err(Status::InvalidParameter);
                 }
                 s.offset_x = v;
-                Effect::Settings
+                Effect::Roi
             }
             OFFSET_Y => {
                 if u64::from(v) + u64::from(s.height) > u64::from(cam.sensor_height) {
                     return Err(Status::InvalidParameter);
                 }
                 s.offset_y = v;
-                Effect::Settings
+                Effect::Roi
             }
             PIXEL_FORMAT => {
                 let f = GevPixelFormat::from_pfnc(v)
@@ -622,7 +629,7 @@ impl Registers {
             }
             FRAME_RATE => {
                 let hz = f32::from_bits(v);
-                if !(hz.is_finite() && (FRAME_RATE_MIN..=FRAME_RATE_MAX).contains(&hz)) {
+                if !(hz.is_finite() && (FRAME_RATE_MIN..=cam.frame_rate_max_hz).contains(&hz)) {
                     return Err(Status::InvalidParameter);
                 }
                 s.frame_rate_hz = hz;
@@ -676,6 +683,7 @@ pub(crate) mod tests {
             exposure_max_us: 1e6,
             auto_exposure: true,
             frame_rate_hz: 10.0,
+            frame_rate_max_hz: FRAME_RATE_MAX,
         }
     }
 
@@ -709,8 +717,8 @@ pub(crate) mod tests {
     fn roi_and_ranges_are_validated() {
         let mut r = registers();
         assert_eq!(r.write_u32(WIDTH, 65), Err(Status::InvalidParameter));
-        assert_eq!(r.write_u32(WIDTH, 32), Ok(Effect::Settings));
-        assert_eq!(r.write_u32(OFFSET_X, 32), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(WIDTH, 32), Ok(Effect::Roi));
+        assert_eq!(r.write_u32(OFFSET_X, 32), Ok(Effect::Roi));
         assert_eq!(r.write_u32(OFFSET_X, 33), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(WIDTH, 33), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(PIXEL_FORMAT, GevPixelFormat::Mono10.pfnc()), Err(Status::InvalidParameter));
@@ -726,6 +734,18 @@ pub(crate) mod tests {
         assert_eq!(r.read_u32(WIDTH + 1), Err(Status::BadAlignment));
         assert_eq!(r.write_u32(SCPS0, 100), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(SCPS0, 8192), Ok(Effect::Stream));
+    }
+
+    #[test]
+    fn the_frame_rate_is_bounded_by_the_cameras_maximum() {
+        let mut r = registers();
+        assert_eq!(r.write_u32(FRAME_RATE, 500.0f32.to_bits()), Ok(Effect::Settings));
+        let cam = CameraDescription { frame_rate_max_hz: 20.0, ..camera() };
+        r.camera = cam;
+        assert_eq!(r.write_u32(FRAME_RATE, 20.0f32.to_bits()), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(FRAME_RATE, 20.5f32.to_bits()), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(FRAME_RATE, 0.001f32.to_bits()), Err(Status::InvalidParameter));
+        assert_eq!(r.settings.frame_rate_hz, 20.0, "a refused write keeps the rate");
     }
 
     #[test]

@@ -1,4 +1,5 @@
-//! A client's ExposureTime and ROI as the [`FrameRequest`] the serve loop renders.
+//! A client's ExposureTime and ROI as the [`FrameRequest`] the serve loop renders, and
+//! its AcquisitionFrameRate as the rate the serve loop renders at (`rate` trigger mode).
 
 use super::{CameraSettings, GigeDevice};
 use crate::pipeline::FrameRequest;
@@ -25,24 +26,48 @@ pub fn frame_request(initial: &CameraSettings, s: &CameraSettings) -> FrameReque
     FrameRequest { integration_s: integration_override(initial, s), roi: roi(initial, s) }
 }
 
+/// The frame rate (Hz) `s` asks of the renderer, or `None` for the configured one
+/// (the client has not changed AcquisitionFrameRate).
+pub fn rate_override(initial: &CameraSettings, s: &CameraSettings) -> Option<f64> {
+    (s.frame_rate_hz != initial.frame_rate_hz).then(|| f64::from(s.frame_rate_hz))
+}
+
 /// A channel of [`frame_request`] that follows the device's settings until the device
-/// stops; the scheduler reads it as each frame starts. From then on an exposure write
-/// from a client that accepts PENDING_ACK is acknowledged once a frame with it is
-/// published.
+/// stops; the scheduler reads it as each frame starts. From then on an exposure or ROI
+/// write from a client that accepts PENDING_ACK is acknowledged once a frame showing it
+/// is published.
 pub fn follow_requests(device: &GigeDevice) -> watch::Receiver<FrameRequest> {
-    device.mark_exposure_followed();
+    device.mark_requests_followed();
+    follow(device, frame_request, |r| {
+        tracing::info!(
+            integration_s = ?r.integration_s,
+            roi = ?r.roi,
+            "GigE Vision client changed the frame (None: the sensor's own exposure, the whole array)"
+        )
+    })
+}
+
+/// A channel of [`rate_override`] that follows the device's settings until the device
+/// stops: the scheduler's tick rate in `rate` trigger mode (it logs the change).
+pub fn follow_frame_rate(device: &GigeDevice) -> watch::Receiver<Option<f64>> {
+    follow(device, rate_override, |_| {})
+}
+
+/// A channel of `what(initial, settings)`, sent (and `changed` called) only when the
+/// value changes.
+fn follow<T: PartialEq + Copy + Send + Sync + 'static>(
+    device: &GigeDevice,
+    what: fn(&CameraSettings, &CameraSettings) -> T,
+    changed: fn(&T),
+) -> watch::Receiver<T> {
     let mut settings = device.settings();
     let initial = *settings.borrow();
-    let (tx, rx) = watch::channel(frame_request(&initial, &initial));
+    let (tx, rx) = watch::channel(what(&initial, &initial));
     tokio::spawn(async move {
         while settings.changed().await.is_ok() {
-            let r = frame_request(&initial, &settings.borrow_and_update());
-            if tx.send_if_modified(|v| std::mem::replace(v, r) != r) {
-                tracing::info!(
-                    integration_s = ?r.integration_s,
-                    roi = ?r.roi,
-                    "GigE Vision client changed the frame (None: the sensor's own exposure, the whole array)"
-                );
+            let v = what(&initial, &settings.borrow_and_update());
+            if tx.send_if_modified(|old| std::mem::replace(old, v) != v) {
+                changed(&v);
             }
             if tx.is_closed() {
                 break;
@@ -76,5 +101,13 @@ mod tests {
         assert_eq!(frame_request(&full, &full), FrameRequest::default(), "the whole array: the configured frame");
         let small = CameraSettings { width: 16, height: 8, offset_x: 4, offset_y: 2, ..full };
         assert_eq!(roi(&full, &small), Some(Window { x: 4, y: 2, width: 16, height: 8 }));
+    }
+
+    #[test]
+    fn only_a_changed_frame_rate_overrides_the_configured_one() {
+        let cam = crate::sink::gige::registers::tests::camera();
+        let initial = CameraSettings::initial(&cam);
+        assert_eq!(rate_override(&initial, &initial), None);
+        assert_eq!(rate_override(&initial, &CameraSettings { frame_rate_hz: 5.0, ..initial }), Some(5.0));
     }
 }
