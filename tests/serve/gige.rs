@@ -544,9 +544,8 @@ async fn a_clients_exposure_time_is_the_integration_time_of_the_next_frames() {
     use hilcam_core::serve::config::{InputConfig, TriggerConfig};
     let ip = Ipv4Addr::new(127, 0, 0, 30);
     let dir = tempfile::tempdir().unwrap();
-    let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
-                  [sensor.adc]\nbits = 16\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
-    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, sensor);
+    let sensor = serve_common::detector_sensor(16, 1.0, "");
+    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, &sensor);
     let mut cfg = serve_common::config(scene, InputConfig::default(), TriggerConfig::default(), Default::default());
     cfg.output.gige = Some(GigeConfig { address: ip, ..GigeConfig::default() });
     let (tx, rx) = tokio::sync::mpsc::channel(4);

@@ -121,9 +121,8 @@ async fn through_serve_the_final_ack_follows_the_first_frame_rendered_with_the_n
     use hilcam_core::serve::config::{InputConfig, TriggerConfig};
     let ip = Ipv4Addr::new(127, 0, 0, 38);
     let dir = tempfile::tempdir().unwrap();
-    let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
-                  [sensor.adc]\nbits = 16\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
-    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, sensor);
+    let sensor = serve_common::detector_sensor(16, 1.0, "");
+    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, &sensor);
     let mut cfg = serve_common::config(scene, InputConfig::default(), TriggerConfig::default(), Default::default());
     cfg.output.gige = Some(rig_config(ip, 5000));
     let (tx, rx) = tokio::sync::mpsc::channel(64);

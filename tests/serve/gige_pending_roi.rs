@@ -35,9 +35,8 @@ fn offset_of(roi: &[u16], full: &[u16]) -> u32 {
 async fn through_serve_each_roi_write_is_acknowledged_after_a_frame_rendered_for_its_region() {
     let ip = Ipv4Addr::new(127, 0, 0, 52);
     let dir = tempfile::tempdir().unwrap();
-    let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
-                  [sensor.adc]\nbits = 16\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
-    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, sensor);
+    let sensor = serve_common::detector_sensor(16, 1.0, "");
+    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, &sensor);
     let mut cfg = serve_common::config(scene, InputConfig::default(), TriggerConfig::default(), Default::default());
     cfg.output.gige = Some(rig_config(ip, 5000));
     cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());

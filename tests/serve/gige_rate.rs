@@ -12,10 +12,6 @@ use std::net::{Ipv4Addr, SocketAddr};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-const SENSOR: &str = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
-                      [sensor.adc]\nbits = 12\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n\
-                      [sensor.optics]\nf_number = 2.8\n";
-
 /// Emit times (ms since the UNIX epoch) of the frames on the stream in `window`.
 async fn emit_times_ms(reader: &mut serve_common::Reader, window: Duration) -> Vec<f64> {
     let end = Instant::now() + window;
@@ -49,7 +45,7 @@ pub(crate) async fn metric(addr: SocketAddr, name: &str) -> i64 {
 async fn acquisition_frame_rate_sets_the_rate_serve_renders_at() {
     let ip = Ipv4Addr::new(127, 0, 0, 51);
     let dir = tempfile::tempdir().unwrap();
-    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, SENSOR);
+    let scene = serve_common::sphere_scene_with(dir.path(), 48, 1, &serve_common::detector_sensor(12, 1.0, ""));
     let trigger = TriggerConfig { mode: TriggerMode::Rate, rate_hz: Some(20.0), extrapolate: false };
     let mut cfg = serve_common::config(scene, InputConfig::default(), trigger, Default::default());
     cfg.output.gige = Some(GigeConfig { address: ip, ..GigeConfig::default() });

@@ -20,10 +20,8 @@ async fn a_clients_roi_and_exposure_are_what_serve_renders_and_the_session_repla
     let dir = tempfile::tempdir().unwrap();
     // A 96 × 96 camera (f = 200 px) on a unit sphere; a detector (so ExposureTime
     // matters) and a PSF (so the ROI is rendered with a margin).
-    let sensor = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
-                  [sensor.adc]\nbits = 12\ngain_e_per_dn = 0.05\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n\
-                  [sensor.optics]\nf_number = 2.8\npsf = { kind = \"gaussian\", sigma_px = 0.8 }\n";
-    let scene = serve_common::sphere_scene_with(dir.path(), 96, 2, sensor);
+    let sensor = serve_common::detector_sensor(12, 0.05, "psf = { kind = \"gaussian\", sigma_px = 0.8 }\n");
+    let scene = serve_common::sphere_scene_with(dir.path(), 96, 2, &sensor);
     let trigger = TriggerConfig { mode: TriggerMode::External, ..TriggerConfig::default() };
     let mut cfg = serve_common::config(scene, InputConfig::default(), trigger, Default::default());
     cfg.output.gige = Some(GigeConfig { address: ip, ..GigeConfig::default() });

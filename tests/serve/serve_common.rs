@@ -48,6 +48,17 @@ depth = 1
     p
 }
 
+/// A `[sensor]` with a detector (integration 20 µs, QE 0.5), an ADC of `bits` at
+/// `gain_e_per_dn`, and `optics` (TOML lines) after `f_number = 2.8`: frames carry DN, and
+/// a client's ExposureTime changes them.
+pub fn detector_sensor(bits: u8, gain_e_per_dn: f64, optics: &str) -> String {
+    format!(
+        "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 2e-5\n\
+         [sensor.adc]\nbits = {bits}\ngain_e_per_dn = {gain_e_per_dn:?}\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n\
+         [sensor.optics]\nf_number = 2.8\n{optics}"
+    )
+}
+
 pub fn config(scene: PathBuf, input: InputConfig, trigger: TriggerConfig, governor: GovernorConfig) -> ServeConfig {
     let text = "scene = \"x\"\n[stream]\nlisten = \"127.0.0.1:0\"\n";
     let mut cfg: ServeConfig = toml::from_str(text).unwrap();
