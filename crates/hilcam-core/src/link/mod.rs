@@ -48,19 +48,6 @@ impl Backoff {
     }
 }
 
-/// Sleeps `d` in short steps so a stop request is seen promptly; returns
-/// `false` if `stopped()` became true.
-pub(crate) fn sleep_unless_stopped(d: Duration, stopped: impl Fn() -> bool) -> bool {
-    let until = std::time::Instant::now() + d;
-    while std::time::Instant::now() < until {
-        if stopped() {
-            return false;
-        }
-        std::thread::sleep(Duration::from_millis(10).min(d));
-    }
-    !stopped()
-}
-
 /// Runs the blocking loop `body(stop)` on a blocking thread until `shutdown`
 /// resolves (then triggers `stop` and waits for the loop) or the loop returns by itself.
 pub(crate) async fn run_blocking_until<F>(body: F, shutdown: impl std::future::Future)

@@ -65,7 +65,14 @@ impl Shutdown {
     /// Blocking sleep for `d` in short steps, so a trigger is seen within 10 ms;
     /// `false` if triggered.
     pub fn sleep(&self, d: Duration) -> bool {
-        super::sleep_unless_stopped(d, || self.is_triggered())
+        let until = Instant::now() + d;
+        while Instant::now() < until {
+            if self.is_triggered() {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(10).min(d));
+        }
+        !self.is_triggered()
     }
 
     /// [`Shutdown::sleep`] until `due` (no sleep if it has passed); `false` if triggered.
