@@ -141,19 +141,7 @@ impl FramePipeline {
 
     /// Render and convert frame `index` at `pose`.
     pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
-        self.frame_exposed(pose, settings, index, None)
-    }
-
-    /// [`FramePipeline::frame`] with the integration time set from outside (a camera
-    /// client's ExposureTime). See [`FrameRequest::integration_s`].
-    pub fn frame_exposed(
-        &mut self,
-        pose: &Pose,
-        settings: &RenderSettings,
-        index: u64,
-        integration_s: Option<f64>,
-    ) -> Result<RenderedFrame, SensorError> {
-        self.frame_requested(pose, settings, index, &FrameRequest { integration_s, roi: None })
+        self.frame_requested(pose, settings, index, &FrameRequest::default())
     }
 
     /// [`FramePipeline::frame`] as a camera client asked for it. With an ROI only the

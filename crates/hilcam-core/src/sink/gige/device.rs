@@ -16,7 +16,7 @@ use super::genicam;
 use super::gvcp::{self, GVCP_PORT, Status};
 use super::gvsp::{self, Block};
 use super::pending::{Awaited, Shown};
-use super::pixel::{self, Roi};
+use super::pixel;
 use super::registers::{
     self as reg, AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
 };
@@ -774,13 +774,7 @@ fn stream_loop(socket: UdpSocket, jobs: mpsc::Receiver<StreamJob>, shared: Arc<S
         match job {
             StreamJob::Frame { frame, settings, channel } => {
                 shared.frames_queued.fetch_sub(1, Ordering::AcqRel);
-                let roi = Roi {
-                    offset_x: settings.offset_x,
-                    offset_y: settings.offset_y,
-                    width: settings.width,
-                    height: settings.height,
-                };
-                let mut data = match pixel::convert(&frame, roi, settings.pixel_format) {
+                let mut data = match pixel::convert(&frame, settings.window(), settings.pixel_format) {
                     Ok(d) => d,
                     Err(e) => {
                         m.dropped_convert.inc();

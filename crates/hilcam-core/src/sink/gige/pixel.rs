@@ -61,15 +61,6 @@ impl GevPixelFormat {
     }
 }
 
-/// The part of a frame to send.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Roi {
-    pub offset_x: u32,
-    pub offset_y: u32,
-    pub width: u32,
-    pub height: u32,
-}
-
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ConvertError {
     #[error("frame {seq} is {format:?}: the GigE Vision stream sends the sensor's DN (Mono8/Mono16 frames)")]
@@ -88,18 +79,17 @@ fn rescale(v: u16, from: u8, to: u8) -> u16 {
 /// The ROI of `frame` in `format`, little-endian. A frame rendered for this ROI is sent
 /// whole; one of the whole array is cropped at the offsets; one rendered for another ROI
 /// (the client moved it while the frame rendered) is refused.
-pub fn convert(frame: &EncodedFrame, roi: Roi, format: GevPixelFormat) -> Result<Vec<u8>, ConvertError> {
+pub fn convert(frame: &EncodedFrame, roi: Window, format: GevPixelFormat) -> Result<Vec<u8>, ConvertError> {
     let m = &frame.meta;
-    let wanted = Window { x: roi.offset_x, y: roi.offset_y, width: roi.width, height: roi.height };
     let (x0, y0) = if let Some(was) = frame.roi {
-        if was != wanted {
-            return Err(ConvertError::StaleRoi { seq: m.frame_seq, was, now: wanted });
+        if was != roi {
+            return Err(ConvertError::StaleRoi { seq: m.frame_seq, was, now: roi });
         }
         (0, 0)
-    } else if u64::from(roi.offset_x) + u64::from(roi.width) <= u64::from(m.width)
-        && u64::from(roi.offset_y) + u64::from(roi.height) <= u64::from(m.height)
+    } else if u64::from(roi.x) + u64::from(roi.width) <= u64::from(m.width)
+        && u64::from(roi.y) + u64::from(roi.height) <= u64::from(m.height)
     {
-        (roi.offset_x, roi.offset_y)
+        (roi.x, roi.y)
     } else {
         return Err(ConvertError::Roi {
             seq: m.frame_seq,
@@ -107,8 +97,8 @@ pub fn convert(frame: &EncodedFrame, roi: Roi, format: GevPixelFormat) -> Result
             height: m.height,
             roi_w: roi.width,
             roi_h: roi.height,
-            x: roi.offset_x,
-            y: roi.offset_y,
+            x: roi.x,
+            y: roi.y,
         });
     };
     let src_bpp = match m.format {
@@ -168,7 +158,7 @@ mod tests {
     #[test]
     fn formats_come_from_the_same_dn() {
         let f = frame12(4, 2);
-        let full = Roi { offset_x: 0, offset_y: 0, width: 4, height: 2 };
+        let full = Window { x: 0, y: 0, width: 4, height: 2 };
         let m12 = convert(&f, full, GevPixelFormat::Mono12).unwrap();
         assert_eq!(&m12[2..4], &16u16.to_le_bytes());
         let m16 = convert(&f, full, GevPixelFormat::Mono16).unwrap();
@@ -180,14 +170,14 @@ mod tests {
     #[test]
     fn roi_crops_a_whole_frame_passes_one_rendered_for_it_and_refuses_a_stale_one() {
         let f = frame12(4, 3);
-        let roi = Roi { offset_x: 1, offset_y: 1, width: 2, height: 2 };
+        let roi = Window { x: 1, y: 1, width: 2, height: 2 };
         let m8 = convert(&f, roi, GevPixelFormat::Mono8).unwrap();
         assert_eq!(m8, vec![5, 6, 9, 10]);
-        let small = EncodedFrame { roi: Some(Window { x: 1, y: 1, width: 2, height: 2 }), ..frame12(2, 2) };
+        let small = EncodedFrame { roi: Some(roi), ..frame12(2, 2) };
         assert_eq!(convert(&small, roi, GevPixelFormat::Mono8).unwrap(), vec![0, 1, 2, 3], "rendered for it");
-        let off = Roi { offset_x: 3, offset_y: 0, width: 2, height: 2 };
+        let off = Window { x: 3, y: 0, width: 2, height: 2 };
         assert!(matches!(convert(&f, off, GevPixelFormat::Mono8), Err(ConvertError::Roi { .. })));
-        let moved = Roi { offset_x: 0, ..roi };
+        let moved = Window { x: 0, ..roi };
         let e = convert(&small, moved, GevPixelFormat::Mono8).unwrap_err();
         assert!(matches!(e, ConvertError::StaleRoi { .. }), "rendered for another ROI: {e}");
     }

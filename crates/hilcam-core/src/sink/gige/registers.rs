@@ -8,6 +8,7 @@
 
 use super::gvcp::Status;
 use super::pixel::GevPixelFormat;
+use crate::render::camera::Window;
 use std::net::Ipv4Addr;
 
 // Bootstrap registers (GigE Vision), as Aravis names them in arvgvcpprivate.h.
@@ -213,6 +214,11 @@ impl CameraSettings {
             frame_rate_hz: cam.frame_rate_hz,
             chunk_mode: true,
         }
+    }
+
+    /// The region of the sensor these settings ask for (Width/Height/OffsetX/OffsetY).
+    pub fn window(&self) -> Window {
+        Window { x: self.offset_x, y: self.offset_y, width: self.width, height: self.height }
     }
 
     /// Bytes of one frame's pixels.

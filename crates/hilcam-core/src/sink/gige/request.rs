@@ -16,9 +16,8 @@ pub fn integration_override(initial: &CameraSettings, s: &CameraSettings) -> Opt
 
 /// The region `s` asks for, or `None` for the whole sensor (`initial` is the whole).
 pub fn roi(initial: &CameraSettings, s: &CameraSettings) -> Option<Window> {
-    let w = Window { x: s.offset_x, y: s.offset_y, width: s.width, height: s.height };
-    let full = Window { x: 0, y: 0, width: initial.width, height: initial.height };
-    (w != full).then_some(w)
+    let w = s.window();
+    (w != initial.window()).then_some(w)
 }
 
 /// What `s` asks of each frame.
