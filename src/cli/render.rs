@@ -135,9 +135,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         let mut f = pipeline.frame_requested(&pose, &settings, a.frame, &request)?;
         times.push(f.render.time);
         if a.repeat > 1 {
-            times.sort();
-            f.render.time = times[times.len() / 2];
-            println!("{} frames: median render {:.1} ms", a.repeat, f.render.time.as_secs_f64() * 1e3);
+            f.render.time = print_median(&mut times);
         }
         hilcam_core::render::film::write_pixels(&a.out, f.width, f.height, &f.pixels)?;
         println!(
@@ -164,15 +162,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         let (img, mut stats) = pipeline.radiance_warm(&pose, &settings, a.frame);
         times.push(stats.time);
         if a.repeat > 1 {
-            times.sort();
-            stats.time = times[times.len() / 2];
-            println!(
-                "{} renders: median {:.1} ms, fastest {:.1} ms, slowest {:.1} ms",
-                a.repeat,
-                stats.time.as_secs_f64() * 1e3,
-                times[0].as_secs_f64() * 1e3,
-                times[times.len() - 1].as_secs_f64() * 1e3
-            );
+            stats.time = print_median(&mut times);
         }
         (write_radiance(&a.out, img, None, a.png16)?, stats)
     };
@@ -225,6 +215,21 @@ fn write_samples_map(path: &std::path::Path, width: u32, height: u32, counts: &[
 
 /// `px,py,pz[,qw,qx,qy,qz[,sx,sy,sz]]`; missing parts come from `base`. The result goes
 /// through the pose gate ([`hilcam_core::scene::limits::gate_pose`]) as a scene's `[pose]` does.
+/// Print the median, fastest and slowest of the render `times` (sorted here); the median.
+fn print_median(times: &mut [std::time::Duration]) -> std::time::Duration {
+    times.sort();
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    let median = times[times.len() / 2];
+    println!(
+        "{} renders: median {:.1} ms, fastest {:.1} ms, slowest {:.1} ms",
+        times.len(),
+        ms(median),
+        ms(times[0]),
+        ms(times[times.len() - 1])
+    );
+    median
+}
+
 /// `X,Y,WIDTH,HEIGHT`.
 fn parse_roi(s: &str) -> Result<Window, String> {
     let v: Vec<u32> =
