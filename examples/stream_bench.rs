@@ -69,6 +69,7 @@ async fn run(frames: u64, fps: f64, width: u32, stalled: bool) -> Run {
             spp: hilcam_core::render::integrator::Spp::ONE,
             depth: 1,
             integration_s: 0.0,
+            line_time_ns: 0,
             flags: FrameFlags::default(),
         };
         let px = Pixels::Mono16 { data: data.clone(), bits: 12 };

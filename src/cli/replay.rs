@@ -105,7 +105,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
         bail!("--trajectory and --scene are required")
     };
-    let samples = Trajectory::load_gated(traj, &PoseLimits::default())?;
+    let mut samples = Trajectory::load_gated(traj, &PoseLimits::default())?;
     let mut scene = hilcam_core::scene::load(scene_path)?;
     if let Some(t) = a.integration_s {
         pin_integration_time(&mut scene, t)?;
@@ -113,6 +113,11 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
     let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;
     let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
+    if pipeline.exposure_timing(None).integrates_motion() {
+        // The camera integrates over its exposure: rows without rates move as their
+        // neighbours say.
+        hilcam_core::pose::rates::fill_missing_rates(&mut samples);
+    }
     let cfg = ReplayConfig {
         out_dir: out.clone(),
         format: a.format,

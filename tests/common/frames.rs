@@ -21,6 +21,7 @@ pub fn example_frame() -> Frame {
         spp: Spp::whole(4),
         depth: 3,
         integration_s: 0.001,
+        line_time_ns: 0,
         flags: FrameFlags(FrameFlags::LATE | FrameFlags::EXTRAPOLATED),
     };
     let px = Pixels::Mono16 { data: vec![0, 1, 4095, 2048], bits: 12 };

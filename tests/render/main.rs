@@ -15,6 +15,7 @@ mod closest_packet;
 mod extremes;
 mod fold;
 mod mis;
+mod motion;
 mod primary_raster;
 mod sensor;
 mod shadow_packet;

@@ -28,6 +28,8 @@ fn quiet_detector(t: f64) -> DetectorConfig {
         dsnu_e_per_s: None,
         fpn_seed: 0,
         effective_wavelength_um: None,
+        exposure: Default::default(),
+        line_time_us: None,
     }
 }
 

@@ -79,6 +79,7 @@ fn synthetic_frame(k: u64, w: u32, h: u32) -> EncodedFrame {
         spp: Spp::from_milli(2000),
         depth: 2,
         integration_s: 0.001,
+        line_time_ns: 0,
         flags: FrameFlags(if k % 2 == 1 { FrameFlags::EXTRAPOLATED } else { 0 }),
     };
     Frame::new(meta, Pixels::Mono16 { data, bits: 12 }).unwrap().encode()

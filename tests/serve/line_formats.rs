@@ -30,6 +30,7 @@ fn frames_jsonl_line_is_pinned_byte_for_byte() {
         spp: Spp::from_milli(2_250),
         depth: 5,
         integration_s: 0.001,
+        line_time_ns: 0,
         flags: FrameFlags(FrameFlags::LATE | FrameFlags::EXTRAPOLATED),
     };
     let rec = FrameRecord::new(&meta, &payload(), frame_file_name(meta.frame_seq, ImageFormat::Png));
@@ -111,6 +112,7 @@ fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel
         spp: Spp::ONE,
         depth: 1,
         integration_s: 0.0,
+        line_time_ns: 0,
         flags: FrameFlags::default(),
     };
     let line = |seq: u64| {

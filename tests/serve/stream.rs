@@ -175,6 +175,7 @@ fn any_frame() -> impl Strategy<Value = Frame> {
                 spp: Spp::from_milli(u32::from(m.5.max(1)) * 1000 + u32::from(m.5) % 1000),
                 depth: m.6,
                 integration_s: f32::from_bits(m.7),
+                line_time_ns: 0,
                 flags: FrameFlags(m.8),
             };
             Frame::new(meta, px).unwrap()
@@ -224,6 +225,7 @@ fn float_frame(seq: u64, w: u32, h: u32) -> Arc<EncodedFrame> {
         spp: Spp::whole(1),
         depth: 2,
         integration_s: 0.0,
+        line_time_ns: 0,
         flags: FrameFlags::default(),
     };
     let data = (0..w * h).map(|i| (i as f32) * 0.5 + seq as f32).collect();

@@ -11,7 +11,7 @@ use crate::render::integrator::RenderSettings;
 use crate::render::sampling::mix64;
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
-use crate::sensor::{AutoExposure, Sensor, SensorError};
+use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -27,6 +27,8 @@ pub struct RenderedFrame {
     pub sensor_time: Duration,
     /// Integration time the sensor used (None without a detector).
     pub integration_s: Option<f64>,
+    /// When the rows integrated (what the frame's metadata reports for time-tagging).
+    pub exposure: ExposureTiming,
 }
 
 /// What a camera client asked of one frame besides its pose and render settings (a
@@ -113,8 +115,29 @@ impl FramePipeline {
         mix64(settings.seed ^ mix64(index ^ 0x5e45_0e0a_11ce_0001))
     }
 
-    fn view(&self, pose: &Pose) -> View {
-        self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion)
+    /// The view of `pose`, moving over the exposure `timing` when the camera integrates
+    /// motion and the pose has rates.
+    fn view(&self, pose: &Pose, timing: &ExposureTiming) -> View {
+        let view = self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion);
+        match timing.motion(pose) {
+            Some(m) => view.with_motion(m, pose, self.scene.frame_origin_body),
+            None => view,
+        }
+    }
+
+    /// When the rows integrate for a frame whose integration time is `integration_s`
+    /// (None: the configured or auto-exposure one).
+    pub fn exposure_timing(&self, integration_s: Option<f64>) -> ExposureTiming {
+        let Some(det) = &self.scene.sensor.detector else { return ExposureTiming::default() };
+        let auto = self.auto_exposure.as_ref().map(AutoExposure::integration_time_s);
+        ExposureTiming {
+            mode: det.exposure,
+            integration_s: integration_s.or(auto).unwrap_or(det.integration_time_s),
+            line_time_s: match det.exposure {
+                ExposureMode::Rolling => det.line_time_us.unwrap_or(0.0) * 1e-6,
+                _ => 0.0,
+            },
+        }
     }
 
     fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {
@@ -123,7 +146,8 @@ impl FramePipeline {
 
     /// Render the radiance only (no sensor), into a new image.
     pub fn radiance(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> (RadianceImage, RenderStats) {
-        render(&self.scene, &self.view(pose), &self.options(settings, index))
+        let view = self.view(pose, &self.exposure_timing(None));
+        render(&self.scene, &view, &self.options(settings, index))
     }
 
     /// [`FramePipeline::radiance`] into the pipeline's own buffers: after the first frame
@@ -134,7 +158,7 @@ impl FramePipeline {
         settings: &RenderSettings,
         index: u64,
     ) -> (&RadianceImage, RenderStats) {
-        let (view, options) = (self.view(pose), self.options(settings, index));
+        let (view, options) = (self.view(pose, &self.exposure_timing(None)), self.options(settings, index));
         let stats = render_into(&mut self.buffers, &self.scene, &view, &options);
         (self.buffers.image(), stats)
     }
@@ -162,7 +186,10 @@ impl FramePipeline {
                     .map_err(|e| SensorError::Invalid { field: "roi".into(), message: e.to_string() })?,
             ),
         };
-        let (mut view, options) = (self.view(pose), self.options(settings, index));
+        // The integration time is chosen before rendering: a moving view needs it.
+        let fixed = request.integration_s.filter(|_| self.scene.sensor.detector.is_some());
+        let timing = self.exposure_timing(fixed);
+        let (mut view, options) = (self.view(pose, &timing), self.options(settings, index));
         if let Some(roi) = &roi {
             let (mx, my) = self.sensor.psf_margin();
             let area = roi.grown(mx, my, &self.camera);
@@ -176,7 +203,6 @@ impl FramePipeline {
         let sensor = if roi.is_some() { self.windowed.as_ref().expect("set above") } else { &self.sensor };
         let t0 = Instant::now();
         let seed = Self::sensor_seed(settings, index);
-        let fixed = request.integration_s.filter(|_| self.scene.sensor.detector.is_some());
         let out = match fixed.or_else(|| self.auto_exposure.as_ref().map(AutoExposure::integration_time_s)) {
             Some(t) => sensor.apply_with_integration(radiance, seed, t)?,
             None => sensor.apply(radiance, seed)?,
@@ -201,6 +227,7 @@ impl FramePipeline {
             render,
             sensor_time: t0.elapsed(),
             integration_s: out.integration_time_s,
+            exposure: timing,
         })
     }
 }

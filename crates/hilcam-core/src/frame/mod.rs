@@ -29,6 +29,11 @@ impl FrameFlags {
     pub const EXTRAPOLATED: u32 = 1 << 1;
     /// The render budget was cut by the governor (fewer spp or bounces than configured).
     pub const DEGRADED: u32 = 1 << 2;
+    /// The camera integrates over time (a global or rolling exposure): `pose_t_ns` is
+    /// the start of row 0's exposure, and row `r` integrates over
+    /// `[pose_t_ns + r·line_time_ns, … + integration_s]`. Without it the frame shows the
+    /// instant `pose_t_ns`.
+    pub const EXPOSURE_START: u32 = 1 << 3;
 
     pub fn contains(self, bit: u32) -> bool {
         self.0 & bit == bit
@@ -79,7 +84,15 @@ pub struct FrameMeta {
     pub depth: u16,
     /// Sensor integration (exposure) time in seconds; 0 when no sensor model ran.
     pub integration_s: f32,
+    /// Rolling shutter: delay between the starts of consecutive rows, ns (0 otherwise).
+    /// Header bytes 80..84, which older receivers read as reserved.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub line_time_ns: u32,
     pub flags: FrameFlags,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 impl FrameMeta {
@@ -88,6 +101,7 @@ impl FrameMeta {
     /// index, pose, settings and flags) implies. The wall-clock fields
     /// (`pose_arrival_unix_ns`, `emit_unix_ns`) are 0: the caller stamps those it knows.
     pub fn rendered(index: u64, pose: &Pose, f: &RenderedFrame, flags: FrameFlags) -> FrameMeta {
+        let flags = if f.exposure.integrates_motion() { flags.with(FrameFlags::EXPOSURE_START) } else { flags };
         FrameMeta {
             frame_seq: index,
             pose_seq: pose.seq,
@@ -101,6 +115,7 @@ impl FrameMeta {
             spp: f.settings.spp,
             depth: f.settings.depth.min(u32::from(u16::MAX)) as u16,
             integration_s: f.integration_s.unwrap_or(0.0) as f32,
+            line_time_ns: (f.exposure.line_time_s * 1e9).round().clamp(0.0, f64::from(u32::MAX)) as u32,
             flags,
         }
     }
@@ -301,7 +316,7 @@ pub fn encode_header(meta: &FrameMeta, payload: &[u8]) -> [u8; HEADER_LEN] {
     h[64..68].copy_from_slice(&meta.integration_s.to_le_bytes());
     h[68..72].copy_from_slice(&CRC32.checksum(payload).to_le_bytes());
     h[72..80].copy_from_slice(&(payload.len() as u64).to_le_bytes());
-    // 80..84 reserved, zero.
+    h[80..84].copy_from_slice(&meta.line_time_ns.to_le_bytes());
     let crc = CRC32.checksum(&h[..84]);
     h[84..88].copy_from_slice(&crc.to_le_bytes());
     h
@@ -374,6 +389,7 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
         spp: Spp::from_milli(u32::from(whole) * 1000 + u32::from(milli)),
         depth: u16_at(b, 60),
         integration_s: f32::from_le_bytes(b[64..68].try_into().expect("4 bytes")),
+        line_time_ns: u32_at(b, 80),
     };
     let payload_len = u64_at(b, 72);
     if payload_len != meta.payload_len() {

@@ -45,6 +45,7 @@ impl Pose {
 
 pub mod can;
 pub mod crc;
+pub mod rates;
 pub mod serial;
 pub mod slcan;
 pub mod trajectory;

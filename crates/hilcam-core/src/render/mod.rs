@@ -138,7 +138,12 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let mut primary_rasterised = false;
     if let Some(rect) = rect {
         let ctx = PathContext::new(target, view.sun, settings);
-        let silhouette = Silhouette::new_reusing(view, spans);
+        // The culling below (silhouette spans, leaf-box coverage, the rasteriser) holds for
+        // one camera position; a moving view samples every pixel of the rectangle that
+        // covers its whole exposure, each primary ray traced from where the camera is
+        // at that sample's time.
+        let moving = view.motion.is_some();
+        let silhouette = if moving { None } else { Silhouette::new_reusing(view, spans) };
         // Columns of a row that can see the target's bounds; the rest keep the background
         // without costing a sample.
         let span = |row: u32| -> (u32, u32) {
@@ -161,15 +166,18 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
             .sum::<u64>() as f64
             * settings.spp.get();
         let pays = planned >= (RASTER_SAMPLES_PER_TRIANGLE * target.accel.len() as u64) as f64;
-        let rasterise = match primary {
-            PrimaryVisibility::Auto => pays && !target.accel.walks_packets(),
-            PrimaryVisibility::Raster => true,
-            PrimaryVisibility::Trace => false,
-        };
+        let rasterise = !moving
+            && match primary {
+                PrimaryVisibility::Auto => pays && !target.accel.walks_packets(),
+                PrimaryVisibility::Raster => true,
+                PrimaryVisibility::Trace => false,
+            };
         primary_rasterised = rasterise && raster_buffers.rebuild(target, view, rect);
         // Traced frames skip the pixels no leaf box projects onto.
         let coverage = if primary_rasterised {
             Some(&raster_buffers.coverage)
+        } else if moving {
+            None
         } else {
             box_coverage.from_leaf_boxes(target, view, rect).then_some(&*box_coverage)
         };

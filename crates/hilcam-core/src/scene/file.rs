@@ -175,6 +175,11 @@ struct PoseSection {
     #[serde(default = "identity")]
     attitude: Spanned<[f64; 4]>,
     sun: Spanned<[f64; 3]>,
+    /// Relative velocity of the target origin, camera frame, m/s (a camera that
+    /// integrates over its exposure smears the motion).
+    velocity: Option<Spanned<[f64; 3]>>,
+    /// Angular rate of the body relative to the camera, camera frame, rad/s.
+    angular_rate: Option<Spanned<[f64; 3]>>,
 }
 
 fn identity() -> Spanned<[f64; 4]> {
@@ -187,6 +192,8 @@ impl Default for PoseSection {
             position: Spanned::new(0..0, [0.0, 0.0, 10.0]),
             attitude: identity(),
             sun: Spanned::new(0..0, [0.0, 0.0, -1.0]),
+            velocity: None,
+            angular_rate: None,
         }
     }
 }
@@ -468,12 +475,16 @@ fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
         position: DVec3::from_array(*p.position.get_ref()),
         attitude: DQuat::from_xyzw(x, y, z, w),
         sun_dir: DVec3::from_array(*p.sun.get_ref()),
+        velocity: p.velocity.as_ref().map(|v| DVec3::from_array(*v.get_ref())),
+        angular_rate: p.angular_rate.as_ref().map(|v| DVec3::from_array(*v.get_ref())),
         ..Pose::ahead(0.0)
     };
     limits::gate_pose(&pose).map_err(|e| {
+        let rates = p.velocity.as_ref().or(p.angular_rate.as_ref()).map(Spanned::span);
         let span = match e.field {
             "pose.attitude" => p.attitude.span(),
             "pose.sun" => p.sun.span(),
+            "pose.velocity" | "pose" if rates.is_some() => rates.expect("checked"),
             _ => p.position.span(),
         };
         (span, e.field.to_string(), e.message)

@@ -140,6 +140,12 @@ pub struct DetectorConfig {
     /// (see docs/sensor.md, "Photons").
     #[serde(default)]
     pub effective_wavelength_um: Option<f64>,
+    /// When the rows integrate: `instant` (default), `global` or `rolling`.
+    #[serde(default)]
+    pub exposure: super::ExposureMode,
+    /// Rolling shutter: delay between the starts of consecutive rows, µs.
+    #[serde(default)]
+    pub line_time_us: Option<f64>,
 }
 
 /// Analogue-to-digital conversion.
@@ -397,6 +403,19 @@ impl SensorConfig {
         }
         if let Some(v) = d.effective_wavelength_um {
             positive("sensor.detector.effective_wavelength_um", v)?;
+        }
+        match (d.exposure, d.line_time_us) {
+            (super::ExposureMode::Rolling, None) => {
+                return Err(invalid("sensor.detector.line_time_us", "a rolling exposure needs its line time (µs)"));
+            }
+            (super::ExposureMode::Rolling, Some(v)) => positive("sensor.detector.line_time_us", v)?,
+            (_, Some(_)) => {
+                return Err(invalid(
+                    "sensor.detector.line_time_us",
+                    "only a rolling exposure has a line time (set exposure = \"rolling\")",
+                ));
+            }
+            (_, None) => {}
         }
         Ok(())
     }

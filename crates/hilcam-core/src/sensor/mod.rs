@@ -32,9 +32,11 @@ pub mod noise;
 pub mod optics;
 pub mod psf;
 pub mod ptc;
+pub mod shutter;
 
 pub use config::{CameraPreset, OutputKind, SensorConfig};
 pub use exposure::{AutoExposure, ExposureUpdate};
+pub use shutter::{ExposureMode, ExposureTiming};
 
 use crate::render::camera::{CameraModel, PixelKeys, Window};
 use crate::render::film::{Pixels, RadianceImage};

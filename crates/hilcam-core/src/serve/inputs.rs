@@ -19,10 +19,14 @@ const CHANNEL_DEPTH: usize = 1024;
 
 /// Start the input `cfg` describes; its events arrive on the returned channel until
 /// `shutdown` (`None` task for `kind = "none"`: the channel is closed at once).
+/// Start the configured input. `fill_rates`: the camera integrates over its exposure, so
+/// trajectory rows without rates get them from their neighbours
+/// ([`crate::pose::rates::fill_missing_rates`]).
 pub fn start(
     cfg: &InputConfig,
     counters: Arc<InputCounters>,
     shutdown: &Shutdown,
+    fill_rates: bool,
 ) -> anyhow::Result<(mpsc::Receiver<InputEvent>, Option<JoinHandle<()>>)> {
     let (tx, rx) = mpsc::channel::<InputEvent>(CHANNEL_DEPTH);
     let stop = shutdown.clone().wait_owned();
@@ -45,7 +49,10 @@ pub fn start(
         }
         InputConfig::Trajectory(i) => {
             let TrajectoryInput { file, speed } = i;
-            let samples = Trajectory::load(file)?;
+            let mut samples = Trajectory::load(file)?;
+            if fill_rates {
+                crate::pose::rates::fill_missing_rates(&mut samples);
+            }
             let gate = EventSink::new(tx, counters, PoseLimits::default(), format!("trajectory {}", file.display()));
             Some(tokio::spawn(replay_trajectory(samples, *speed, gate, stop)))
         }

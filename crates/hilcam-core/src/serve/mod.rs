@@ -87,12 +87,15 @@ pub async fn run(
     let o = &cfg.render;
     let settings = scene.render.overridden(o.spp, o.depth, o.sampler, o.seed);
     let pipeline = FramePipeline::new(scene.clone(), camera.clone()).context("sensor")?;
+    // A camera that integrates over its exposure renders each frame from the pose at the
+    // exposure's start.
+    let exposure_start = pipeline.exposure_timing(None).integrates_motion();
     let registry = Registry::new();
     let counters = Arc::new(InputCounters::new());
     let input_name = if embed.inputs.is_some() { "embedded" } else { cfg.input.kind() };
     let (inputs, input_task) = match embed.inputs.take() {
         Some(rx) => (rx, None),
-        None => inputs::start(&cfg.input, counters.clone(), &shutdown)?,
+        None => inputs::start(&cfg.input, counters.clone(), &shutdown, exposure_start)?,
     };
     let out = Outputs::start(&cfg, &scene, &camera, &registry, inputs).await?;
     let session = session_file::start(&cfg, &camera, &settings, input_name, clock, &registry)?;
@@ -102,7 +105,8 @@ pub async fn run(
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 
-    let sched_cfg = scheduler_config(&cfg, settings, &mut embed, session.as_ref(), out.requests, out.rate_requests);
+    let sched_cfg =
+        scheduler_config(&cfg, settings, exposure_start, &mut embed, session.as_ref(), out.requests, out.rate_requests);
     let sinks = Arc::new(out.sinks);
     let summary = run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), metrics, shutdown.clone()).await;
 
@@ -145,6 +149,7 @@ fn announce(
 fn scheduler_config(
     cfg: &ServeConfig,
     settings: RenderSettings,
+    exposure_start: bool,
     embed: &mut Embed,
     session: Option<&SessionWriter>,
     requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
@@ -154,6 +159,7 @@ fn scheduler_config(
         trigger: cfg.trigger.mode,
         rate_hz: cfg.trigger.rate_hz,
         extrapolate: cfg.trigger.extrapolate,
+        exposure_start,
         budget: cfg.budget(),
         policy: cfg.governor.policy,
         settings,

@@ -43,8 +43,12 @@ pub struct SchedulerConfig {
     pub trigger: TriggerMode,
     /// Frames per second in `Rate` mode.
     pub rate_hz: Option<f64>,
-    /// Move the pose to the exposure mid-time with its rates (`Rate` mode).
+    /// Move the pose to the exposure mid-time with its rates (`Rate` mode); to the
+    /// exposure start when the camera integrates motion (`exposure_start`).
     pub extrapolate: bool,
+    /// The camera integrates over its exposure (a global or rolling exposure): a frame's
+    /// pose is the one at the exposure's start, and the renderer moves it from there.
+    pub exposure_start: bool,
     /// Time from the frame's reference instant (pose arrival, tick or trigger) to emit.
     pub budget: Duration,
     pub policy: Policy,
@@ -527,13 +531,15 @@ impl Loop {
         Some(job)
     }
 
-    /// The pose moved to the exposure mid-time with its rates and the seconds it moved
-    /// (`Rate` mode with `extrapolate`; None when it did not move).
+    /// The pose moved to the exposure mid-time (or start, for a camera that integrates
+    /// motion) with its rates and the seconds it moved (`Rate` mode with `extrapolate`;
+    /// None when it did not move).
     fn exposure_pose(&self, pose: &Pose, arrival: Instant, reference: Instant) -> Option<(Pose, f64)> {
         if !(self.cfg.extrapolate && self.cfg.trigger == TriggerMode::Rate) {
             return None;
         }
-        let dt = reference.saturating_duration_since(arrival).as_secs_f64() + self.last_integration * 0.5;
+        let to_mid = if self.cfg.exposure_start { 0.0 } else { self.last_integration * 0.5 };
+        let dt = reference.saturating_duration_since(arrival).as_secs_f64() + to_mid;
         let (moved, did_move) = extrapolate(pose, dt);
         did_move.then_some((moved, dt))
     }

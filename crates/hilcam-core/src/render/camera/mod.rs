@@ -6,9 +6,11 @@
 //! `(cx, cy)` is the principal point's offset from the array centre, in pixels.
 
 pub mod distortion;
+pub mod motion;
 pub mod view;
 pub mod window;
 
+pub use motion::Motion;
 use serde::Deserialize;
 pub use view::{PixelRect, TargetBounds, View};
 pub use window::{PixelKeys, Window};

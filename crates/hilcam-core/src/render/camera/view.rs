@@ -7,6 +7,7 @@
 
 use super::CameraModel;
 use super::distortion::Distortion;
+use super::motion::{Motion, MovingPose};
 use super::window::{PixelKeys, Window};
 use crate::pose::Pose;
 use crate::render::geometry::Ray;
@@ -56,6 +57,8 @@ pub struct View {
     pub sun: Vec3,
     /// Random-number key of each pixel: its index on the full sensor.
     pub(in crate::render) keys: PixelKeys,
+    /// The target's motion over the exposure (None: the frame is one instant).
+    pub(in crate::render) motion: Option<MovingPose>,
 }
 
 impl View {
@@ -90,7 +93,36 @@ impl View {
             distortion: None,
             sun,
             keys: PixelKeys::full(cam.width),
+            motion: None,
         }
+    }
+
+    /// The same view integrating over an exposure during which the target moves
+    /// (`pose` is the exposure start's, as given to [`View::new`]). A still motion, or a
+    /// blind view, stays the instant view: the same bytes as without it.
+    pub fn with_motion(mut self, motion: Motion, pose: &Pose, frame_origin_body: DVec3) -> View {
+        if motion.is_still() || !self.origin.is_finite() {
+            return self;
+        }
+        let mut moving = MovingPose::new(motion, pose.position, pose.attitude, frame_origin_body);
+        moving.first_row = self.keys.first_row();
+        self.motion = Some(moving);
+        self
+    }
+
+    /// The motion integrated over the exposure, if the frame is not one instant.
+    pub fn motion(&self) -> Option<&Motion> {
+        self.motion.as_ref().map(MovingPose::motion)
+    }
+
+    /// This view's camera as it is `dt` seconds after the exposure start, as an instant
+    /// view (itself when nothing moves).
+    pub fn instant(&self, dt: f64) -> View {
+        let mut v = self.clone();
+        if let Some(m) = v.motion.take() {
+            (v.origin, v.cam_to_render) = m.at(dt);
+        }
+        v
     }
 
     /// The same view cropped to `window` of its image (`window` inside it, see
@@ -101,6 +133,9 @@ impl View {
         // `(col + u) - pp'` rounds the same real number as the full view's `(x + col + u) - pp`.
         self.pp = [self.pp[0] - f64::from(window.x), self.pp[1] - f64::from(window.y)];
         self.keys = self.keys.shifted(window);
+        if let Some(m) = &mut self.motion {
+            m.first_row += window.y;
+        }
         (self.width, self.height) = (window.width, window.height);
         self
     }
@@ -156,6 +191,16 @@ impl View {
     #[inline]
     pub fn primary_ray(&self, x: f64, y: f64) -> Option<Ray> {
         self.ray_along(self.camera_dir(x, y))
+    }
+
+    /// [`View::primary_ray`] of a moving view's sample in image row `row` whose time
+    /// coordinate is `u ∈ [0, 1)`: the camera where it is at that sample's time in the
+    /// row's integration window (the instant ray without motion).
+    #[inline]
+    pub fn primary_ray_at(&self, x: f64, y: f64, row: u32, u: f32) -> Option<Ray> {
+        let Some(m) = &self.motion else { return self.primary_ray(x, y) };
+        let (origin, cam_to_render) = m.at(m.time_of(row, u));
+        self.ray_from(origin, cam_to_render, self.camera_dir(x, y))
     }
 
     /// [`View::primary_ray`] and where its line crosses the ideal (undistorted) image
@@ -220,8 +265,14 @@ impl View {
     /// path's arithmetic is unchanged.
     #[inline(always)]
     fn ray_along(&self, dir_cam: DVec3) -> Option<Ray> {
-        let d = self.cam_to_render * dir_cam;
-        let oc = self.origin - self.bounds.centre;
+        self.ray_from(self.origin, self.cam_to_render, dir_cam)
+    }
+
+    /// [`View::ray_along`] from a camera at `origin` turned by `cam_to_render`.
+    #[inline(always)]
+    fn ray_from(&self, origin: DVec3, cam_to_render: DMat3, dir_cam: DVec3) -> Option<Ray> {
+        let d = cam_to_render * dir_cam;
+        let oc = origin - self.bounds.centre;
         let a = d.length_squared();
         let b = oc.dot(d);
         let c = oc.length_squared() - self.bounds.radius * self.bounds.radius;
@@ -229,7 +280,7 @@ impl View {
         // Finite `disc` means `a`, `b²` and `a·c` are finite (any inf or NaN among them
         // makes it inf or NaN).
         if !disc.is_finite() {
-            return self.ray_along_scaled(d, oc);
+            return self.ray_along_scaled(origin, d, oc);
         }
         if disc < 0.0 {
             return None;
@@ -239,7 +290,7 @@ impl View {
             return None; // the sphere is behind the camera
         }
         let start = if c > 0.0 { c / q } else { 0.0 }; // camera inside the sphere: start there
-        finite_ray(self.origin + d * start, d)
+        finite_ray(origin + d * start, d)
     }
 
     /// [`View::ray_along`] for lines whose squares overflow: `oc` and the radius scaled by
@@ -247,7 +298,7 @@ impl View {
     /// so nothing squared exceeds 3. A non-finite input is a miss.
     #[cold]
     #[inline(never)]
-    fn ray_along_scaled(&self, d: DVec3, oc: DVec3) -> Option<Ray> {
+    fn ray_along_scaled(&self, origin: DVec3, d: DVec3, oc: DVec3) -> Option<Ray> {
         let r = self.bounds.radius;
         if !(d.is_finite() && oc.is_finite() && r.is_finite()) {
             return None;
@@ -269,7 +320,7 @@ impl View {
         }
         // Entry at `s₁·so` along `d1`.
         let start = if c > 0.0 { c / q * so } else { 0.0 };
-        finite_ray(self.origin + d1 * start, d1)
+        finite_ray(origin + d1 * start, d1)
     }
 
     /// The target box's eight corners on the ideal image plane, `(x/z, y/z)` in the camera
@@ -294,8 +345,50 @@ impl View {
     }
 
     /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
-    /// the bounds are entirely outside the image or behind the camera.
+    /// the bounds are entirely outside the image or behind the camera. A moving view's
+    /// rectangle covers the whole exposure: the union of the instant rectangles at
+    /// [`MOTION_STEPS`] + 1 times across it, grown by the most any edge moved between
+    /// two of them.
     pub fn pixel_rect(&self) -> Option<PixelRect> {
+        let Some(m) = &self.motion else { return self.instant_rect() };
+        let span = m.span_s(self.height);
+        let rects: [Option<PixelRect>; MOTION_STEPS as usize + 1] =
+            std::array::from_fn(|k| self.instant(span * k as f64 / f64::from(MOTION_STEPS)).instant_rect());
+        let mut union: Option<PixelRect> = None;
+        let mut step = 0u32;
+        for pair in rects.windows(2) {
+            if let [Some(a), Some(b)] = pair {
+                step = step
+                    .max(a.col0.abs_diff(b.col0))
+                    .max(a.col1.abs_diff(b.col1))
+                    .max(a.row0.abs_diff(b.row0))
+                    .max(a.row1.abs_diff(b.row1));
+            } else if pair[0].is_some() != pair[1].is_some() {
+                // The bounds enter or leave the image between two steps: no bound on how far.
+                return Some(PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height });
+            }
+        }
+        for r in rects.iter().flatten() {
+            union = Some(match union {
+                None => *r,
+                Some(u) => PixelRect {
+                    col0: u.col0.min(r.col0),
+                    col1: u.col1.max(r.col1),
+                    row0: u.row0.min(r.row0),
+                    row1: u.row1.max(r.row1),
+                },
+            });
+        }
+        union.map(|u| PixelRect {
+            col0: u.col0.saturating_sub(step),
+            col1: (u.col1 + step).min(self.width),
+            row0: u.row0.saturating_sub(step),
+            row1: (u.row1 + step).min(self.height),
+        })
+    }
+
+    /// [`View::pixel_rect`] of the view's pose (ignoring motion).
+    fn instant_rect(&self) -> Option<PixelRect> {
         if !self.origin.is_finite() {
             return None; // a blind view (see `View::new`)
         }
@@ -350,6 +443,9 @@ impl View {
         (rect.col0 < rect.col1 && rect.row0 < rect.row1).then_some(rect)
     }
 }
+
+/// Instants across a moving view's exposure at which its pixel rectangle is evaluated.
+const MOTION_STEPS: u32 = 32;
 
 /// The f32 ray from `origin` along `d`, or `None` unless both fit an f32 and the direction
 /// normalises.

@@ -94,6 +94,11 @@ impl PixelKeys {
         PixelKeys { x: self.x + window.x, y: self.y + window.y, stride: self.stride }
     }
 
+    /// Sensor row of the image's row 0.
+    pub fn first_row(&self) -> u32 {
+        self.y
+    }
+
     /// Key of the image's pixel (`row`, `col`).
     #[inline]
     pub fn key(&self, row: u32, col: u32) -> u64 {

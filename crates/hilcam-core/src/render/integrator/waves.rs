@@ -167,8 +167,14 @@ impl TileJob<'_> {
                 let sample = pass[next];
                 let mut rng = self.sample_stream::<S>(sample);
                 let (x, y) = self.position(sample, &mut rng);
+                // A moving view's sample takes its time in its row's window from the
+                // stream's next dimension (stratified like the position).
+                let ray = match self.view.motion {
+                    None => self.view.primary_ray(x, y),
+                    Some(_) => self.view.primary_ray_at(x, y, sample.row, rng.next_1d()),
+                };
                 // A ray that misses the bounding sphere sees the background (already set).
-                if let Some(ray) = self.view.primary_ray(x, y) {
+                if let Some(ray) = ray {
                     paths.push(Path::camera(rng, ray, next));
                 }
                 next += 1;

@@ -91,6 +91,7 @@ mod tests {
             spp: Spp::from_milli(2500),
             depth: 3,
             integration_s: 0.001,
+            line_time_ns: 0,
             flags: FrameFlags(FrameFlags::EXTRAPOLATED),
         };
         let mut block = vec![1, 2, 3, 4];

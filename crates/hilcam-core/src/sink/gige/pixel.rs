@@ -149,6 +149,7 @@ mod tests {
             spp: Spp::from_milli(1000),
             depth: 1,
             integration_s: 0.0,
+            line_time_ns: 0,
             flags: FrameFlags::default(),
         };
         let data = (0..w * h).map(|i| (i * 16 % 4096) as u16).collect();
