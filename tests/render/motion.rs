@@ -169,3 +169,40 @@ fn a_spinning_target_is_the_average_of_its_instants() {
     let err: f64 = moving.data.iter().zip(&mean).map(|(&x, &y)| (f64::from(x) - y).abs()).sum::<f64>() / b;
     assert!(err < 0.02, "mean absolute difference {err} of the total");
 }
+
+/// A 12-bit DN camera over the plate; `exposure` is the detector's TOML tail.
+fn dn_sensor(exposure: &str) -> hilcam_core::sensor::SensorConfig {
+    toml::from_str(&format!(
+        "output = \"dn\"\n[band]\nmin_um = 0.45\nmax_um = 0.75\n[optics]\nf_number = 4.0\n\
+         [detector]\nqe = 0.5\nintegration_time_s = 1e-3\n{exposure}\n\
+         [adc]\nbits = 12\ngain_e_per_dn = 10.0\noffset_dn = 0.0\n"
+    ))
+    .expect("sensor TOML")
+}
+
+#[test]
+fn a_frame_says_when_its_rows_integrated() {
+    use hilcam_core::frame::{Frame, FrameFlags, FrameMeta, decode_header};
+    use hilcam_core::pipeline::FramePipeline;
+    let v = DVec3::new(1.0, 0.0, 0.0);
+    let cases = [
+        ("", 0, false),
+        ("exposure = \"global\"", 0, true),
+        ("exposure = \"rolling\"\nline_time_us = 12.5", 12_500, true),
+    ];
+    for (exposure, line_time_ns, integrates) in cases {
+        let (mut s, pose, settings) = plate(v, 1);
+        let pose = Pose { t_ns: 5_000_000_000, ..pose };
+        s.sensor = dn_sensor(exposure);
+        let mut pipeline = FramePipeline::new(std::sync::Arc::new(s), cam()).expect("pipeline");
+        let f = pipeline.frame(&pose, &settings, 7).expect("frame");
+        let meta = FrameMeta::rendered(7, &pose, &f, FrameFlags::default());
+        // Over the wire: the header carries the start, duration and line time.
+        let frame = Frame::new(meta, f.pixels.clone()).expect("frame").encode();
+        let got = decode_header(&frame.bytes).expect("header").meta;
+        assert_eq!(got.flags.contains(FrameFlags::EXPOSURE_START), integrates, "{exposure:?}");
+        assert_eq!(got.pose_t_ns, 5_000_000_000, "row 0 starts at the pose's time");
+        assert_eq!(got.integration_s, 1e-3);
+        assert_eq!(got.line_time_ns, line_time_ns, "{exposure:?}");
+    }
+}

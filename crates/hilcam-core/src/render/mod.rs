@@ -138,9 +138,9 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let mut primary_rasterised = false;
     if let Some(rect) = rect {
         let ctx = PathContext::new(target, view.sun, settings);
-        // The culling below (silhouette spans, leaf-box coverage, the rasteriser) holds for
-        // one camera position; a moving view samples every pixel of the rectangle that
-        // covers its whole exposure, each primary ray traced from where the camera is
+        // The silhouette spans and the rasteriser hold for one camera position: a moving
+        // view skips only the pixels no leaf box reaches at any instant of its exposure
+        // (`Coverage::from_leaf_boxes`), each primary ray traced from where the camera is
         // at that sample's time.
         let moving = view.motion.is_some();
         let silhouette = if moving { None } else { Silhouette::new_reusing(view, spans) };
@@ -176,8 +176,6 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         // Traced frames skip the pixels no leaf box projects onto.
         let coverage = if primary_rasterised {
             Some(&raster_buffers.coverage)
-        } else if moving {
-            None
         } else {
             box_coverage.from_leaf_boxes(target, view, rect).then_some(&*box_coverage)
         };

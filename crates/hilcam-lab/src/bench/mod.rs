@@ -1,5 +1,6 @@
 //! Benchmarks that print ratios measured side by side in one run (never timed tests).
 
+pub mod effects;
 pub mod render;
 pub mod sampling;
 pub mod serve;

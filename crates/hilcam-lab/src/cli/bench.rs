@@ -28,6 +28,28 @@ pub enum BenchKind {
     /// Latency (pose arrival → last byte out) beside render time through the real server,
     /// at the navigation camera and the paper's camera scaled down.
     Serve(ServeBenchArgs),
+    /// What each optional effect (motion blur, rolling shutter, stars, planet) costs: the
+    /// shipped satellite with and without it, frames through render + sensor, in turn.
+    Effects(EffectsBenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct EffectsBenchArgs {
+    /// Scene files; the first is the reference the others are compared with.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "scenes/satellite.toml,scenes/satellite_blur.toml,scenes/satellite_rolling.toml"
+    )]
+    pub scenes: Vec<std::path::PathBuf>,
+    /// Camera width (default: each scene's own, 1024 for the shipped satellite).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Timed frames per scene (after one untimed); medians are compared.
+    #[arg(long, default_value_t = 5)]
+    pub rounds: usize,
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
 }
 
 #[derive(clap::Args, Debug)]
@@ -135,7 +157,17 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         BenchKind::Glints(g) => glints(g),
         BenchKind::Trade(t) => crate::cli::bench_trade::run(t),
         BenchKind::Serve(s) => serve_bench(s),
+        BenchKind::Effects(e) => effects(e),
     }
+}
+
+fn effects(a: EffectsBenchArgs) -> anyhow::Result<()> {
+    use crate::bench::effects::{measure, print_table};
+    rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
+    anyhow::ensure!(a.rounds > 0 && !a.scenes.is_empty(), "--rounds and --scenes must not be empty");
+    println!("{} rounds, {} threads; frames through render + sensor, medians", a.rounds, a.threads);
+    print_table(&measure(&a.scenes, a.width, a.rounds)?);
+    Ok(())
 }
 
 fn sampling(a: SamplingBenchArgs) -> anyhow::Result<()> {

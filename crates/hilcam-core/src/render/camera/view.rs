@@ -344,6 +344,64 @@ impl View {
         Some(corners)
     }
 
+    /// Where the camera is across the exposure, as the culling bounds it: camera centre and
+    /// render → camera rotation at [`MOTION_STEPS`] + 1 evenly spaced instants over the
+    /// frame's span (one, the view's own, for a still view). Stack-held: the serving loop
+    /// allocates nothing per frame.
+    pub(in crate::render) fn exposure_instants(&self) -> ExposureInstants {
+        let mut out = ExposureInstants { at: [(self.origin, self.cam_to_render.transpose()); INSTANTS], len: 1 };
+        let Some(m) = &self.motion else { return out };
+        let span = m.span_s(self.height);
+        let at = |k: u32, steps: u32| {
+            let (origin, cam_to_render) = m.at(span * f64::from(k) / f64::from(steps));
+            (origin, cam_to_render.transpose())
+        };
+        for (k, slot) in out.at.iter_mut().enumerate() {
+            *slot = at(k as u32, MOTION_STEPS);
+        }
+        // As few instants as keep the bounds' corners within about a pixel between two
+        // (each costs a pass over the leaf boxes); all of them when that is unknown.
+        let steps = match self.box_path_px(&out.at) {
+            Some(px) if px.is_finite() => (px.ceil() as u32).clamp(1, MOTION_STEPS),
+            _ => MOTION_STEPS,
+        };
+        for k in 0..=steps {
+            out.at[k as usize] = at(k, steps);
+        }
+        out.len = steps as usize + 1;
+        out
+    }
+
+    /// The longest image path (pixels) a corner of the target's bounds travels through
+    /// the camera poses `at`, or `None` when a corner is behind the camera at one of them.
+    fn box_path_px(&self, at: &[(DVec3, DMat3)]) -> Option<f64> {
+        let b = &self.bounds;
+        let f = self.focal_px();
+        let mut longest = 0.0f64;
+        for i in 0..8 {
+            let p = DVec3::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let mut prev: Option<(f64, f64)> = None;
+            let mut path = 0.0;
+            for (origin, render_to_cam) in at {
+                let q = *render_to_cam * (p - *origin);
+                if q.z <= 0.0 || q.z.is_nan() {
+                    return None;
+                }
+                let now = (q.x / q.z * f, q.y / q.z * f);
+                if let Some(was) = prev {
+                    path += (now.0 - was.0).hypot(now.1 - was.1);
+                }
+                prev = Some(now);
+            }
+            longest = longest.max(path);
+        }
+        Some(longest)
+    }
+
     /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
     /// the bounds are entirely outside the image or behind the camera. A moving view's
     /// rectangle covers the whole exposure: the union of the instant rectangles at
@@ -444,8 +502,23 @@ impl View {
     }
 }
 
-/// Instants across a moving view's exposure at which its pixel rectangle is evaluated.
+/// Instants across a moving view's exposure at which its pixel rectangle and coverage
+/// are evaluated.
 const MOTION_STEPS: u32 = 32;
+const INSTANTS: usize = MOTION_STEPS as usize + 1;
+
+/// A view's camera at the instants of [`View::exposure_instants`].
+pub(in crate::render) struct ExposureInstants {
+    at: [(DVec3, DMat3); INSTANTS],
+    len: usize,
+}
+
+impl ExposureInstants {
+    /// `(camera centre, render → camera rotation)` per instant, in time order.
+    pub(in crate::render) fn as_slice(&self) -> &[(DVec3, DMat3)] {
+        &self.at[..self.len]
+    }
+}
 
 /// The f32 ray from `origin` along `d`, or `None` unless both fit an f32 and the direction
 /// normalises.

@@ -15,7 +15,7 @@ use super::lens_coverage::{self, IdealCells};
 use super::visibility::{floor_i32, ideal_region, slab_x_extent};
 use crate::render::camera::{PixelRect, View};
 use crate::render::target::Target;
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
@@ -106,8 +106,12 @@ impl Coverage {
             }
         };
         let clip = |v: f64, lo: i32, hi: i32| floor_i32(v.clamp(f64::from(lo) - 1.0, f64::from(hi) + 1.0));
-        let project = |p: DVec3| {
-            let q = view.to_camera(p);
+        // A moving view marks what the target covers at any instant of its exposure: the
+        // union over the instants, each grown by the most a point moved between two.
+        let instants = view.exposure_instants();
+        let instants = instants.as_slice();
+        let project = |(origin, render_to_cam): &(DVec3, DMat3), p: DVec3| {
+            let q = *render_to_cam * (p - *origin);
             let [x, y] = view.ideal_px(q);
             (x, y, q.z)
         };
@@ -115,12 +119,20 @@ impl Coverage {
             let (lo, hi) = (leaf.min.as_dvec3(), leaf.max.as_dvec3());
             let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
             let mut z_min = f64::INFINITY;
+            let mut step = 0.0f64;
             for c in 0..8 {
                 let corner = |bit: usize, a: f64, b: f64| if c & bit == 0 { a } else { b };
-                let (x, y, z) =
-                    project(DVec3::new(corner(1, lo.x, hi.x), corner(2, lo.y, hi.y), corner(4, lo.z, hi.z)));
-                z_min = z_min.min(z);
-                (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+                let p = DVec3::new(corner(1, lo.x, hi.x), corner(2, lo.y, hi.y), corner(4, lo.z, hi.z));
+                let mut prev: Option<(f64, f64)> = None;
+                for at in instants {
+                    let (x, y, z) = project(at, p);
+                    z_min = z_min.min(z);
+                    (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+                    if let Some((px, py)) = prev {
+                        step = step.max((x - px).abs()).max((y - py).abs());
+                    }
+                    prev = Some((x, y));
+                }
             }
             if z_min.is_nan() || z_min <= 0.0 {
                 return false; // at or behind the camera plane
@@ -130,6 +142,10 @@ impl Coverage {
             if !m.is_finite() || m > 4.0 {
                 return false; // camera almost touching the target
             }
+            if !step.is_finite() {
+                return false;
+            }
+            let m = m + step;
             let b = [
                 clip(x0 - m, x_lo, x_hi),
                 clip(x1 + m, x_lo, x_hi),
@@ -146,13 +162,15 @@ impl Coverage {
                 return true;
             }
             for k in leaf.first..leaf.first + leaf.count {
-                let tri = accel.vertex_indices(k).map(|i| {
-                    let (x, y, _) = project(scene.mesh.positions[i as usize].as_dvec3());
-                    (x, y)
-                });
-                let ty0 = clip(tri.iter().map(|v| v.1).fold(f64::INFINITY, f64::min) - m, y_lo, y_hi).max(b[2]);
-                let ty1 = clip(tri.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max) + m, y_lo, y_hi).min(b[3]);
-                triangle_row_cells(tri, (ty0, ty1), (b[0], b[1]), m, &mark);
+                for at in instants {
+                    let tri = accel.vertex_indices(k).map(|i| {
+                        let (x, y, _) = project(at, scene.mesh.positions[i as usize].as_dvec3());
+                        (x, y)
+                    });
+                    let ty0 = clip(tri.iter().map(|v| v.1).fold(f64::INFINITY, f64::min) - m, y_lo, y_hi).max(b[2]);
+                    let ty1 = clip(tri.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max) + m, y_lo, y_hi).min(b[3]);
+                    triangle_row_cells(tri, (ty0, ty1), (b[0], b[1]), m, &mark);
+                }
             }
             true
         });
