@@ -14,6 +14,9 @@
 # process whose environment holds SLURM_CONF=DIR/slurm.conf), SIGKILL after a grace period,
 # and fails if one survives. Needs root.
 set -euo pipefail
+# down finds job processes by SLURM_CONF in their environment: this script and its
+# subshells must not carry it (the caller may have exported it for sbatch).
+if [ -n "${SLURM_CONF+x}" ]; then exec env -u SLURM_CONF "$0" "$@"; fi
 cmd=${1:-}
 dir=${2:-}
 if [ -z "$cmd" ] || [ -z "$dir" ] || [ $# -ne 2 ]; then
@@ -30,6 +33,16 @@ sl() { SLURM_CONF=$conf "$@"; }
 
 say() { echo "cluster.sh: $*" >&2; }
 
+# This script's ancestors (never to be stopped, whatever their environment).
+ancestors() {
+  local p=$$
+  while [ "$p" -gt 1 ]; do
+    echo "$p"
+    p=$(ps -o ppid= -p "$p" 2>/dev/null || echo 1)
+    p=${p// /}
+  done
+}
+
 # Our processes: the daemons by pid file, everything else by SLURM_CONF in its environment.
 our_pids() {
   local p env
@@ -41,7 +54,7 @@ our_pids() {
       p=${env#/proc/}
       echo "${p%/environ}"
     fi
-  done | sort -u
+  done | sort -u | grep -vxF -f <(ancestors) || true
 }
 
 any_alive() {

@@ -43,11 +43,16 @@ per_task=$(((frames - kill_task + tasks - 1) / tasks))   # frames of task K: pos
 
 work=$(mktemp -d /tmp/hilcam-slurm-test.XXXXXX)
 state=$work/cluster
-daemons='^(munged|slurmctld|slurmd|slurmstepd)$'
+# munged's socket directory (inside $state) must be reachable by all.
+chmod 755 "$work"
+daemons_left() {   # prints any munged, slurmctld, slurmd or slurmstepd process
+  local n
+  for n in munged slurmctld slurmd slurmstepd; do pgrep -a -x "$n" || true; done
+}
 finish() {
   local rc=$?
-  "$here/cluster.sh" down "$state" || rc=1
-  if pgrep -a -f "$state" >&2 || pgrep -a "$daemons" >&2; then
+  env -u SLURM_CONF "$here/cluster.sh" down "$state" || rc=1
+  if pgrep -a -f "$state" >&2 || [ -n "$(daemons_left | tee -a /dev/stderr)" ]; then
     say "FAIL: Slurm or MUNGE processes are still running (above)" >&2
     rc=1
   fi
@@ -55,7 +60,9 @@ finish() {
   exit "$rc"
 }
 trap finish EXIT
-if pgrep -a "$daemons"; then
+trap 'exit 130' INT
+trap 'exit 143' TERM
+if [ -n "$(daemons_left | tee -a /dev/stderr)" ]; then
   fail "Slurm or MUNGE daemons are already running (above); this test starts its own"
 fi
 
@@ -130,6 +137,8 @@ wait_job "$again"
 s=$(task_state "$again" "$kill_task")
 [ "$s" = "COMPLETED 0:0" ] || { cat "$work/logs/${again}_$kill_task.out" >&2; fail "resubmitted task $kill_task: $s"; }
 [ "$(lines "$kill_log")" = "$per_task" ] || fail "task $kill_task has $(lines "$kill_log") of $per_task frames after resuming"
+grep -q "$done_before already done" "$work/logs/${again}_$kill_task.out" ||
+  { cat "$work/logs/${again}_$kill_task.out" >&2; fail "the resubmitted task did not resume from $done_before frames"; }
 say "resubmitted task $kill_task (job $again): resumed from $done_before frames, now $per_task"
 
 HILCAM_BIN=$HILCAM_BIN "$here/merge.sh" "$out" "$frames" | sed 's/^/  /'
@@ -147,8 +156,9 @@ cmp <(strip "$work/local/frames.jsonl") <(strip "$out/frames.jsonl") || fail "fr
 say "$(wc -l <"$work/local.files") files byte-identical to the local run; frames.jsonl identical but for emit_unix_ns"
 
 trap - EXIT
-unset SLURM_CONF
-"$here/cluster.sh" down "$state"
-if pgrep -a "$daemons"; then fail "Slurm or MUNGE processes are still running after down (above)"; fi
+env -u SLURM_CONF "$here/cluster.sh" down "$state"
+if [ -n "$(daemons_left | tee -a /dev/stderr)" ]; then
+  fail "Slurm or MUNGE processes are still running after down (above)"
+fi
 rm -rf "$work"
 say "PASS (no munged, slurmctld, slurmd or slurmstepd left)"
