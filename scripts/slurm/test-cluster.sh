@@ -31,13 +31,14 @@ fi
 export HILCAM_BIN
 "$here/../setup-slurm.sh"
 
-# 13 frames (rows 0, 100, …, 1200) of the fly-around, ~0.3 s of CPU each: slow enough
-# that scancel lands between a task's first and last frame, at a pinned integration time
-# (the camera has auto-exposure, which cannot shard).
+# 25 frames (rows 0, 50, …, 1200) of the fly-around, ~0.3 s of CPU each, so that the
+# cancelled task's 6 frames leave scancel (whose SIGTERM arrives a few hundred ms later)
+# four frames to land before the last one; at a pinned integration time (the camera has
+# auto-exposure, which cannot shard).
 tasks=4
-frames=13
+frames=25
 replay_args=(--trajectory scenes/trajectories/flyaround.csv --scene scenes/satellite.toml
-  --every 100 --width 512 --spp 32 --depth 3 --format png --integration-s 0.0002)
+  --every 50 --width 512 --spp 32 --depth 3 --format png --integration-s 0.0002)
 kill_task=1
 per_task=$(((frames - kill_task + tasks - 1) / tasks))   # frames of task K: positions K, K+N, …
 
