@@ -1,12 +1,21 @@
 #!/usr/bin/env bash
 # Creates (once) a venv with pyserial and python-can for the interoperability
-# tests and examples; prints the interpreter's path on stdout.
+# tests and examples, and kubernetes-validate for scripts/k8s/validate.sh; prints the
+# interpreter's path on stdout.
 # Venv: $HILCAM_VENV (default ~/.cache/hilcam/venv). Installs python3-venv via
 # apt-get when the venv module is missing and we are root.
 set -euo pipefail
 venv=${HILCAM_VENV:-$HOME/.cache/hilcam/venv}
 py=$venv/bin/python
-if [ -x "$py" ] && "$py" -c 'import serial, can' 2>/dev/null; then
+pkgs=(pyserial python-can kubernetes-validate)
+imports='import serial, can, kubernetes_validate'
+if [ -x "$py" ] && "$py" -c "$imports" 2>/dev/null; then
+  echo "$py"; exit 0
+fi
+if [ -x "$py" ]; then
+  echo "setup-python: adding ${pkgs[*]} to $venv" >&2
+  "$py" -m pip install --quiet "${pkgs[@]}" >&2
+  "$py" -c "$imports" >&2
   echo "$py"; exit 0
 fi
 # Prefer a real interpreter over a pyenv shim: shims fork bash scripts, which is
@@ -21,8 +30,8 @@ if ! "$base" -m venv --help >/dev/null 2>&1; then
     echo "setup-python: python3 has no venv module and cannot install python3-venv" >&2; exit 1
   fi
 fi
-echo "setup-python: creating $venv with pyserial and python-can" >&2
+echo "setup-python: creating $venv with ${pkgs[*]}" >&2
 "$base" -m venv "$venv" >&2
-"$py" -m pip install --quiet pyserial python-can >&2
-"$py" -c 'import serial, can' >&2
+"$py" -m pip install --quiet "${pkgs[@]}" >&2
+"$py" -c "$imports" >&2
 echo "$py"

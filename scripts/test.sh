@@ -94,3 +94,11 @@ rm -r "$lab_bvh_dir"
 echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
 lap "bench build (--no-default-features) + checks"
 
+# --- clusters (issue 25) -----------------------------------------------------
+# A real single-node Slurm cluster (installs slurm-wlm + munge, starts and stops its own
+# daemons, fails if one is left), an array with a scancel'd and resubmitted task, merged
+# and compared byte for byte with a local replay; the Kubernetes manifest against the
+# schema, offline (docs/cluster.md).
+scripts/slurm/test-cluster.sh
+scripts/k8s/validate.sh
+lap "Slurm cluster + Kubernetes manifest"

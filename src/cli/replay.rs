@@ -69,8 +69,9 @@ pub struct ReplayArgs {
     /// Render every K-th trajectory row only.
     #[arg(long, default_value_t = 1)]
     pub every: u64,
-    /// Render shard K of N (`K/N`, 0-based). Default: from SLURM_ARRAY_TASK_ID/_COUNT/_MIN
-    /// or JOB_COMPLETION_INDEX + HILCAM_SHARD_COUNT, else the whole trajectory.
+    /// Render shard K of N (`K/N`, 0-based). Default: SLURM_ARRAY_TASK_ID of HILCAM_SHARD_COUNT
+    /// (or of SLURM_ARRAY_TASK_COUNT for an array 0-(N-1)), JOB_COMPLETION_INDEX of
+    /// HILCAM_SHARD_COUNT, else the whole trajectory.
     #[arg(long)]
     pub shard: Option<String>,
     /// Fixed sensor integration time (s), replacing auto-exposure; needed to shard or

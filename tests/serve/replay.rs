@@ -199,43 +199,6 @@ fn shards_share_a_directory_and_merge() {
     }
 }
 
-fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
-    move |k| vars.iter().find(|(n, _)| *n == k).map(|(_, v)| v.to_string())
-}
-
-#[test]
-fn shard_from_arguments_and_environment() {
-    assert_eq!(Shard::parse("3/16").unwrap(), Shard { index: 3, count: 16 });
-    for bad in ["16/16", "1/0", "x/2", "3", "-1/4"] {
-        assert!(Shard::parse(bad).unwrap_err().to_string().contains("expected K/N"), "{bad}");
-    }
-    assert_eq!(Shard::from_env(env(&[])).unwrap(), None);
-    // Slurm: --array=4-6 gives IDs 4, 5, 6 with MIN 4 and COUNT 3.
-    let slurm = [("SLURM_ARRAY_TASK_ID", "5"), ("SLURM_ARRAY_TASK_MIN", "4"), ("SLURM_ARRAY_TASK_COUNT", "3")];
-    assert_eq!(Shard::from_env(env(&slurm)).unwrap(), Some(Shard { index: 1, count: 3 }));
-    let no_min = [("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "3")];
-    assert_eq!(Shard::from_env(env(&no_min)).unwrap(), Some(Shard { index: 2, count: 3 }));
-    let e = Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "2")])).unwrap_err().to_string();
-    assert_eq!(e, "environment variable SLURM_ARRAY_TASK_COUNT: not set");
-    let out = [("SLURM_ARRAY_TASK_ID", "7"), ("SLURM_ARRAY_TASK_MIN", "4"), ("SLURM_ARRAY_TASK_COUNT", "3")];
-    assert!(
-        Shard::from_env(env(&out)).unwrap_err().to_string().starts_with("environment variable SLURM_ARRAY_TASK_ID")
-    );
-    let step = [("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "3"), ("SLURM_ARRAY_TASK_STEP", "2")];
-    assert!(Shard::from_env(env(&step)).unwrap_err().to_string().contains("SLURM_ARRAY_TASK_STEP"));
-    let e = Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "a"), ("SLURM_ARRAY_TASK_COUNT", "3")])).unwrap_err();
-    assert_eq!(e.to_string(), "environment variable SLURM_ARRAY_TASK_ID: `a` is not a non-negative integer");
-    // Kubernetes Indexed Job.
-    let k8s = [("JOB_COMPLETION_INDEX", "9"), ("HILCAM_SHARD_COUNT", "10")];
-    assert_eq!(Shard::from_env(env(&k8s)).unwrap(), Some(Shard { index: 9, count: 10 }));
-    let e = Shard::from_env(env(&[("JOB_COMPLETION_INDEX", "9")])).unwrap_err().to_string();
-    assert_eq!(e, "environment variable HILCAM_SHARD_COUNT: not set");
-    let e = Shard::from_env(env(&[("JOB_COMPLETION_INDEX", "10"), ("HILCAM_SHARD_COUNT", "10")])).unwrap_err();
-    assert!(e.to_string().starts_with("environment variable JOB_COMPLETION_INDEX: 10 must be below"), "{e}");
-    assert_eq!(Shard { index: 1, count: 3 }.log_name(), "frames.shard-1-of-3.jsonl");
-    assert_eq!(Shard::ALL.log_name(), "frames.jsonl");
-}
-
 /// The plate behind the nav1024 camera's sensor, which has auto-exposure.
 fn auto_exposure_scene() -> Scene {
     let preset = hilcam_core::scene::file::load_camera_file(Path::new("config/cameras/nav1024.toml")).unwrap();

@@ -37,6 +37,8 @@ use std::path::{Path, PathBuf};
 pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
 
 pub mod manifest;
+mod shard;
+pub use shard::{SHARD_COUNT_VAR, Shard};
 
 /// Errors of replay, sharding and merging; each names the file, line or variable.
 #[derive(Debug, thiserror::Error)]
@@ -94,88 +96,6 @@ pub enum ReplayError {
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReplayError + '_ {
     move |source| ReplayError::Io { path: path.to_path_buf(), source }
-}
-
-/// Which of the selected frames this process renders: those at positions j ≡ index (mod count).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Shard {
-    pub index: u64,
-    pub count: u64,
-}
-
-/// Kubernetes Indexed Jobs give the index only; the shard count comes from this variable.
-pub const K8S_COUNT_VAR: &str = "HILCAM_SHARD_COUNT";
-
-impl Shard {
-    /// The whole job in one process.
-    pub const ALL: Shard = Shard { index: 0, count: 1 };
-
-    /// Parse `K/N`.
-    pub fn parse(s: &str) -> Result<Shard, ReplayError> {
-        let bad = || ReplayError::BadShard(s.to_string());
-        let (k, n) = s.split_once('/').ok_or_else(bad)?;
-        let (index, count) = (k.trim().parse::<u64>().map_err(|_| bad())?, n.trim().parse::<u64>().map_err(|_| bad())?);
-        if count == 0 || index >= count {
-            return Err(bad());
-        }
-        Ok(Shard { index, count })
-    }
-
-    /// The shard of a Slurm job array task (`SLURM_ARRAY_TASK_ID` − `SLURM_ARRAY_TASK_MIN`
-    /// of `SLURM_ARRAY_TASK_COUNT`; the array must be contiguous, step 1) or of a
-    /// Kubernetes Indexed Job pod (`JOB_COMPLETION_INDEX` of [`K8S_COUNT_VAR`]); `None`
-    /// when neither is set. `get` reads a variable (`std::env::var(..).ok()` in the CLI).
-    pub fn from_env(get: impl Fn(&str) -> Option<String>) -> Result<Option<Shard>, ReplayError> {
-        let num = |var: &'static str, required: bool| -> Result<Option<u64>, ReplayError> {
-            match get(var) {
-                None if required => Err(ReplayError::Env { var, msg: "not set".into() }),
-                None => Ok(None),
-                Some(v) => v
-                    .trim()
-                    .parse::<u64>()
-                    .map(Some)
-                    .map_err(|_| ReplayError::Env { var, msg: format!("`{v}` is not a non-negative integer") }),
-            }
-        };
-        if let Some(id) = num("SLURM_ARRAY_TASK_ID", false)? {
-            let count = num("SLURM_ARRAY_TASK_COUNT", true)?.unwrap_or(0);
-            let min = num("SLURM_ARRAY_TASK_MIN", false)?.unwrap_or(0);
-            if let Some(step) = num("SLURM_ARRAY_TASK_STEP", false)?.filter(|s| *s != 1) {
-                return Err(ReplayError::Env {
-                    var: "SLURM_ARRAY_TASK_STEP",
-                    msg: format!("is {step}; use a contiguous array (--array=0-{})", count.saturating_sub(1)),
-                });
-            }
-            if count == 0 {
-                return Err(ReplayError::Env { var: "SLURM_ARRAY_TASK_COUNT", msg: "is 0".into() });
-            }
-            let index = id.checked_sub(min).filter(|i| *i < count).ok_or_else(|| ReplayError::Env {
-                var: "SLURM_ARRAY_TASK_ID",
-                msg: format!("{id} is outside SLURM_ARRAY_TASK_MIN {min} .. MIN + SLURM_ARRAY_TASK_COUNT {count}"),
-            })?;
-            return Ok(Some(Shard { index, count }));
-        }
-        if let Some(index) = num("JOB_COMPLETION_INDEX", false)? {
-            let count = num(K8S_COUNT_VAR, true)?.unwrap_or(0);
-            if index >= count {
-                return Err(ReplayError::Env {
-                    var: "JOB_COMPLETION_INDEX",
-                    msg: format!("{index} must be below {K8S_COUNT_VAR} = {count} (set it to the Job's completions)"),
-                });
-            }
-            return Ok(Some(Shard { index, count }));
-        }
-        Ok(None)
-    }
-
-    /// Metadata log of this shard: `frames.jsonl`, or `frames.shard-K-of-N.jsonl`.
-    pub fn log_name(&self) -> String {
-        if self.count == 1 {
-            LOG_NAME.to_string()
-        } else {
-            format!("frames.shard-{}-of-{}.jsonl", self.index, self.count)
-        }
-    }
 }
 
 /// The frame indices a run renders, in order: every `every`-th row, then this shard's share.
