@@ -219,3 +219,35 @@ fn no_star_in_view_changes_no_byte() {
     s.stars = None;
     assert_eq!(with.data, frame(&s, &s.pose).0.data);
 }
+
+/// A plate scene file (next to `scenes/plate.toml`, so its paths resolve) with `extra`.
+fn parse_scene(pose_extra: &str, stars: &str) -> Result<hilcam_core::scene::SceneParts, String> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let src = format!(
+        "camera_file = \"../config/cameras/nav1024.toml\"\n[[mesh]]\nobj = \"meshes/plate.obj\"\n\
+         [materials.white_paint]\nmodel = \"lambert\"\nrho = 0.5\n\
+         [pose]\nposition = [0.0, 0.0, 10.0]\nsun = [0.0, 0.0, -1.0]\n{pose_extra}\n{stars}\n"
+    );
+    hilcam_core::scene::file::parse(&dir.join("plate_stars.toml"), &src).map_err(|e| e.to_string())
+}
+
+#[test]
+fn scene_file_stars_need_an_inertial_attitude_and_read_the_catalogue() {
+    let stars = "[stars]\ncatalogue = \"stars/bsc5.csv\"\nmax_vmag = 2.0";
+    let e = parse_scene("", stars).err().unwrap();
+    assert!(e.contains("pose.camera_to_inertial") && e.contains("[stars] needs"), "{e}");
+    let e = parse_scene("camera_to_inertial = [1.0, 0.0, 0.0, 0.1]", stars).err().unwrap();
+    assert!(e.contains(":10: pose.camera_to_inertial: norm"), "{e}");
+    let parts = parse_scene("camera_to_inertial = [1.0, 0.0, 0.0, 0.0]", stars).unwrap();
+    let field = parts.stars.unwrap();
+    // BSC5 has 50 entries with V ≤ 2.0 (Sirius at −1.46 the brightest).
+    assert_eq!(field.stars.len(), 50);
+    let sirius = field.stars.iter().find(|s| s.hr == 2491).unwrap();
+    assert_eq!(sirius.vmag, -1.46);
+    // nav1024's band is 0.45–0.75 µm.
+    assert!((field.zero_point_w_m2 - 3.63e-11 * 300.0).abs() < 1e-20);
+    let e = parse_scene("camera_to_inertial = [1.0, 0.0, 0.0, 0.0]", "[stars]\ncatalogue = \"stars/none.csv\"")
+        .err()
+        .unwrap();
+    assert!(e.contains("stars.catalogue") && e.contains("none.csv"), "{e}");
+}

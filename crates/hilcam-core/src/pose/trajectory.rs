@@ -318,6 +318,22 @@ mod tests {
     }
 
     #[test]
+    fn inertial_attitude_columns_round_trip_and_are_checked() {
+        let text = "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,iw,ix,iy,iz\n0,0,0,5,1,0,0,0,0,0,-1,0.6,0,0.8,0\n";
+        let s = Trajectory::parse(text, Path::new("t.csv")).unwrap();
+        assert_eq!(s[0].camera_to_inertial, Some(DQuat::from_xyzw(0.0, 0.8, 0.0, 0.6)));
+        assert_eq!(s[0].to_pose(0).camera_to_inertial, s[0].camera_to_inertial);
+        assert_eq!(Trajectory::parse(&Trajectory::to_csv(&s), Path::new("t.csv")).unwrap(), s);
+        let bad = text.replace(",0.6,0,0.8,0", ",0.7,0,0.8,0");
+        let e = Trajectory::parse(&bad, Path::new("t.csv")).unwrap_err().to_string();
+        assert!(e.starts_with("t.csv:2:12: `iw,ix,iy,iz`: norm"), "{e}");
+        let e = Trajectory::parse("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,iw,ix\n", Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`iw,ix,iy,iz` must come as a complete group"), "{e}");
+    }
+
+    #[test]
     fn columns_in_any_order_and_hold_lookup() {
         let text = "sz,sy,sx,qz,qy,qx,qw,pz,py,px,time_s\n-1,0,0,0,0,0,1,7,2,1,0.5\n-1,0,0,0,0,0,1,8,2,1,1.5\n";
         let s = Trajectory::parse(text, Path::new("x")).unwrap();
