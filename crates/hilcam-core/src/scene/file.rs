@@ -539,8 +539,9 @@ fn stars_from(
         });
     };
     let st = s.get_ref();
-    if !(st.min_vmag <= st.max_vmag) {
-        return Err(field(s.span(), "stars.min_vmag", format!("{} > max_vmag {}", st.min_vmag, st.max_vmag)));
+    if st.min_vmag.is_nan() || st.max_vmag.is_nan() || st.min_vmag > st.max_vmag {
+        let m = format!("{} must be ≤ max_vmag {}", st.min_vmag, st.max_vmag);
+        return Err(field(s.span(), "stars.min_vmag", m));
     }
     let (lo, hi) = sensor.band.as_ref().map_or((0.45, 0.75), |b| (b.min_um, b.max_um));
     let zero_point_w_m2 = match &st.zero_point_w_m2 {
@@ -576,7 +577,8 @@ fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
         Some(q) => {
             let [w, x, y, z] = *q.get_ref();
             let n = (w * w + x * x + y * y + z * z).sqrt();
-            if !((n - 1.0).abs() <= 1e-3) {
+            let unit = (n - 1.0).abs() <= 1e-3;
+            if !unit {
                 let m = format!("norm {n}, must be within 1e-3 of 1 (w, x, y, z)");
                 return Err((q.span(), "pose.camera_to_inertial".into(), m));
             }
