@@ -14,31 +14,26 @@ const IDEAL_MARGIN: f64 = 0.25;
 impl StarField {
     /// The continuous pixel coordinate (`col + u`, `row + v`, pixel centres at `.5`) of
     /// every star in front of the camera whose image point is near the image, with its
-    /// index and camera-frame direction, for the camera → inertial rotation `camera_to_inertial` (the view's, else the
-    /// field's default). Nothing for an unusable rotation.
-    pub fn image_points(&self, view: &View) -> Vec<(usize, DVec3, [f64; 2])> {
+    /// index and camera-frame direction, for the view's camera → inertial rotation (else
+    /// the field's default). Nothing for an unusable rotation. Allocates nothing.
+    pub fn image_points<'a>(&'a self, view: &'a View) -> impl Iterator<Item = (usize, DVec3, [f64; 2])> + 'a {
         let q = view.camera_to_inertial.unwrap_or(self.default_camera_to_inertial);
-        if !(q.is_finite() && q.length_squared() > 0.0) {
-            return Vec::new();
-        }
-        let inertial_to_cam = DMat3::from_quat(q.normalize()).transpose();
+        let usable = q.is_finite() && q.length_squared() > 0.0;
+        let inertial_to_cam = DMat3::from_quat(if usable { q.normalize() } else { glam::DQuat::IDENTITY }).transpose();
         let (w, h) = (f64::from(view.width), f64::from(view.height));
         let m = IDEAL_MARGIN * w.max(h);
-        self.stars
-            .iter()
-            .enumerate()
-            .filter_map(|(i, s)| {
-                let d = inertial_to_cam * s.dir;
-                if d.z <= 0.0 {
-                    return None;
-                }
-                let [x, y] = view.ideal_px(d);
-                if !(-m..=w + m).contains(&x) || !(-m..=h + m).contains(&y) {
-                    return None;
-                }
-                Some((i, d, view.pixel_of_ideal(x, y)))
-            })
-            .collect()
+        let stars = if usable { &self.stars[..] } else { &[] };
+        stars.iter().enumerate().filter_map(move |(i, s)| {
+            let d = inertial_to_cam * s.dir;
+            if d.z <= 0.0 {
+                return None;
+            }
+            let [x, y] = view.ideal_px(d);
+            if !(-m..=w + m).contains(&x) || !(-m..=h + m).contains(&y) {
+                return None;
+            }
+            Some((i, d, view.pixel_of_ideal(x, y)))
+        })
     }
 
     /// Add every visible star to `img` (the frame `view` renders): the radiance
