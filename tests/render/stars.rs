@@ -251,3 +251,36 @@ fn scene_file_stars_need_an_inertial_attitude_and_read_the_catalogue() {
         .unwrap();
     assert!(e.contains("stars.catalogue") && e.contains("none.csv"), "{e}");
 }
+
+#[test]
+fn a_window_of_the_sensor_gets_the_full_frames_stars_there() {
+    use hilcam_core::render::camera::Window;
+    let stars: Vec<Star> =
+        (0..30).map(|i| star(i, toward(2.0 + 3.1 * i as f64, 3.0 + 2.6 * i as f64), 1.0 + 0.1 * i as f64)).collect();
+    let s = plate_scene(0.0, stars);
+    let (full, _) = frame(&s, &s.pose);
+    let win = Window { x: 17, y: 11, width: 40, height: 50 };
+    let view = s.view(&s.camera, &s.pose).window(&win);
+    let (part, st) = render(&s, &view, &RenderOptions::new(s.render, 0));
+    assert!(st.stars.in_view > 5, "{:?}", st.stars);
+    for r in 0..win.height {
+        for c in 0..win.width {
+            let f = full.data[((r + win.y) * full.width + c + win.x) as usize];
+            assert_eq!(part.data[(r * win.width + c) as usize].to_bits(), f.to_bits(), "({c}, {r})");
+        }
+    }
+}
+
+#[test]
+fn reused_buffers_clear_the_last_frames_stars() {
+    // Stars far above and below the plate's rows: the next frame through the same buffers
+    // must not keep them when the attitude moves them.
+    let s = plate_scene(0.5, vec![star(1, toward(10.5, 2.5), 0.0), star(2, toward(80.5, 77.5), 0.0)]);
+    let turned = Pose { camera_to_inertial: Some(DQuat::from_rotation_y(0.004)), ..s.pose };
+    let mut buffers = hilcam_core::render::FrameBuffers::<()>::default();
+    for pose in [s.pose, turned] {
+        let opts = RenderOptions::new(s.render, 0);
+        hilcam_core::render::render_into(&mut buffers, &s, &s.view(&s.camera, &pose), &opts);
+        assert_eq!(buffers.image().data, frame(&s, &pose).0.data);
+    }
+}
