@@ -7,7 +7,8 @@
 //! without any work), so a far, small target costs in proportion to the pixels it
 //! covers. Every random
 //! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
-//! whatever the thread count.
+//! whatever the thread count. A target's star field (`stars`) is drawn last, over the
+//! background, where the target does not hide it.
 
 use crate::render::camera::{PixelRect, View};
 use crate::render::cull::Silhouette;
