@@ -78,6 +78,7 @@ fn any_pose() -> impl Strategy<Value = Pose> {
             sun_dir,
             velocity,
             angular_rate,
+            camera_to_inertial: None,
         },
     )
 }

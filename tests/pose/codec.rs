@@ -253,7 +253,7 @@ prop_compose! {
     fn any_pose()(seq in any::<u32>(), t_ns in any::<u64>(),
                   r in 0.1..1.0e6f64, dir in unit_vec(), q in unit_quat(), sun in unit_vec(),
                   v in opt_vec(100.0), w in opt_vec(1.0)) -> Pose {
-        Pose { seq, t_ns, position: dir * r, attitude: q, sun_dir: sun, velocity: v, angular_rate: w }
+        Pose { seq, t_ns, position: dir * r, attitude: q, sun_dir: sun, velocity: v, angular_rate: w, camera_to_inertial: None }
     }
 }
 

@@ -176,6 +176,7 @@ fn pose_at_10_khz(k: u32) -> Pose {
         sun_dir: DVec3::new(0.3, 0.2, -1.0).normalize(),
         velocity: Some(v),
         angular_rate: Some(w),
+        camera_to_inertial: None,
     }
 }
 

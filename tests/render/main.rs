@@ -20,6 +20,7 @@ mod primary_raster;
 mod sensor;
 mod shadow_packet;
 mod silhouette;
+mod stars;
 mod sun_shadow;
 mod trade;
 mod waves;

@@ -64,6 +64,7 @@ fn session_frame_line_is_pinned_byte_for_byte() {
             sun_dir: [0.0, 0.6, 0.8],
             velocity: Some([0.1, -0.2, 0.3]),
             angular_rate: None,
+            camera_to_inertial: None,
         },
         settings: SettingsFields {
             spp: Spp::from_milli(2_250),

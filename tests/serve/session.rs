@@ -67,6 +67,7 @@ fn moving_pose(seq: u32) -> Pose {
         sun_dir: DVec3::new(0.6, 0.1, -0.8).normalize(),
         velocity: Some(DVec3::new(0.5, 0.0, -2.0)),
         angular_rate: Some(DVec3::new(0.0, 0.8, 0.0)),
+        camera_to_inertial: None,
     }
 }
 

@@ -342,6 +342,7 @@ mod tests {
                 sun_dir: DVec3::Z,
                 velocity: None,
                 angular_rate: None,
+                camera_to_inertial: None,
             })
             .collect()
     }

@@ -205,6 +205,7 @@ fn read_block(seq: u32, b: &[u8]) -> Pose {
         sun_dir: DVec3::from_array(s),
         velocity,
         angular_rate,
+        camera_to_inertial: None,
     }
 }
 

@@ -25,6 +25,9 @@ pub struct Pose {
     pub velocity: Option<DVec3>,
     /// Optional angular rate of the target body relative to the camera, camera frame, rad/s.
     pub angular_rate: Option<DVec3>,
+    /// Optional inertial attitude of the camera: the rotation taking camera-frame vectors
+    /// into the inertial (J2000 equatorial) frame. Places a scene's star field.
+    pub camera_to_inertial: Option<DQuat>,
 }
 
 impl Pose {
@@ -39,6 +42,7 @@ impl Pose {
             sun_dir: DVec3::new(0.0, 0.0, -1.0),
             velocity: None,
             angular_rate: None,
+            camera_to_inertial: None,
         }
     }
 }

@@ -45,6 +45,7 @@ mod tests {
             sun_dir: DVec3::NEG_Z,
             velocity: None,
             angular_rate: None,
+            camera_to_inertial: None,
         }
     }
 

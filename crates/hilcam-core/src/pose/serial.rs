@@ -199,7 +199,16 @@ pub fn decode_frame(buf: &[u8]) -> Result<(Message, usize), FrameError> {
             let sun_dir = r.dvec3_f64();
             let velocity = (flags & FLAG_VELOCITY != 0).then(|| r.dvec3_f64());
             let angular_rate = (flags & FLAG_ANGULAR_RATE != 0).then(|| r.dvec3_f64());
-            Message::Pose(Pose { seq, t_ns, position, attitude, sun_dir, velocity, angular_rate })
+            Message::Pose(Pose {
+                seq,
+                t_ns,
+                position,
+                attitude,
+                sun_dir,
+                velocity,
+                angular_rate,
+                camera_to_inertial: None,
+            })
         }
         TYPE_TRIGGER => Message::Trigger { seq, t_ns },
         _ => Message::Heartbeat { seq, t_ns, status: r.u32() },

@@ -3,12 +3,12 @@
 //!
 //! ```text
 //! # comments and blank lines are ignored
-//! time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz[,vx,vy,vz][,wx,wy,wz]
+//! time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz[,vx,vy,vz][,wx,wy,wz][,iw,ix,iy,iz]
 //! 0.0,0,0,1000,1,0,0,0,0,0,-1
 //! ```
 //!
-//! Columns may come in any order; `vx,vy,vz` and `wx,wy,wz` are optional, as
-//! complete triples. Time must strictly increase. [`Trajectory::load`] returns
+//! Columns may come in any order; `vx,vy,vz`, `wx,wy,wz` and the camera's inertial
+//! attitude `iw,ix,iy,iz` are optional, as complete groups. Time must strictly increase. [`Trajectory::load`] returns
 //! the samples exactly as written (what `hilcam send` puts on the wire, so a
 //! receiver's pose gate can be exercised); [`Trajectory::load_gated`] passes
 //! every row through the pose gate ([`crate::pose::validate`]), as offline
@@ -35,6 +35,8 @@ pub struct TrajectorySample {
     pub velocity: Option<DVec3>,
     /// Angular rate of the body relative to the camera, camera frame, rad/s.
     pub angular_rate: Option<DVec3>,
+    /// Camera → inertial rotation (places a star field).
+    pub camera_to_inertial: Option<DQuat>,
 }
 
 impl TrajectorySample {
@@ -48,6 +50,7 @@ impl TrajectorySample {
             sun_dir: self.sun_dir,
             velocity: self.velocity,
             angular_rate: self.angular_rate,
+            camera_to_inertial: self.camera_to_inertial,
         }
     }
 }
@@ -80,8 +83,13 @@ pub enum TrajectoryError {
 
 /// The required columns, in the order `save` writes them.
 pub const REQUIRED_COLUMNS: [&str; 11] = ["time_s", "px", "py", "pz", "qw", "qx", "qy", "qz", "sx", "sy", "sz"];
-/// Optional columns (each triple all or nothing).
-pub const OPTIONAL_COLUMNS: [&str; 6] = ["vx", "vy", "vz", "wx", "wy", "wz"];
+/// Optional columns (each group all or nothing): velocity, angular rate, camera → inertial.
+pub const OPTIONAL_COLUMNS: [&str; 10] = ["vx", "vy", "vz", "wx", "wy", "wz", "iw", "ix", "iy", "iz"];
+/// (first index, length) of each optional group among all columns.
+const OPTIONAL_GROUPS: [(usize, usize); 3] = [(11, 3), (14, 3), (17, 4)];
+
+/// How far from 1 the norm of a row's `iw,ix,iy,iz` may be (as the pose gate's attitude).
+const INERTIAL_NORM_TOLERANCE: f64 = 1e-3;
 
 /// Namespace for trajectory file I/O.
 pub struct Trajectory;
@@ -151,7 +159,7 @@ impl Trajectory {
             return Err(err(1, 0, "empty file: no header line".into()));
         };
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        let mut col = [usize::MAX; 17];
+        let mut col = [usize::MAX; 21];
         let all: Vec<&str> = REQUIRED_COLUMNS.iter().chain(&OPTIONAL_COLUMNS).copied().collect();
         for (i, n) in names.iter().enumerate() {
             let Some(k) = all.iter().position(|a| a == n) else {
@@ -168,12 +176,12 @@ impl Trajectory {
             }
         }
         let has = |k: usize| col[k] != usize::MAX;
-        for t in [11, 14] {
-            if (has(t) || has(t + 1) || has(t + 2)) && !(has(t) && has(t + 1) && has(t + 2)) {
+        for (t, n) in OPTIONAL_GROUPS {
+            if (t..t + n).any(has) && !(t..t + n).all(has) {
                 return Err(err(
                     hline,
                     0,
-                    format!("optional columns `{}` must come as a complete triple", all[t..t + 3].join(",")),
+                    format!("optional columns `{}` must come as a complete group", all[t..t + n].join(",")),
                 ));
             }
         }
@@ -183,7 +191,7 @@ impl Trajectory {
             if fields.len() != names.len() {
                 return Err(err(line, 0, format!("{} fields, header has {}", fields.len(), names.len())));
             }
-            let mut v = [0.0f64; 17];
+            let mut v = [0.0f64; 21];
             for (k, slot) in v.iter_mut().enumerate() {
                 if !has(k) {
                     continue;
@@ -206,6 +214,14 @@ impl Trajectory {
                 return Err(err(line, col[0] + 1, "time_s is negative".into()));
             }
             let tri = |k: usize| DVec3::new(v[k], v[k + 1], v[k + 2]);
+            let inertial_norm = (v[17] * v[17] + v[18] * v[18] + v[19] * v[19] + v[20] * v[20]).sqrt();
+            if has(17) && (inertial_norm - 1.0).abs() > INERTIAL_NORM_TOLERANCE {
+                return Err(err(
+                    line,
+                    col[17] + 1,
+                    format!("`iw,ix,iy,iz`: norm {inertial_norm}, must be within {INERTIAL_NORM_TOLERANCE:e} of 1"),
+                ));
+            }
             out.push((
                 line,
                 TrajectorySample {
@@ -215,6 +231,7 @@ impl Trajectory {
                     sun_dir: tri(8),
                     velocity: has(11).then(|| tri(11)),
                     angular_rate: has(14).then(|| tri(14)),
+                    camera_to_inertial: has(17).then(|| DQuat::from_xyzw(v[18], v[19], v[20], v[17])),
                 },
             ));
         }
@@ -232,12 +249,16 @@ impl Trajectory {
     pub fn to_csv(samples: &[TrajectorySample]) -> String {
         let has_v = samples.first().is_some_and(|s| s.velocity.is_some());
         let has_w = samples.first().is_some_and(|s| s.angular_rate.is_some());
+        let has_i = samples.first().is_some_and(|s| s.camera_to_inertial.is_some());
         let mut s = REQUIRED_COLUMNS.join(",");
         if has_v {
             s.push_str(",vx,vy,vz");
         }
         if has_w {
             s.push_str(",wx,wy,wz");
+        }
+        if has_i {
+            s.push_str(",iw,ix,iy,iz");
         }
         s.push('\n');
         for x in samples {
@@ -250,6 +271,8 @@ impl Trajectory {
             assert_eq!(x.angular_rate.is_some(), has_w, "rate present in some samples only");
             vals.extend(x.velocity.map(|v| v.to_array()).into_iter().flatten());
             vals.extend(x.angular_rate.map(|v| v.to_array()).into_iter().flatten());
+            assert_eq!(x.camera_to_inertial.is_some(), has_i, "inertial attitude present in some samples only");
+            vals.extend(x.camera_to_inertial.map(|q| [q.w, q.x, q.y, q.z]).into_iter().flatten());
             for (i, v) in vals.iter().enumerate() {
                 let _ = write!(s, "{}{v:?}", if i == 0 { "" } else { "," });
             }
@@ -291,7 +314,23 @@ mod tests {
         assert_eq!(e, "t.csv:1:0: missing required column `pz`");
         let e =
             Trajectory::parse("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,vx\n", Path::new("t.csv")).unwrap_err().to_string();
-        assert!(e.contains("complete triple"), "{e}");
+        assert!(e.contains("complete group"), "{e}");
+    }
+
+    #[test]
+    fn inertial_attitude_columns_round_trip_and_are_checked() {
+        let text = "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,iw,ix,iy,iz\n0,0,0,5,1,0,0,0,0,0,-1,0.6,0,0.8,0\n";
+        let s = Trajectory::parse(text, Path::new("t.csv")).unwrap();
+        assert_eq!(s[0].camera_to_inertial, Some(DQuat::from_xyzw(0.0, 0.8, 0.0, 0.6)));
+        assert_eq!(s[0].to_pose(0).camera_to_inertial, s[0].camera_to_inertial);
+        assert_eq!(Trajectory::parse(&Trajectory::to_csv(&s), Path::new("t.csv")).unwrap(), s);
+        let bad = text.replace(",0.6,0,0.8,0", ",0.7,0,0.8,0");
+        let e = Trajectory::parse(&bad, Path::new("t.csv")).unwrap_err().to_string();
+        assert!(e.starts_with("t.csv:2:12: `iw,ix,iy,iz`: norm"), "{e}");
+        let e = Trajectory::parse("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,iw,ix\n", Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`iw,ix,iy,iz` must come as a complete group"), "{e}");
     }
 
     #[test]

@@ -7,13 +7,15 @@
 //! without any work), so a far, small target costs in proportion to the pixels it
 //! covers. Every random
 //! number is keyed by (seed, frame, pixel, sample): the same inputs give the same bytes
-//! whatever the thread count.
+//! whatever the thread count. A target's star field (`stars`) is drawn last, over the
+//! background, where the target does not hide it.
 
 use crate::render::camera::{PixelRect, View};
 use crate::render::cull::Silhouette;
 use crate::render::film::RadianceImage;
 use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
 use crate::render::sampling::{PerSample, Sequence};
+use crate::render::stars::StarStats;
 use crate::render::target::Target;
 use adaptive::Adaptive;
 pub use buffers::FrameBuffers;
@@ -29,6 +31,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod sampling;
+pub mod stars;
 pub mod target;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -47,6 +50,8 @@ pub struct RenderStats {
     /// Camera samples traced (`spp` × traced pixels on average; per pixel it varies
     /// when sampling is adaptive).
     pub samples: u64,
+    /// Stars drawn and hidden (all zero without a star field).
+    pub stars: StarStats,
 }
 
 /// How primary hits are found. Both give the same hits (see `cull::visibility`,
@@ -214,7 +219,17 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
-    RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples }
+    let mut stars = StarStats::default();
+    if let Some(field) = &target.stars {
+        stars = field.deposit(img, view, &target.accel);
+        // The next frame clears the rows this one wrote; stars widen them.
+        let (r0, r1) = (stars.rows.0 as usize, stars.rows.1 as usize);
+        if r0 < r1 {
+            let w = &mut *written_rows;
+            *w = if w.start >= w.end { r0..r1 } else { w.start.min(r0)..w.end.max(r1) };
+        }
+    }
+    RenderStats { time: t0.elapsed(), rays, traced_pixels: traced, rect, primary_rasterised, samples, stars }
 }
 
 /// Camera samples per triangle from which primary hits are rasterised rather than traced.

@@ -23,6 +23,10 @@
 //! attitude = [1.0, 0.0, 0.0, 0.0]   # w, x, y, z: body → camera
 //! sun = [0.0, 0.0, -1.0]            # toward the sun
 //!
+//! [stars]                      # optional: a star field behind the target (docs/stars.md)
+//! catalogue = "stars/bsc5.csv" # relative to this file; needs pose.camera_to_inertial
+//! max_vmag = 6.5
+//!
 //! [[wrap]]                     # optional: wrinkle a material's faces (MLI folds)
 //! material = "mli_gold"
 //! level = "medium"             # or e_plane = 0.968, var = 0.0077
@@ -45,6 +49,8 @@ use crate::render::camera::CameraModel;
 use crate::render::geometry::{BvhLayout, TriMesh};
 use crate::render::integrator::{RenderSettings, SamplerKind, Spp};
 use crate::render::sampling::Sequence;
+use crate::render::stars::catalogue::Selection;
+use crate::render::stars::{StarField, band_zero_point_w_m2};
 use crate::scene::fold::{
     FoldLevel, FoldTarget, MAX_WRAP_TRIANGLES, fit_for_edge, fit_panel_triangle_estimate, wrap_faces_report,
     wrap_triangle_estimate,
@@ -91,6 +97,28 @@ struct SceneFile {
     /// Fold (wrinkle) every face of a material at load time.
     #[serde(default)]
     wrap: Vec<Spanned<WrapEntry>>,
+    /// Point stars behind the target.
+    stars: Option<Spanned<StarsSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StarsSection {
+    catalogue: Spanned<PathBuf>,
+    /// Keep stars with min_vmag ≤ V ≤ max_vmag.
+    #[serde(default = "brightest")]
+    min_vmag: f64,
+    #[serde(default = "faintest")]
+    max_vmag: f64,
+    /// Band irradiance of a V = 0 star, W/m² (default: Johnson V zero point × the band).
+    zero_point_w_m2: Option<Spanned<f64>>,
+}
+
+fn brightest() -> f64 {
+    -30.0
+}
+fn faintest() -> f64 {
+    30.0
 }
 
 #[derive(Deserialize)]
@@ -180,6 +208,8 @@ struct PoseSection {
     velocity: Option<Spanned<[f64; 3]>>,
     /// Angular rate of the body relative to the camera, camera frame, rad/s.
     angular_rate: Option<Spanned<[f64; 3]>>,
+    /// Camera → inertial rotation, w, x, y, z (places the star field).
+    camera_to_inertial: Option<Spanned<[f64; 4]>>,
 }
 
 fn identity() -> Spanned<[f64; 4]> {
@@ -194,6 +224,7 @@ impl Default for PoseSection {
             sun: Spanned::new(0..0, [0.0, 0.0, -1.0]),
             velocity: None,
             angular_rate: None,
+            camera_to_inertial: None,
         }
     }
 }
@@ -444,7 +475,22 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         ));
     }
     let layout = r.bvh.get_ref().check().map_err(|m| field(r.bvh.span(), "render.bvh", m))?;
-    Ok(SceneParts { mesh, materials, sun_irradiance: irradiance, background, camera, sensor, pose, render, layout })
+    let stars = match &file.stars {
+        None => None,
+        Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor)?),
+    };
+    Ok(SceneParts {
+        mesh,
+        materials,
+        sun_irradiance: irradiance,
+        background,
+        camera,
+        sensor,
+        pose,
+        render,
+        layout,
+        stars,
+    })
 }
 
 /// Read a camera file: its `[camera]` table and optional `[sensor]` table.
@@ -467,6 +513,53 @@ pub fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
     Ok(())
 }
 
+/// The `[stars]` section's star field: the catalogue read, the zero point from the sensor's
+/// band (or the scene's solar band, 0.45–0.75 µm, without one), placed by the pose's
+/// camera → inertial rotation, which the scene's `[pose]` must give.
+fn stars_from(
+    path: &Path,
+    src: &str,
+    dir: &Path,
+    s: &Spanned<StarsSection>,
+    pose: &Pose,
+    sensor: &SensorConfig,
+) -> Result<StarField, SceneError> {
+    let field = |span: std::ops::Range<usize>, f: &str, message: String| SceneError::Field {
+        path: path.to_path_buf(),
+        line: line_of(src, span.start),
+        field: f.to_string(),
+        message,
+    };
+    let Some(q) = pose.camera_to_inertial else {
+        return Err(SceneError::Missing {
+            path: path.to_path_buf(),
+            field: "pose.camera_to_inertial".into(),
+            message: "[stars] needs the camera's inertial attitude: give [pose] camera_to_inertial = [w, x, y, z]"
+                .into(),
+        });
+    };
+    let st = s.get_ref();
+    if st.min_vmag.is_nan() || st.max_vmag.is_nan() || st.min_vmag > st.max_vmag {
+        let m = format!("{} must be ≤ max_vmag {}", st.min_vmag, st.max_vmag);
+        return Err(field(s.span(), "stars.min_vmag", m));
+    }
+    let (lo, hi) = sensor.band.as_ref().map_or((0.45, 0.75), |b| (b.min_um, b.max_um));
+    let zero_point_w_m2 = match &st.zero_point_w_m2 {
+        None => band_zero_point_w_m2(lo, hi),
+        Some(z) => {
+            let v = *z.get_ref();
+            if !(v.is_finite() && v > 0.0) {
+                return Err(field(z.span(), "stars.zero_point_w_m2", format!("must be > 0 W/m², got {v}")));
+            }
+            v
+        }
+    };
+    let sel =
+        Selection { min_vmag: st.min_vmag, max_vmag: st.max_vmag, zero_point_w_m2, default_camera_to_inertial: q };
+    let file = dir.join(st.catalogue.get_ref());
+    StarField::load(&file, &sel).map_err(|e| field(st.catalogue.span(), "stars.catalogue", e.to_string()))
+}
+
 type FieldErr = (std::ops::Range<usize>, String, String);
 
 fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
@@ -478,6 +571,19 @@ fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
         velocity: p.velocity.as_ref().map(|v| DVec3::from_array(*v.get_ref())),
         angular_rate: p.angular_rate.as_ref().map(|v| DVec3::from_array(*v.get_ref())),
         ..Pose::ahead(0.0)
+    };
+    let pose = match &p.camera_to_inertial {
+        None => pose,
+        Some(q) => {
+            let [w, x, y, z] = *q.get_ref();
+            let n = (w * w + x * x + y * y + z * z).sqrt();
+            let unit = (n - 1.0).abs() <= 1e-3;
+            if !unit {
+                let m = format!("norm {n}, must be within 1e-3 of 1 (w, x, y, z)");
+                return Err((q.span(), "pose.camera_to_inertial".into(), m));
+            }
+            Pose { camera_to_inertial: Some(DQuat::from_xyzw(x, y, z, w) / n), ..pose }
+        }
     };
     limits::gate_pose(&pose).map_err(|e| {
         let rates = p.velocity.as_ref().or(p.angular_rate.as_ref()).map(Spanned::span);

@@ -10,6 +10,7 @@ use crate::pose::Pose;
 use crate::render::camera::CameraModel;
 use crate::render::geometry::{BvhLayout, TriMesh};
 use crate::render::integrator::RenderSettings;
+use crate::render::stars::StarField;
 use crate::render::target::Target;
 use crate::sensor::SensorConfig;
 
@@ -43,19 +44,18 @@ pub struct SceneParts {
     pub pose: Pose,
     pub render: RenderSettings,
     pub layout: BvhLayout,
+    /// Point stars behind the target (`[stars]`).
+    pub stars: Option<StarField>,
 }
 
 impl Scene {
     /// Build the target (re-centred mesh, normals, bounds, BVH) and keep the defaults.
     pub fn build(parts: SceneParts) -> Scene {
-        let SceneParts { mesh, materials, sun_irradiance, background, camera, sensor, pose, render, layout } = parts;
-        Scene {
-            target: Target::build(mesh, materials, sun_irradiance, background, layout),
-            camera,
-            sensor,
-            pose,
-            render,
-        }
+        let SceneParts { mesh, materials, sun_irradiance, background, camera, sensor, pose, render, layout, stars } =
+            parts;
+        let mut target = Target::build(mesh, materials, sun_irradiance, background, layout);
+        target.stars = stars;
+        Scene { target, camera, sensor, pose, render }
     }
 }
 

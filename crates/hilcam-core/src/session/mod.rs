@@ -50,6 +50,9 @@ pub struct PoseFields {
     pub velocity: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angular_rate: Option<[f64; 3]>,
+    /// (w, x, y, z), camera → inertial.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_to_inertial: Option<[f64; 4]>,
 }
 
 impl From<&Pose> for PoseFields {
@@ -63,6 +66,7 @@ impl From<&Pose> for PoseFields {
             sun_dir: p.sun_dir.to_array(),
             velocity: p.velocity.map(|v| v.to_array()),
             angular_rate: p.angular_rate.map(|v| v.to_array()),
+            camera_to_inertial: p.camera_to_inertial.map(|q| [q.w, q.x, q.y, q.z]),
         }
     }
 }
@@ -78,6 +82,7 @@ impl PoseFields {
             sun_dir: DVec3::from_array(self.sun_dir),
             velocity: self.velocity.map(DVec3::from_array),
             angular_rate: self.angular_rate.map(DVec3::from_array),
+            camera_to_inertial: self.camera_to_inertial.map(|[w, x, y, z]| DQuat::from_xyzw(x, y, z, w)),
         }
     }
 }
@@ -399,6 +404,7 @@ mod tests {
             sun_dir: DVec3::new(1e-300, -0.6, 0.8),
             velocity: Some(DVec3::new(f64::MIN_POSITIVE, 5e-324, -7.25)),
             angular_rate: None,
+            camera_to_inertial: None,
         }
     }
 

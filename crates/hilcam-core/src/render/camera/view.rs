@@ -59,6 +59,8 @@ pub struct View {
     pub(in crate::render) keys: PixelKeys,
     /// The target's motion over the exposure (None: the frame is one instant).
     pub(in crate::render) motion: Option<MovingPose>,
+    /// The pose's camera → inertial rotation (places a star field).
+    pub(in crate::render) camera_to_inertial: Option<glam::DQuat>,
 }
 
 impl View {
@@ -94,6 +96,7 @@ impl View {
             sun,
             keys: PixelKeys::full(cam.width),
             motion: None,
+            camera_to_inertial: pose.camera_to_inertial,
         }
     }
 
@@ -264,7 +267,7 @@ impl View {
     /// intersection is redone on scaled vectors ([`View::ray_along_scaled`]); the common
     /// path's arithmetic is unchanged.
     #[inline(always)]
-    fn ray_along(&self, dir_cam: DVec3) -> Option<Ray> {
+    pub(in crate::render) fn ray_along(&self, dir_cam: DVec3) -> Option<Ray> {
         self.ray_from(self.origin, self.cam_to_render, dir_cam)
     }
 
