@@ -83,6 +83,7 @@ pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Po
         pose,
         render,
         layout: BvhLayout::Bvh2,
+        planet: None,
     })
 }
 

@@ -6,6 +6,7 @@ use crate::pose::Pose;
 use crate::render::bsdf::Bsdf;
 use crate::render::camera::{CameraModel, TargetBounds, View};
 use crate::render::geometry::{Accel, BvhLayout, TriMesh};
+use crate::render::planet::Planet;
 use glam::{DVec3, Vec3};
 
 /// A named material and its BRDF.
@@ -30,6 +31,8 @@ pub struct Target {
     pub sun_irradiance: f32,
     /// Radiance of rays that escape, W·sr⁻¹·m⁻².
     pub background: f32,
+    /// A planet behind the target (`render::planet`), if the scene has one.
+    pub planet: Option<Planet>,
 }
 
 impl Target {
@@ -66,6 +69,7 @@ impl Target {
             bounds: TargetBounds { centre: DVec3::ZERO, radius, min: min - 1e-6, max: max + 1e-6 },
             sun_irradiance: sun_irradiance as f32,
             background: background as f32,
+            planet: None,
         }
     }
 

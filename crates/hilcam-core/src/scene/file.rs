@@ -23,6 +23,10 @@
 //! attitude = [1.0, 0.0, 0.0, 0.0]   # w, x, y, z: body → camera
 //! sun = [0.0, 0.0, -1.0]            # toward the sun
 //!
+//! [planet]                     # optional: a sphere behind the target (`scene::planet`)
+//! body = "earth"
+//! center_m = [0.0, 6.771e6, 0.0]
+//!
 //! [[wrap]]                     # optional: wrinkle a material's faces (MLI folds)
 //! material = "mli_gold"
 //! level = "medium"             # or e_plane = 0.968, var = 0.0077
@@ -91,6 +95,8 @@ struct SceneFile {
     /// Fold (wrinkle) every face of a material at load time.
     #[serde(default)]
     wrap: Vec<Spanned<WrapEntry>>,
+    /// A sphere behind the target (`scene::planet`).
+    planet: Option<Spanned<super::planet::PlanetSection>>,
 }
 
 #[derive(Deserialize)]
@@ -444,7 +450,22 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         ));
     }
     let layout = r.bvh.get_ref().check().map_err(|m| field(r.bvh.span(), "render.bvh", m))?;
-    Ok(SceneParts { mesh, materials, sun_irradiance: irradiance, background, camera, sensor, pose, render, layout })
+    let planet = match &file.planet {
+        None => None,
+        Some(p) => Some(p.get_ref().build(p.span()).map_err(|(span, f, m)| field(span, &f, m))?),
+    };
+    Ok(SceneParts {
+        mesh,
+        materials,
+        sun_irradiance: irradiance,
+        background,
+        camera,
+        sensor,
+        pose,
+        render,
+        layout,
+        planet,
+    })
 }
 
 /// Read a camera file: its `[camera]` table and optional `[sensor]` table.

@@ -5,6 +5,7 @@ pub mod file;
 pub mod fold;
 pub mod limits;
 pub mod obj;
+pub mod planet;
 
 use crate::pose::Pose;
 use crate::render::camera::CameraModel;
@@ -43,19 +44,18 @@ pub struct SceneParts {
     pub pose: Pose,
     pub render: RenderSettings,
     pub layout: BvhLayout,
+    /// A planet behind the target (`[planet]`), if any.
+    pub planet: Option<crate::render::planet::Planet>,
 }
 
 impl Scene {
     /// Build the target (re-centred mesh, normals, bounds, BVH) and keep the defaults.
     pub fn build(parts: SceneParts) -> Scene {
-        let SceneParts { mesh, materials, sun_irradiance, background, camera, sensor, pose, render, layout } = parts;
-        Scene {
-            target: Target::build(mesh, materials, sun_irradiance, background, layout),
-            camera,
-            sensor,
-            pose,
-            render,
-        }
+        let SceneParts { mesh, materials, sun_irradiance, background, camera, sensor, pose, render, layout, planet } =
+            parts;
+        let mut target = Target::build(mesh, materials, sun_irradiance, background, layout);
+        target.planet = planet;
+        Scene { target, camera, sensor, pose, render }
     }
 }
 

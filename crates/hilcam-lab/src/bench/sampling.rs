@@ -73,6 +73,7 @@ impl PlaneCase {
             pose,
             render: RenderSettings::default(),
             layout: BvhLayout::default(),
+            planet: None,
         });
         let view = View::new(&camera, &pose, scene.frame_origin_body, scene.bounds);
         let mask = (0..size)
