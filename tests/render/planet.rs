@@ -431,3 +431,31 @@ fn a_planet_that_neither_shows_nor_lights_changes_no_byte() {
     black.target.planet.as_mut().unwrap().albedo = 0.0;
     assert_eq!(bytes(&frame(&s0, st)), reference, "a 1 m black rock 10⁵ km ahead");
 }
+
+#[test]
+fn scene_files_place_the_planet_and_refuse_bad_keys_by_name() {
+    use hilcam_core::scene::file::parse;
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/plate.toml");
+    let base = std::fs::read_to_string(&path).unwrap();
+    let with = |table: &str| parse(&path, &format!("{base}\n[planet]\n{table}\n"));
+    let p = with("body = \"moon\"\ncenter_m = [0.0, 0.0, 3.844e8]").unwrap().planet.unwrap();
+    assert_eq!((p.radius_m, p.albedo, p.model), (1.7374e6, 0.11, PlanetModel::Lambert));
+    let p = with("radius_m = 2e6\nalbedo = 0.5\nmodel = \"lommel-seeliger\"\ncenter_m = [0.0, 1e7, 0.0]")
+        .unwrap()
+        .planet
+        .unwrap();
+    assert_eq!((p.radius_m, p.albedo, p.model), (2e6, 0.5, PlanetModel::LommelSeeliger));
+    assert!(parse(&path, &base).unwrap().planet.is_none());
+    for (table, key) in [
+        ("body = \"earth\"\ncenter_m = [0.0, 6.0e6, 0.0]", "planet.center_m: the camera is inside the planet"),
+        ("body = \"mars\"\ncenter_m = [0.0, 0.0, 1e8]", "planet.body: unknown body `mars`"),
+        ("body = \"earth\"\nalbedo = 1.5\ncenter_m = [0.0, 0.0, 1e8]", "planet.albedo: must be"),
+        ("radius_m = 0.0\nalbedo = 0.3\ncenter_m = [0.0, 0.0, 1e8]", "planet.radius_m: must be"),
+        ("albedo = 0.3\ncenter_m = [0.0, 0.0, 1e8]", "planet.radius_m: give radius_m or body"),
+        ("body = \"earth\"\ncenter_m = [0.0, 0.0, 1e300]", "planet.center_m: must be finite"),
+        ("body = \"earth\"\nmodel = \"hapke\"\ncenter_m = [0.0, 0.0, 1e8]", "unknown variant `hapke`"),
+    ] {
+        let e = with(table).err().expect(table).to_string();
+        assert!(e.contains(key) && e.contains("plate.toml"), "{table}: {e}");
+    }
+}
