@@ -36,12 +36,12 @@ pub fn first_crossing(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Crossing {
         return Crossing::Inside;
     }
     let b = f.dot(d);
-    if !(b < 0.0) {
+    if b.is_nan() || b >= 0.0 {
         return Crossing::Miss; // the centre is behind (or beside) the origin: the sphere too
     }
     let h = (f - b * d).length(); // the line's distance from the centre
     let disc = (r - h) * (r + h);
-    if !(disc >= 0.0) {
+    if disc.is_nan() || disc < 0.0 {
         return Crossing::Miss;
     }
     let q = -b + disc.sqrt(); // > 0: the far root, without cancellation
