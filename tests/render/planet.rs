@@ -459,3 +459,24 @@ fn scene_files_place_the_planet_and_refuse_bad_keys_by_name() {
         assert!(e.contains(key) && e.contains("plate.toml"), "{table}: {e}");
     }
 }
+
+#[test]
+fn a_small_far_disc_is_not_culled() {
+    // A disc of 1.5 px radius (the Moon at 1.16e9 m, IFOV 1 mrad) off-centre, between
+    // pixel corners: its flux must arrive whole (the background fill skips only pixels
+    // whose area cannot reach the disc). 64 samples per pixel, ~15 pixels on the limb: 3 %.
+    let d = DVec3::new(10.3, -7.6, 1000.0).normalize() * (1.7374e6 / 1.5e-3);
+    let planet = Planet { centre_cam: d, radius_m: 1.7374e6, albedo: 0.11, model: PlanetModel::Lambert };
+    let sun = DVec3::new(0.0, 0.0, -1.0);
+    let st = settings(64, 1, false);
+    let s = disc_scene(planet, sun, (-3.0, -3.0, 60.0), st);
+    let img = frame(&s, st);
+    let ifov = 1.0 / s.camera.focal_px();
+    // The plate's corner (rows and columns < 26) is left out.
+    let flux: f64 = (26..128u32)
+        .flat_map(|r| (26..128u32).map(move |c| (r, c)))
+        .map(|(r, c)| img.get(c, r) as f64 * ifov * ifov)
+        .sum();
+    let expected = irradiance_from(&planet, sun, DVec3::ZERO, d.normalize());
+    assert!((flux / expected - 1.0).abs() < 0.03, "flux {flux} vs {expected}");
+}

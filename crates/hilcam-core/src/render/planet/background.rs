@@ -52,12 +52,15 @@ pub fn fill<S: PerSample>(
 
 /// A conservative test of whether a pixel's area can see the planet: the angle between
 /// the pixel's centre direction and the planet's centre is within the disc's angular
-/// radius plus the pixel's own (the largest angle to one of its corners).
+/// radius plus a pixel's (the largest angle from a pixel's centre to its corners, over the
+/// pixels at the image's corners, edge midpoints and centre, × 1.5: a lens's radial
+/// distortion changes a pixel's angular size monotonically from the centre out).
 struct Reach {
     /// Unit vector toward the planet's centre, camera frame.
     toward: DVec3,
-    /// Angular radius of the disc, radians (π when the camera is inside: it sees it all).
-    disc: f64,
+    /// Angular radius of the disc plus a pixel's, radians (π when the camera is inside:
+    /// it sees it all).
+    limit: f64,
 }
 
 impl Reach {
@@ -65,21 +68,31 @@ impl Reach {
         let c = view.to_camera(planet.centre);
         let dist = c.length();
         let disc = if dist > planet.radius { (planet.radius / dist).asin() } else { std::f64::consts::PI };
-        Reach { toward: c / dist, disc }
+        let (w, h) = view.size();
+        let (w, h) = (w.saturating_sub(1), h.saturating_sub(1));
+        let pixel = [0, w / 2, w]
+            .iter()
+            .flat_map(|&col| [0, h / 2, h].map(|row| pixel_half_angle(view, row, col)))
+            .fold(0.0, f64::max);
+        // 1e-9 rad: rounding.
+        Reach { toward: c / dist, limit: disc + 1.5 * pixel + 1e-9 }
     }
 
     #[inline]
     fn may_see(&self, view: &View, row: u32, col: u32) -> bool {
-        let (x, y) = (f64::from(col), f64::from(row));
-        let centre = view.camera_dir(x + 0.5, y + 0.5).normalize();
-        // The chord to a corner is the angle to it within 1 % for angles below 0.3 rad.
-        let half = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
-            .iter()
-            .map(|&(u, v)| (centre - view.camera_dir(x + u, y + v).normalize()).length())
-            .fold(0.0, f64::max);
-        // 2 % of the pixel and 1e-9 rad: the chord's shortfall and rounding.
-        angle(centre, self.toward) <= self.disc + half * 1.02 + 1e-9 || !self.toward.is_finite()
+        let centre = view.camera_dir(f64::from(col) + 0.5, f64::from(row) + 0.5).normalize();
+        angle(centre, self.toward) <= self.limit || !self.toward.is_finite()
     }
+}
+
+/// The largest angle from pixel (`row`, `col`)'s centre direction to one of its corners.
+fn pixel_half_angle(view: &View, row: u32, col: u32) -> f64 {
+    let (x, y) = (f64::from(col), f64::from(row));
+    let centre = view.camera_dir(x + 0.5, y + 0.5).normalize();
+    [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .iter()
+        .map(|&(u, v)| angle(centre, view.camera_dir(x + u, y + v).normalize()))
+        .fold(0.0, f64::max)
 }
 
 /// Angle between unit vectors, accurate at small angles (atan2 of |a×b| and a·b).
