@@ -147,7 +147,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let mut samples = 0u64;
     let mut primary_rasterised = false;
     if let Some(rect) = rect {
-        let ctx = PathContext::new(target, view.sun, settings).with_planet(planet);
+        let ctx = PathContext::new(target, view.sun, settings);
         // The culling below (silhouette spans, leaf-box coverage, the rasteriser) holds for
         // one camera position; a moving view samples every pixel of the rectangle that
         // covers its whole exposure, each primary ray traced from where the camera is
@@ -162,6 +162,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
                 None => (rect.col0, rect.col1),
             }
         };
+        let ctx = ctx.with_planet(planet);
         // Rasterising costs a pass over every triangle per frame (projection, binning) and
         // saves part of each camera sample's traversal: with single-ray walks it paid from
         // about two samples per triangle on (`hilcam bench render`, "primary hits").
