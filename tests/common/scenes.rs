@@ -84,6 +84,7 @@ pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Po
         render,
         layout: BvhLayout::Bvh2,
         stars: None,
+        planet: None,
     })
 }
 

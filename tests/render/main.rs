@@ -16,6 +16,7 @@ mod extremes;
 mod fold;
 mod mis;
 mod motion;
+mod planet;
 mod primary_raster;
 mod sensor;
 mod shadow_packet;

@@ -284,3 +284,27 @@ fn reused_buffers_clear_the_last_frames_stars() {
         assert_eq!(buffers.image().data, frame(&s, &pose).0.data);
     }
 }
+
+#[test]
+fn a_star_behind_the_planet_is_hidden_one_above_its_limb_is_not() {
+    use hilcam_core::render::planet::{Planet, PlanetModel};
+    // A Moon-sized sphere 17 m below the camera: its limb (the horizon) dips
+    // √(2h/R) = 4.5 mrad, 13 px, below the boresight, so it covers the rows below ≈ 52.
+    // The stars are far from the plate.
+    let r = 1.7374e6;
+    let below = star(1, toward(10.0, 70.0), 1.0);
+    let above = star(2, toward(10.0, 10.0), 1.0);
+    let mut s = plate_scene(0.0, vec![below, above]);
+    s.planet = Some(Planet {
+        centre_cam: DVec3::new(0.0, r + 17.0, 0.0),
+        radius_m: r,
+        albedo: 0.12,
+        model: PlanetModel::Lambert,
+    });
+    let (img, stats) = frame(&s, &s.pose);
+    assert_eq!((stats.stars.in_view, stats.stars.hidden), (2, 1));
+    // The upper star is drawn on the black sky with its full irradiance.
+    let want = above.irradiance_w_m2 * cam().focal_px().powi(2);
+    let got = blob(&img, [10.0, 10.0]).0;
+    assert!((got / want - 1.0).abs() < 1e-6, "{got} vs {want}");
+}

@@ -14,7 +14,7 @@ use crate::render::camera::{PixelRect, View};
 use crate::render::cull::Silhouette;
 use crate::render::film::RadianceImage;
 use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
-use crate::render::sampling::{PerSample, Sequence};
+use crate::render::sampling::{PerSample, Rng, Sequence, SobolStream};
 use crate::render::stars::StarStats;
 use crate::render::target::Target;
 use adaptive::Adaptive;
@@ -30,6 +30,7 @@ pub mod cull;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod planet;
 pub mod sampling;
 pub mod stars;
 pub mod target;
@@ -122,6 +123,15 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let t0 = Instant::now();
     let (width, height) = view.size();
     buffers.reset_image(width, height, target.background);
+    // A planet is the background of every pixel the tracer does not sample.
+    let planet = target.planet.map(|p| p.place(view, target.sun_irradiance));
+    if let Some(p) = &planet {
+        let (img, samples, key) = (&mut buffers.image, settings.spp.floor(), (settings.seed, *frame));
+        match settings.sequence {
+            Sequence::Independent => planet::background::fill::<Rng>(img, view, p, target.background, samples, key),
+            Sequence::Sobol => planet::background::fill::<SobolStream>(img, view, p, target.background, samples, key),
+        }
+    }
     let FrameBuffers {
         image: img,
         written_rows,
@@ -157,6 +167,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
                 None => (rect.col0, rect.col1),
             }
         };
+        let ctx = ctx.with_planet(planet);
         // Rasterising costs a pass over every triangle per frame (projection, binning) and
         // saves part of each camera sample's traversal: with single-ray walks it paid from
         // about two samples per triangle on (`hilcam bench render`, "primary hits").
@@ -219,9 +230,12 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
             tracing::warn!(samples = rays.nonfinite, "non-finite radiance samples dropped");
         }
     }
+    if planet.is_some() {
+        *written_rows = 0..height as usize;
+    }
     let mut stars = StarStats::default();
     if let Some(field) = &target.stars {
-        stars = field.deposit(img, view, &target.accel);
+        stars = field.deposit(img, view, &target.accel, planet.as_ref());
         // The next frame clears the rows this one wrote; stars widen them.
         let (r0, r1) = (stars.rows.0 as usize, stars.rows.1 as usize);
         if r0 < r1 {
@@ -345,7 +359,10 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
         })
     });
     if let Some(plan) = adaptive {
-        add_adaptive_samples::<S, L>(job, bands, shared, stat, plan, img.height as usize);
+        // With a planet the pixels left unsampled are not one constant: their statistic is
+        // their value in the image (which holds no traced pixel yet).
+        let backdrop = job.ctx.planet.is_some().then_some(&img.data[..]);
+        add_adaptive_samples::<S, L>(job, bands, shared, (stat, backdrop), plan, img.height as usize);
     }
     workers.equalise();
     img.data[row0 * w..row1 * w].par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
@@ -361,7 +378,7 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
     job: &TileJob,
     bands: &mut [Band<L>],
     workers: &Workers<S>,
-    stat: &mut Vec<[f32; 2]>,
+    (stat, backdrop): (&mut Vec<[f32; 2]>, Option<&[f32]>),
     plan: Adaptive,
     height: usize,
 ) {
@@ -373,7 +390,7 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
             b.weight.resize(b.pixels.len(), 0.0);
         });
     } else {
-        pilot_weights(job, bands, stat, plan, height);
+        pilot_weights(job, bands, (stat, backdrop), plan, height);
     }
     let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
     bands.par_iter_mut().for_each(|band| {
@@ -407,7 +424,7 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
 fn pilot_weights<L: Send + Sync>(
     job: &TileJob,
     bands: &mut [Band<L>],
-    stat: &mut Vec<[f32; 2]>,
+    (stat, backdrop): (&mut Vec<[f32; 2]>, Option<&[f32]>),
     plan: Adaptive,
     height: usize,
 ) {
@@ -421,12 +438,23 @@ fn pilot_weights<L: Send + Sync>(
     // them. The row on either side of the bands is background.
     stat.resize((end - base) * w, background);
     let inside = (first - base) * w..((first + bands.len() * BAND_ROWS).min(end) - base) * w;
-    stat[..inside.start].fill(background);
-    stat[inside.end..].fill(background);
+    // What an unsampled pixel's statistic is: the background, or its value in `backdrop`
+    // (entry `i` of `stat` is the image's pixel `base·w + i`).
+    let unsampled = |dst: &mut [[f32; 2]], at: usize| match backdrop {
+        None => dst.fill(background),
+        Some(img) => {
+            for (d, &v) in dst.iter_mut().zip(&img[base * w + at..]) {
+                *d = plan.background_statistic(v);
+            }
+        }
+    };
+    let (before, after) = (inside.start, inside.end);
+    unsampled(&mut stat[..before], 0);
+    unsampled(&mut stat[after..], after);
     // Bands own disjoint rows: each clears and writes its own while they are in cache
     // (one pass over the statistics instead of a frame-wide fill and then a scatter).
-    stat[inside].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).for_each(|(mine, band)| {
-        mine.fill(background);
+    stat[inside].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).enumerate().for_each(|(b, (mine, band))| {
+        unsampled(mine, before + b * BAND_ROWS * w);
         for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
             mine[(row as usize - band.first_row) * w + col as usize] = plan.statistic(sum, sq);
         }

@@ -6,6 +6,7 @@ use crate::pose::Pose;
 use crate::render::bsdf::Bsdf;
 use crate::render::camera::{CameraModel, TargetBounds, View};
 use crate::render::geometry::{Accel, BvhLayout, TriMesh};
+use crate::render::planet::Planet;
 use crate::render::stars::StarField;
 use glam::{DVec3, Vec3};
 
@@ -33,6 +34,8 @@ pub struct Target {
     pub background: f32,
     /// Point stars behind the target (none unless a scene asks for them).
     pub stars: Option<StarField>,
+    /// A planet behind the target (`render::planet`), if the scene has one.
+    pub planet: Option<Planet>,
 }
 
 impl Target {
@@ -70,6 +73,7 @@ impl Target {
             sun_irradiance: sun_irradiance as f32,
             background: background as f32,
             stars: None,
+            planet: None,
         }
     }
 

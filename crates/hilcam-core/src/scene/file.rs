@@ -26,6 +26,9 @@
 //! [stars]                      # optional: a star field behind the target (docs/stars.md)
 //! catalogue = "stars/bsc5.csv" # relative to this file; needs pose.camera_to_inertial
 //! max_vmag = 6.5
+//! [planet]                     # optional: a sphere behind the target (`scene::planet`)
+//! body = "earth"
+//! center_m = [0.0, 6.771e6, 0.0]
 //!
 //! [[wrap]]                     # optional: wrinkle a material's faces (MLI folds)
 //! material = "mli_gold"
@@ -99,6 +102,8 @@ struct SceneFile {
     wrap: Vec<Spanned<WrapEntry>>,
     /// Point stars behind the target.
     stars: Option<Spanned<StarsSection>>,
+    /// A sphere behind the target (`scene::planet`).
+    planet: Option<Spanned<super::planet::PlanetSection>>,
 }
 
 #[derive(Deserialize)]
@@ -479,6 +484,10 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         None => None,
         Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor)?),
     };
+    let planet = match &file.planet {
+        None => None,
+        Some(p) => Some(p.get_ref().build(p.span()).map_err(|(span, f, m)| field(span, &f, m))?),
+    };
     Ok(SceneParts {
         mesh,
         materials,
@@ -490,6 +499,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         render,
         layout,
         stars,
+        planet,
     })
 }
 

@@ -5,6 +5,7 @@ pub mod file;
 pub mod fold;
 pub mod limits;
 pub mod obj;
+pub mod planet;
 
 use crate::pose::Pose;
 use crate::render::camera::CameraModel;
@@ -46,15 +47,29 @@ pub struct SceneParts {
     pub layout: BvhLayout,
     /// Point stars behind the target (`[stars]`).
     pub stars: Option<StarField>,
+    /// A planet behind the target (`[planet]`), if any.
+    pub planet: Option<crate::render::planet::Planet>,
 }
 
 impl Scene {
     /// Build the target (re-centred mesh, normals, bounds, BVH) and keep the defaults.
     pub fn build(parts: SceneParts) -> Scene {
-        let SceneParts { mesh, materials, sun_irradiance, background, camera, sensor, pose, render, layout, stars } =
-            parts;
+        let SceneParts {
+            mesh,
+            materials,
+            sun_irradiance,
+            background,
+            camera,
+            sensor,
+            pose,
+            render,
+            layout,
+            stars,
+            planet,
+        } = parts;
         let mut target = Target::build(mesh, materials, sun_irradiance, background, layout);
         target.stars = stars;
+        target.planet = planet;
         Scene { target, camera, sensor, pose, render }
     }
 }

@@ -74,6 +74,7 @@ impl PlaneCase {
             render: RenderSettings::default(),
             layout: BvhLayout::default(),
             stars: None,
+            planet: None,
         });
         let view = View::new(&camera, &pose, scene.frame_origin_body, scene.bounds);
         let mask = (0..size)

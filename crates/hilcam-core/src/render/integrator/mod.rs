@@ -7,6 +7,7 @@
 //! the shading normal is flipped to face the incoming ray. Shading uses face normals.
 
 use crate::render::geometry::{Hit, Ray};
+use crate::render::planet::{Eclipse, PlacedPlanet};
 use crate::render::sampling::{
     SampleSource, Sequence, ShadingBasis, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
 };
@@ -152,6 +153,9 @@ pub struct PathContext<'a> {
     /// False when no bounce can carry energy (depth 1 or all materials black).
     pub indirect: bool,
     pub roulette: bool,
+    /// The planet behind the target in this frame (escaping rays may meet it; it may hide
+    /// the sun).
+    pub planet: Option<PlacedPlanet>,
 }
 
 impl<'a> PathContext<'a> {
@@ -164,6 +168,35 @@ impl<'a> PathContext<'a> {
             sampler: settings.sampler,
             indirect,
             roulette: settings.roulette,
+            planet: None,
+        }
+    }
+
+    /// This context with `planet` behind the target.
+    pub fn with_planet(self, planet: Option<PlacedPlanet>) -> Self {
+        PathContext { planet, ..self }
+    }
+
+    /// Radiance arriving along `ray`, which left the target: the planet's where it meets
+    /// it, else the background.
+    #[inline]
+    pub fn escaped(&self, ray: &Ray) -> f32 {
+        match &self.planet {
+            None => self.scene.background,
+            Some(p) => p.radiance_of_ray(ray).unwrap_or(self.scene.background),
+        }
+    }
+
+    /// Whether the sun reaches `p` past the planet (the target's own shadows aside).
+    #[inline]
+    fn sun_reaches(&self, p: Vec3) -> bool {
+        match &self.planet {
+            None => true,
+            Some(planet) => match planet.eclipse {
+                Eclipse::Lit => true,
+                Eclipse::Dark => false,
+                Eclipse::Partial => !planet.hides_sun(p.as_dvec3()),
+            },
         }
     }
 
@@ -208,7 +241,7 @@ impl<'a> PathContext<'a> {
             }
             log.closest(&ray);
             let Some(hit) = scene.accel.intersect(&ray) else {
-                l += beta * scene.background;
+                l += beta * self.escaped(&ray);
                 break;
             };
             let sc = self.scatter(&ray, &hit, beta, bounce, rng);
@@ -245,7 +278,7 @@ impl<'a> PathContext<'a> {
         let wo_l = basis.to_local(wo);
 
         let mut shadow = None;
-        if n.dot(self.sun) > 0.0 {
+        if n.dot(self.sun) > 0.0 && self.sun_reaches(origin) {
             let f_cos = bsdf.eval_cos(wo_l, basis.to_local(self.sun));
             if f_cos > 0.0 {
                 let ray = Ray { origin, dir: self.sun, tmax: f32::INFINITY };

@@ -144,6 +144,8 @@ impl TileJob<'_> {
                     rays.push(ray);
                     ideal.push(at);
                     paths.push(Path::camera(rng, ray, i));
+                } else if let Some(planet) = &self.ctx.planet {
+                    samples[i] = planet.seen_by_camera(self.view, x, y).unwrap_or(scene.background);
                 }
             }
             r.closest_hits(&scene.accel, rays, ideal, raster, primary);
@@ -173,9 +175,12 @@ impl TileJob<'_> {
                     None => self.view.primary_ray(x, y),
                     Some(_) => self.view.primary_ray_at(x, y, sample.row, rng.next_1d()),
                 };
-                // A ray that misses the bounding sphere sees the background (already set).
+                // A ray that misses the bounding sphere sees the background (already set), or
+                // the planet (from the exposure start's camera).
                 if let Some(ray) = ray {
                     paths.push(Path::camera(rng, ray, next));
+                } else if let Some(planet) = &self.ctx.planet {
+                    samples[next] = planet.seen_by_camera(self.view, x, y).unwrap_or(scene.background);
                 }
                 next += 1;
             }
@@ -258,7 +263,7 @@ impl TileJob<'_> {
             for (&i, hit) in active.iter().zip(hits.iter()) {
                 let p = &mut paths[i as usize];
                 let Some(hit) = hit else {
-                    p.l += p.beta * scene.background;
+                    p.l += p.beta * ctx.escaped(&p.ray);
                     p.alive = false;
                     continue;
                 };

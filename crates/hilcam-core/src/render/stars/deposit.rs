@@ -4,6 +4,7 @@ use super::{StarField, StarStats};
 use crate::render::camera::View;
 use crate::render::film::RadianceImage;
 use crate::render::geometry::Accel;
+use crate::render::planet::PlacedPlanet;
 use glam::{DMat3, DVec3};
 
 /// Stars whose ideal (undistorted) image point lies farther outside the image than this
@@ -39,8 +40,15 @@ impl StarField {
     /// Add every visible star to `img` (the frame `view` renders): the radiance
     /// `E / Ω_pixel` split bilinearly over the four pixels around its image point, so its
     /// centroid is the image point exactly; a star whose line of sight hits the target
-    /// (`accel`) is hidden. In catalogue order, one thread: the same bytes every time.
-    pub fn deposit(&self, img: &mut RadianceImage, view: &View, accel: &Accel) -> StarStats {
+    /// (`accel`) or the planet's disc is hidden. In catalogue order, one thread: the same
+    /// bytes every time.
+    pub fn deposit(
+        &self,
+        img: &mut RadianceImage,
+        view: &View,
+        accel: &Accel,
+        planet: Option<&PlacedPlanet>,
+    ) -> StarStats {
         let mut stats = StarStats { rows: (u32::MAX, 0), ..StarStats::default() };
         let (w, h) = (i64::from(img.width), i64::from(img.height));
         // Solid angle of a pixel on the axis, (pitch / f)², in units where pitch = 1.
@@ -55,7 +63,9 @@ impl StarField {
                 continue;
             }
             stats.in_view += 1;
-            if view.ray_along(dir).is_some_and(|ray| accel.occluded(&ray)) {
+            let behind_planet =
+                planet.is_some_and(|p| p.radiance(view.origin, (view.cam_to_render * dir).normalize()).is_some());
+            if behind_planet || view.ray_along(dir).is_some_and(|ray| accel.occluded(&ray)) {
                 stats.hidden += 1;
                 continue;
             }
