@@ -22,5 +22,6 @@ mod shadow_packet;
 mod silhouette;
 mod sun_shadow;
 mod trade;
+mod truth;
 mod waves;
 mod window;

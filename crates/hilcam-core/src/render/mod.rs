@@ -30,6 +30,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod sampling;
 pub mod target;
+pub mod truth;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
