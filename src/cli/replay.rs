@@ -286,13 +286,16 @@ fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -
         cfg.out_dir.join(cfg.shard.log_name()).display()
     );
     if !cfg.truth.is_empty() && stats.rendered > 0 {
-        let (frame, truth) = (stats.frame_time.as_secs_f64(), stats.truth_time.as_secs_f64());
+        let per_frame = |d: Duration| d.as_secs_f64() / stats.rendered as f64;
+        let (frame, truth, write) =
+            (per_frame(stats.frame_time), per_frame(stats.truth_time), per_frame(stats.truth_write_time));
         println!(
-            "truth ({}): {:.3} s/frame beside {:.3} s/frame rendering ({:.1} % of it)",
+            "truth ({}): {:.4} s/frame computing ({:.1} % of the {:.3} s/frame rendering), {:.4} s/frame writing the EXR",
             cfg.truth,
-            truth / stats.rendered as f64,
-            frame / stats.rendered as f64,
-            100.0 * truth / frame.max(1e-12)
+            truth,
+            100.0 * truth / frame.max(1e-12),
+            frame,
+            write
         );
     }
     Ok(stats)

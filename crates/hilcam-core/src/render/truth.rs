@@ -159,47 +159,40 @@ struct TruthPixel {
 
 const MISS: TruthPixel = TruthPixel { mask: 0, depth: f32::INFINITY, normal: [f32::NAN; 3], body: [f32::NAN; 3] };
 
-/// Rows computed together before they are scattered into the channel planes (bounds the
-/// temporary buffer at any image width).
-const BAND_ROWS: usize = 32;
+/// Pixels computed together (in parallel) before they are scattered into the channel
+/// planes: bounds the temporary buffer at any image size.
+const BAND_PIXELS: usize = 64 * 1024;
 
 /// The truth of `target` through `view` (its exposure-start instant): one ray through each
-/// pixel centre. Rayon over pixels; every pixel is a pure function of (target, view), so
-/// any thread count gives the same values.
+/// pixel centre that can see the target's bounds (`View::pixel_rect`; every other pixel
+/// is a miss without a ray). Rayon over pixels; every pixel is a pure function of
+/// (target, view), so any thread count gives the same values.
 pub fn render_truth(target: &Target, view: &View, channels: TruthChannels) -> TruthImage {
     let (width, height) = view.size();
     let n = width as usize * height as usize;
-    let plane = |c| if channels.contains(c) { vec![0.0f32; n] } else { Vec::new() };
-    let planes3 = |c| [plane(c), plane(c), plane(c)];
+    let plane = |c, miss| if channels.contains(c) { vec![miss; n] } else { Vec::new() };
+    let planes3 = |c| [plane(c, f32::NAN), plane(c, f32::NAN), plane(c, f32::NAN)];
     let mut out = TruthImage {
         width,
         height,
         channels,
         mask: vec![0; n],
-        depth: plane(TruthChannel::Depth),
+        depth: plane(TruthChannel::Depth, MISS.depth),
         normal: planes3(TruthChannel::Normal),
         body_xyz: planes3(TruthChannel::BodyXyz),
     };
-    let rect = if target.accel.is_empty() { None } else { view.pixel_rect() };
-    let w = width as usize;
+    let Some(rect) = (if target.accel.is_empty() { None } else { view.pixel_rect() }) else { return out };
+    let (w, rw) = (width as usize, (rect.col1 - rect.col0) as usize);
+    let band_rows = (BAND_PIXELS / rw.max(1)).max(1);
     let mut band = Vec::new();
-    for row0 in (0..height as usize).step_by(BAND_ROWS) {
-        let rows = row0..(row0 + BAND_ROWS).min(height as usize);
-        let first = rows.start * w;
-        (first..rows.end * w)
+    for row0 in (rect.row0 as usize..rect.row1 as usize).step_by(band_rows) {
+        let rows = row0..(row0 + band_rows).min(rect.row1 as usize);
+        (0..rows.len() * rw)
             .into_par_iter()
-            .map(|i| {
-                let (col, row) = ((i % w) as u32, (i / w) as u32);
-                match rect {
-                    Some(r) if (r.col0..r.col1).contains(&col) && (r.row0..r.row1).contains(&row) => {
-                        pixel(target, view, col, row)
-                    }
-                    _ => MISS,
-                }
-            })
+            .map(|k| pixel(target, view, rect.col0 + (k % rw) as u32, (row0 + k / rw) as u32))
             .collect_into_vec(&mut band);
-        for (k, p) in band.iter().enumerate() {
-            let i = first + k;
+        for (k, p) in band.iter().enumerate().filter(|(_, p)| p.mask != 0) {
+            let i = (row0 + k / rw) * w + rect.col0 as usize + k % rw;
             out.mask[i] = p.mask;
             if let Some(d) = out.depth.get_mut(i) {
                 *d = p.depth;

@@ -154,6 +154,8 @@ pub struct ReplayStats {
     /// channels (zero without `truth`), for the cost of truth relative to a frame.
     pub frame_time: std::time::Duration,
     pub truth_time: std::time::Duration,
+    /// Time spent encoding and writing the truth files.
+    pub truth_write_time: std::time::Duration,
 }
 
 /// A frame log entry read back, with where it came from.
@@ -369,7 +371,7 @@ pub fn replay_jobs_until(
     let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
     progress(&stats);
     let mut last = None;
-    let materials = pipeline.scene().materials.clone();
+    let materials = if cfg.truth.is_empty() { Vec::new() } else { pipeline.scene().materials.clone() };
     for job in todo {
         let k = job.index;
         if let Some(signal) = stop() {
@@ -413,7 +415,10 @@ pub fn replay_jobs_until(
             stats.truth_time += t0.elapsed();
             let truth_name = truth_exr::truth_file_name(k);
             let truth_path = dir.join(&truth_name);
-            if let Err(e) = truth_exr::write_truth_exr(&truth_path, &truth, &materials) {
+            let t0 = std::time::Instant::now();
+            let written = truth_exr::write_truth_exr(&truth_path, &truth, &materials);
+            stats.truth_write_time += t0.elapsed();
+            if let Err(e) = written {
                 // The image without its truth is not a complete frame.
                 let _ = std::fs::remove_file(&path);
                 return Err(match e.is_disk_full() {
