@@ -15,6 +15,7 @@
 //! coordinates carry no f32 ray rounding (only the stored f32 of the channel).
 
 use crate::render::camera::View;
+use crate::render::cull::coverage::Coverage;
 use crate::render::target::Target;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -164,8 +165,9 @@ const MISS: TruthPixel = TruthPixel { mask: 0, depth: f32::INFINITY, normal: [f3
 const BAND_PIXELS: usize = 64 * 1024;
 
 /// The truth of `target` through `view` (its exposure-start instant): one ray through each
-/// pixel centre that can see the target's bounds (`View::pixel_rect`; every other pixel
-/// is a miss without a ray). Rayon over pixels; every pixel is a pure function of
+/// pixel centre that may see a triangle (inside `View::pixel_rect` and marked by the
+/// BVH leaves' projected boxes, `cull::coverage`, both conservative; every other pixel is
+/// a miss without a ray). Rayon over pixels; every pixel is a pure function of
 /// (target, view), so any thread count gives the same values.
 pub fn render_truth(target: &Target, view: &View, channels: TruthChannels) -> TruthImage {
     let (width, height) = view.size();
@@ -184,12 +186,18 @@ pub fn render_truth(target: &Target, view: &View, channels: TruthChannels) -> Tr
     let Some(rect) = (if target.accel.is_empty() { None } else { view.pixel_rect() }) else { return out };
     let (w, rw) = (width as usize, (rect.col1 - rect.col0) as usize);
     let band_rows = (BAND_PIXELS / rw.max(1)).max(1);
+    let mut coverage = Coverage::default();
+    let covered = coverage.from_leaf_boxes(target, view, rect);
+    let may_hit = |row, col| !covered || coverage.may_hit(row, col);
     let mut band = Vec::new();
     for row0 in (rect.row0 as usize..rect.row1 as usize).step_by(band_rows) {
         let rows = row0..(row0 + band_rows).min(rect.row1 as usize);
         (0..rows.len() * rw)
             .into_par_iter()
-            .map(|k| pixel(target, view, rect.col0 + (k % rw) as u32, (row0 + k / rw) as u32))
+            .map(|k| {
+                let (col, row) = (rect.col0 + (k % rw) as u32, (row0 + k / rw) as u32);
+                if may_hit(row, col) { pixel(target, view, col, row) } else { MISS }
+            })
             .collect_into_vec(&mut band);
         for (k, p) in band.iter().enumerate().filter(|(_, p)| p.mask != 0) {
             let i = (row0 + k / rw) * w + rect.col0 as usize + k % rw;
