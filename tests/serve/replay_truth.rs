@@ -137,6 +137,25 @@ fn truth_files_are_the_same_bytes_at_any_spp() {
 }
 
 #[test]
+fn frames_and_their_crcs_are_the_same_with_truth_on_and_off() {
+    let (on, off) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    run(on.path(), 2, "depth,mask,normal,body_xyz").unwrap();
+    run(off.path(), 2, "").unwrap();
+    let crcs = |d: &Path| {
+        let text = std::fs::read_to_string(d.join("frames.jsonl")).unwrap();
+        text.lines().map(|l| serde_json::from_str::<FrameRecord>(l).unwrap().payload_crc32).collect::<Vec<_>>()
+    };
+    assert_eq!(crcs(on.path()), crcs(off.path()));
+    for k in 0..3 {
+        let name = format!("frame_{k:010}.pfm");
+        assert_eq!(std::fs::read(on.path().join(&name)).unwrap(), std::fs::read(off.path().join(&name)).unwrap());
+        assert!(!off.path().join(format!("truth_{k:010}.exr")).exists());
+    }
+    // Without truth the log lines carry no `truth` object.
+    assert!(!std::fs::read_to_string(off.path().join("frames.jsonl")).unwrap().contains("truth"));
+}
+
+#[test]
 fn a_lost_truth_file_is_rendered_again_and_other_channels_are_refused_by_the_manifest() {
     let dir = tempfile::tempdir().unwrap();
     run(dir.path(), 1, "depth").unwrap();
