@@ -12,6 +12,7 @@ use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::trajectory::Trajectory;
 use hilcam_core::pose::validate::{PoseLimits, check_pose, describe};
 use hilcam_core::render::integrator::SamplerKind;
+use hilcam_core::render::truth::TruthChannels;
 use hilcam_core::replay::session_jobs;
 use hilcam_core::replay::{
     FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs_until, trajectory_jobs,
@@ -78,6 +79,10 @@ pub struct ReplayArgs {
     /// resume a scene whose sensor has auto-exposure.
     #[arg(long)]
     pub integration_s: Option<f64>,
+    /// Ground-truth channels to write beside each frame as `truth_<k>.exr` (comma-separated:
+    /// depth, mask, normal, body_xyz; docs/cluster.md).
+    #[arg(long, value_parser = TruthChannels::parse, value_name = "CHANNELS")]
+    pub truth: Option<TruthChannels>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -127,6 +132,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         shard,
         source: identity(traj, false)?,
         scene: identity(scene_path, true)?,
+        truth: a.truth.unwrap_or_default(),
     };
     println!(
         "{}: {} poses → {} ({}x{}, spp {} depth {} {:?}, seed {}), shard {}/{}, every {}",
@@ -209,6 +215,7 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
         shard,
         source: identity(path, false)?,
         scene: identity(&scene_path, true)?,
+        truth: a.truth.unwrap_or_default(),
     };
     let flagged = |bit| jobs.iter().filter(|j| j.flags.contains(bit)).count();
     println!(
@@ -278,6 +285,19 @@ fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -
         },
         cfg.out_dir.join(cfg.shard.log_name()).display()
     );
+    if !cfg.truth.is_empty() && stats.rendered > 0 {
+        let per_frame = |d: Duration| d.as_secs_f64() / stats.rendered as f64;
+        let (frame, truth, write) =
+            (per_frame(stats.frame_time), per_frame(stats.truth_time), per_frame(stats.truth_write_time));
+        println!(
+            "truth ({}): {:.4} s/frame computing ({:.1} % of the {:.3} s/frame rendering), {:.4} s/frame writing the EXR",
+            cfg.truth,
+            truth,
+            100.0 * truth / frame.max(1e-12),
+            frame,
+            write
+        );
+    }
     Ok(stats)
 }
 

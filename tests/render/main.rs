@@ -24,5 +24,6 @@ mod silhouette;
 mod stars;
 mod sun_shadow;
 mod trade;
+mod truth;
 mod waves;
 mod window;

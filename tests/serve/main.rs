@@ -21,5 +21,6 @@ mod hardening;
 mod line_formats;
 mod metrics;
 mod replay;
+mod replay_truth;
 mod session;
 mod stream;

@@ -61,6 +61,7 @@ fn cfg(dir: &Path, shard: Shard) -> ReplayConfig {
         shard,
         source: "samples".into(),
         scene: "plate".into(),
+        truth: hilcam_core::render::truth::TruthChannels::NONE,
     }
 }
 

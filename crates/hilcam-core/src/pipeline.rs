@@ -9,6 +9,7 @@ use crate::render::camera::{CameraModel, View, Window};
 use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
 use crate::render::sampling::mix64;
+use crate::render::truth::{TruthChannels, TruthImage, render_truth};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
 use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorError};
@@ -138,6 +139,24 @@ impl FramePipeline {
                 _ => 0.0,
             },
         }
+    }
+
+    /// The ground truth of frame `pose` as `request` crops it (`render::truth`): one ray
+    /// per pixel centre at the pose's instant, independent of the render settings.
+    pub fn truth(
+        &self,
+        pose: &Pose,
+        request: &FrameRequest,
+        channels: TruthChannels,
+    ) -> Result<TruthImage, SensorError> {
+        let mut view = self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion);
+        if let Some(w) = request.roi.filter(|w| !w.is_full(&self.camera)) {
+            let w = w
+                .inside(&self.camera)
+                .map_err(|e| SensorError::Invalid { field: "roi".into(), message: e.to_string() })?;
+            view = view.window(&w);
+        }
+        Ok(render_truth(&self.scene, &view, channels))
     }
 
     fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {

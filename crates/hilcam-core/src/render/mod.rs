@@ -34,6 +34,7 @@ pub mod planet;
 pub mod sampling;
 pub mod stars;
 pub mod target;
+pub mod truth;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 

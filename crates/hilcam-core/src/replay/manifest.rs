@@ -32,6 +32,10 @@ pub struct ReplayManifest {
     /// Best quality (a session's degraded frames carry their own on their log lines).
     pub spp: crate::render::integrator::Spp,
     pub depth: u32,
+    /// Ground-truth channels written beside each frame (empty: none; absent in the
+    /// manifests of earlier versions, which wrote none).
+    #[serde(default)]
+    pub truth: String,
 }
 
 impl ReplayManifest {
@@ -56,6 +60,7 @@ impl ReplayManifest {
             roulette: s.roulette,
             spp: s.spp,
             depth: s.depth,
+            truth: cfg.truth.to_string(),
         }
     }
 
@@ -74,6 +79,7 @@ impl ReplayManifest {
             ("roulette", self.roulette.to_string()),
             ("spp", self.spp.to_string()),
             ("depth", self.depth.to_string()),
+            ("truth", self.truth.clone()),
         ]
     }
 }

@@ -26,10 +26,11 @@ use crate::frame::{FrameFlags, FrameMeta, unix_ns_now};
 use crate::pipeline::{FramePipeline, FrameRequest};
 use crate::pose::trajectory::TrajectorySample;
 use crate::render::integrator::RenderSettings;
+use crate::render::truth::TruthChannels;
 use crate::scene::Scene;
 use crate::sensor::SensorError;
 use crate::sink::line_log::LineLog;
-use crate::sink::recorder::{FrameRecord, ImageFormat, frame_file_name, write_frame_image};
+use crate::sink::recorder::{FrameRecord, ImageFormat, TruthRecord, frame_file_name, write_frame_image};
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 
@@ -38,6 +39,7 @@ pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
 
 pub mod manifest;
 mod shard;
+pub mod truth_exr;
 pub use shard::{SHARD_COUNT_VAR, Shard};
 
 /// Errors of replay, sharding and merging; each names the file, line or variable.
@@ -133,6 +135,8 @@ pub struct ReplayConfig {
     pub source: String,
     /// Which scene (path and content checksum), for the manifest.
     pub scene: String,
+    /// Ground-truth channels written beside each frame (`truth_<k>.exr`); empty: none.
+    pub truth: TruthChannels,
 }
 
 /// Progress after each frame (rendered or skipped).
@@ -146,6 +150,12 @@ pub struct ReplayStats {
     pub skipped: u64,
     /// Truncated trailing lines ignored while reading the logs.
     pub truncated_lines: u64,
+    /// Time this run spent rendering frames (render + sensor) and computing their truth
+    /// channels (zero without `truth`), for the cost of truth relative to a frame.
+    pub frame_time: std::time::Duration,
+    pub truth_time: std::time::Duration,
+    /// Time spent encoding and writing the truth files.
+    pub truth_write_time: std::time::Duration,
 }
 
 /// A frame log entry read back, with where it came from.
@@ -213,6 +223,7 @@ fn trim_partial_line(path: &Path) -> Result<(), ReplayError> {
 /// (`expected(k)`) is refused.
 fn done_frames(
     dir: &Path,
+    truth: TruthChannels,
     expected: impl Fn(u64) -> (RenderSettings, (u32, u32)),
     stats: &mut ReplayStats,
 ) -> Result<HashSet<u64>, ReplayError> {
@@ -228,8 +239,10 @@ fn done_frames(
             if found != expected {
                 return Err(ReplayError::Mismatch { path: d.path, line: d.line, frame: r.frame_seq, found, expected });
             }
-            let complete = std::fs::metadata(dir.join(&d.rec.file)).is_ok_and(|m| m.len() > 0);
-            if complete {
+            let written = |file: &str| std::fs::metadata(dir.join(file)).is_ok_and(|m| m.len() > 0);
+            // With truth on, a frame is done when its truth file is there too.
+            let truth_done = truth.is_empty() || d.rec.truth.as_ref().is_some_and(|t| written(&t.file));
+            if written(&d.rec.file) && truth_done {
                 done.insert(r.frame_seq);
             }
         }
@@ -329,7 +342,7 @@ pub fn replay_jobs_until(
     trim_partial_line(&log_path)?;
     let by_index: std::collections::HashMap<u64, (RenderSettings, (u32, u32))> =
         jobs.iter().map(|j| (j.index, (j.settings, size(&j.request)))).collect();
-    let done = done_frames(dir, |k| by_index.get(&k).copied().unwrap_or((cfg.settings, full)), &mut stats)?;
+    let done = done_frames(dir, cfg.truth, |k| by_index.get(&k).copied().unwrap_or((cfg.settings, full)), &mut stats)?;
     let positions = select_frames(jobs.len() as u64, cfg.every, cfg.shard);
     stats.selected = positions.len() as u64;
     let todo: Vec<&FrameJob> =
@@ -358,15 +371,18 @@ pub fn replay_jobs_until(
     let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
     progress(&stats);
     let mut last = None;
+    let materials = if cfg.truth.is_empty() { Vec::new() } else { pipeline.scene().materials.clone() };
     for job in todo {
         let k = job.index;
         if let Some(signal) = stop() {
             let done = stats.skipped + stats.rendered;
             return Err(ReplayError::Interrupted { signal, dir: dir.clone(), done, selected: stats.selected, last });
         }
+        let t0 = std::time::Instant::now();
         let f = pipeline
             .frame_requested(&job.pose, &job.settings, k, &job.request)
             .map_err(|source| ReplayError::Sensor { frame: k, source })?;
+        stats.frame_time += t0.elapsed();
         let payload = f.pixels.to_le_bytes();
         let crc = crate::frame::CRC32.checksum(&payload);
         if let Some(want) = job.expect_crc32
@@ -390,13 +406,46 @@ pub fn replay_jobs_until(
             true => disk_full(e.to_string()),
             false => ReplayError::Image { frame: k, path: path.clone(), msg: e.to_string() },
         })?;
+        let mut record_truth = None;
+        if !cfg.truth.is_empty() {
+            let t0 = std::time::Instant::now();
+            let truth = pipeline
+                .truth(&job.pose, &job.request, cfg.truth)
+                .map_err(|source| ReplayError::Sensor { frame: k, source })?;
+            stats.truth_time += t0.elapsed();
+            let truth_name = truth_exr::truth_file_name(k);
+            let truth_path = dir.join(&truth_name);
+            let t0 = std::time::Instant::now();
+            let written = truth_exr::write_truth_exr(&truth_path, &truth, &materials);
+            stats.truth_write_time += t0.elapsed();
+            if let Err(e) = written {
+                // The image without its truth is not a complete frame.
+                let _ = std::fs::remove_file(&path);
+                return Err(match e.is_disk_full() {
+                    true => ReplayError::DiskFull {
+                        dir: dir.clone(),
+                        frame: k,
+                        file: truth_name,
+                        msg: e.to_string(),
+                        done,
+                        selected: stats.selected,
+                    },
+                    false => ReplayError::Image { frame: k, path: truth_path, msg: e.to_string() },
+                });
+            }
+            record_truth = Some(TruthRecord::new(truth_name, &truth));
+        }
         let mut meta = FrameMeta::rendered(k, &job.pose, &f, job.flags);
         meta.emit_unix_ns = unix_ns_now();
-        let line =
-            serde_json::to_string(&FrameRecord::new(&meta, &payload, name.clone())).expect("FrameRecord serialises");
+        let mut record = FrameRecord::new(&meta, &payload, name.clone());
+        record.truth = record_truth;
+        let line = serde_json::to_string(&record).expect("FrameRecord serialises");
         if let Err(e) = log.append(&line) {
             // The log must not miss a file that is present: take the image back out.
             let _ = std::fs::remove_file(&path);
+            if let Some(t) = &record.truth {
+                let _ = std::fs::remove_file(dir.join(&t.file));
+            }
             let msg = format!("{}: {e}", log_path.display());
             return Err(if crate::render::film::is_disk_full(&e) { disk_full(msg) } else { io(&log_path)(e) });
         }

@@ -99,6 +99,41 @@ pub struct FrameRecord {
     /// CRC-32/ISO-HDLC of the payload, as in the header.
     pub payload_crc32: u32,
     pub file: String,
+    /// Ground truth written beside the image (`hilcam replay --truth`), absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truth: Option<TruthRecord>,
+}
+
+/// What a frame's log line says of its ground truth ([`crate::render::truth`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TruthRecord {
+    /// The truth EXR's name, beside the image.
+    pub file: String,
+    /// Its channels, comma-separated (`depth,mask,normal,body_xyz`).
+    pub channels: String,
+    /// Pixels whose centre ray hits the target (nonzero mask).
+    pub target_pixels: u64,
+    /// Their mean centre, continuous pixel coordinates [x, y] (pixel (col, row) has its
+    /// centre at (col + 0.5, row + 0.5)); absent when no pixel centre sees the target.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_centroid_px: Option<[f64; 2]>,
+    /// Their bounding box [col0, row0, col1, row1], half-open; absent with the centroid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_bbox_px: Option<[u32; 4]>,
+}
+
+impl TruthRecord {
+    /// The log entry of `truth` written as `file`.
+    pub fn new(file: String, truth: &crate::render::truth::TruthImage) -> TruthRecord {
+        let f = truth.footprint();
+        TruthRecord {
+            file,
+            channels: truth.channels.to_string(),
+            target_pixels: f.map_or(0, |f| f.pixels),
+            target_centroid_px: f.map(|f| f.centroid_px),
+            target_bbox_px: f.map(|f| f.bbox_px),
+        }
+    }
 }
 
 impl FrameRecord {
@@ -110,6 +145,7 @@ impl FrameRecord {
             payload_len: payload.len() as u64,
             payload_crc32: crate::frame::CRC32.checksum(payload),
             file,
+            truth: None,
         }
     }
 }
