@@ -47,6 +47,10 @@
 //! listen = "127.0.0.1:9100"            # optional Prometheus endpoint
 //! print_interval_s = 5.0
 //!
+//! [live]                               # optional: the operator's page at /live on the
+//! enabled = true                       # metrics listener (needs [metrics] listen)
+//! max_width = 512                      # also max_rate_hz, jpeg_quality, queue_depth, max_viewers
+//!
 //! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
 //! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address
 //! packet_size = 1500                   # also stream_port, serial, model, resend_ring, zip_xml
@@ -90,6 +94,8 @@ pub struct ServeConfig {
     pub metrics: MetricsSection,
     #[serde(default)]
     pub output: OutputSection,
+    #[serde(default)]
+    pub live: super::live::LiveConfig,
 }
 
 /// `[output]`: frame outputs beside the TCP stream.
@@ -384,7 +390,10 @@ impl ServeConfig {
         if !(self.metrics.print_interval_s.is_finite() && self.metrics.print_interval_s > 0.0) {
             return Err(("metrics.print_interval_s", "must be positive".into()));
         }
-        Ok(())
+        if self.live.enabled && self.metrics.listen.is_none() {
+            return Err(("live.enabled", "the live page is served on the metrics listener: set [metrics] listen".into()));
+        }
+        self.live.validate()
     }
 
     /// The frame budget: explicit, else one frame period, else 100 ms.
