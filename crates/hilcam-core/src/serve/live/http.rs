@@ -18,6 +18,9 @@ const COUNTER_PREFIXES: [&str; 5] = ["hilcam_frames_", "hilcam_poses_", "hilcam_
 
 const BOUNDARY: &str = "hilcamframe";
 
+/// A viewer socket's send buffer, bytes (the kernel doubles it): about one 512-pixel preview.
+const SEND_BUFFER: usize = 16 * 1024;
+
 pub(super) fn routes(shared: Arc<Shared>) -> Routes {
     Arc::new(move |path: &str| match path {
         "/live" | "/live/" => Some(Route::Body { content_type: "text/html; charset=utf-8", body: PAGE.into() }),
@@ -59,11 +62,10 @@ async fn stream(s: Arc<Shared>, mut sock: TcpStream) {
     s.watching.fetch_add(1, Relaxed);
     s.wake.notify_one();
     let _ = sock.set_nodelay(true);
-    let head = format!(
-        "HTTP/1.1 200 OK\r\nContent-Type: multipart/x-mixed-replace; boundary={BOUNDARY}\r\n\
-         Cache-Control: no-store\r\nConnection: close\r\n\r\n"
-    );
-    let evicted = sock.write_all(head.as_bytes()).await.is_ok() && serve_previews(&s, &viewer, &mut sock).await;
+    // A small kernel buffer: a slow browser's backlog waits in its drop-oldest queue,
+    // where newer previews replace it, not in the socket, where it would show seconds late.
+    let _ = socket2::SockRef::from(&sock).set_send_buffer_size(SEND_BUFFER);
+    let evicted = serve_previews(&s, &viewer, &mut sock).await;
     if evicted {
         s.m.evicted.inc();
         tracing::warn!("live viewer closed: it stopped reading");
@@ -86,7 +88,18 @@ fn admit(s: &Shared) -> Option<Arc<Viewer>> {
 
 /// Write previews until the viewer leaves or the server stops (false), or the viewer
 /// stalled for [`super::EVICT_AFTER`] (true).
+///
+/// Each part is followed by the next boundary at once: a browser shows a part only once
+/// it sees the boundary after it (the Content-Length is not enough for Chromium), and
+/// the newest frame must not wait for the next one.
 async fn serve_previews(s: &Shared, viewer: &Viewer, sock: &mut TcpStream) -> bool {
+    let head = format!(
+        "HTTP/1.1 200 OK\r\nContent-Type: multipart/x-mixed-replace; boundary={BOUNDARY}\r\n\
+         Cache-Control: no-store\r\nConnection: close\r\n\r\n--{BOUNDARY}\r\n"
+    );
+    if sock.write_all(head.as_bytes()).await.is_err() {
+        return false;
+    }
     loop {
         let p = loop {
             if let Some(p) = viewer.queue.take() {
@@ -98,14 +111,14 @@ async fn serve_previews(s: &Shared, viewer: &Viewer, sock: &mut TcpStream) -> bo
             }
         };
         let part = format!(
-            "--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\nX-Frame-Seq: {}\r\n\r\n",
+            "Content-Type: image/jpeg\r\nContent-Length: {}\r\nX-Frame-Seq: {}\r\n\r\n",
             p.jpeg.len(),
             p.frame_seq
         );
         let write = async {
             sock.write_all(part.as_bytes()).await?;
             sock.write_all(&p.jpeg).await?;
-            sock.write_all(b"\r\n").await
+            sock.write_all(format!("\r\n--{BOUNDARY}\r\n").as_bytes()).await
         };
         tokio::select! {
             r = write => {
