@@ -217,7 +217,10 @@ async fn viewers_that_never_read_do_not_slow_the_loop_and_their_drops_are_counte
     let value = |k: &str| m.iter().find(|(key, _)| key == k).map(|(_, v)| *v).unwrap_or_else(|| panic!("{k}"));
     assert_eq!(value("hilcam_frames_rendered_total"), f64::from(n));
     assert_eq!(value("hilcam_live_viewers"), 3.0, "no viewer was evicted inside 5 s of stall");
-    let (encoded, dropped) = (value("hilcam_live_previews_encoded_total"), value("hilcam_live_previews_dropped_total{reason=\"queue_full\"}"));
+    let (encoded, dropped) = (
+        value("hilcam_live_previews_encoded_total"),
+        value("hilcam_live_previews_dropped_total{reason=\"queue_full\"}"),
+    );
     let sent = value("hilcam_live_previews_sent_total");
     assert!(encoded > 0.0 && dropped > 0.0, "encoded {encoded}, dropped {dropped}");
     // Every preview encoded went to each of the 3 viewers: written, dropped, or still

@@ -24,7 +24,10 @@ pub type StreamHandler = Box<dyn FnOnce(TcpStream) -> Pin<Box<dyn Future<Output 
 /// What an extra route answers.
 pub enum Route {
     /// `200 OK` with this body, then close.
-    Body { content_type: &'static str, body: Vec<u8> },
+    Body {
+        content_type: &'static str,
+        body: Vec<u8>,
+    },
     Stream(StreamHandler),
 }
 

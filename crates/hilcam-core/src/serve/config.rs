@@ -391,7 +391,10 @@ impl ServeConfig {
             return Err(("metrics.print_interval_s", "must be positive".into()));
         }
         if self.live.enabled && self.metrics.listen.is_none() {
-            return Err(("live.enabled", "the live page is served on the metrics listener: set [metrics] listen".into()));
+            return Err((
+                "live.enabled",
+                "the live page is served on the metrics listener: set [metrics] listen".into(),
+            ));
         }
         self.live.validate()
     }

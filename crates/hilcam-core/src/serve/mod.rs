@@ -191,10 +191,8 @@ fn start_live(
         return Ok(None);
     }
     let t = &scene.target;
-    let sphere = live::state::TargetSphere {
-        centre_body: t.frame_origin_body + t.bounds.centre,
-        radius_m: t.bounds.radius,
-    };
+    let sphere =
+        live::state::TargetSphere { centre_body: t.frame_origin_body + t.bounds.centre, radius_m: t.bounds.radius };
     Ok(Some(live::LiveView::start(&cfg.live, camera, sphere, registry).context("live view thread")?))
 }
 

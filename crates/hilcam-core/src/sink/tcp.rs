@@ -18,9 +18,9 @@
 //! stalled client can neither delay the renderer nor another client. Frames are shared
 //! (`Arc<EncodedFrame>`), never copied per client.
 
+use super::queue::DropOldest;
 use crate::frame::EncodedFrame;
 use crate::link::Shutdown;
-use super::queue::DropOldest;
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};

@@ -14,7 +14,8 @@ const PAGE: &str = include_str!("page.html");
 
 /// Series shown in the page's counters table: every counter and gauge whose name starts
 /// with one of these (the same keys and values as `/metrics`).
-const COUNTER_PREFIXES: [&str; 5] = ["hilcam_frames_", "hilcam_poses_", "hilcam_input_", "hilcam_live_", "hilcam_triggers_"];
+const COUNTER_PREFIXES: [&str; 5] =
+    ["hilcam_frames_", "hilcam_poses_", "hilcam_input_", "hilcam_live_", "hilcam_triggers_"];
 
 const BOUNDARY: &str = "hilcamframe";
 
@@ -51,7 +52,8 @@ fn state_json(s: &Shared) -> Vec<u8> {
 async fn stream(s: Arc<Shared>, mut sock: TcpStream) {
     let Some(viewer) = admit(&s) else {
         s.m.refused.inc();
-        let _ = sock.write_all(b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n").await;
+        let _ =
+            sock.write_all(b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n").await;
         return;
     };
     s.m.viewers.inc();

@@ -189,7 +189,11 @@ impl LiveView {
                 &[],
             ),
             encoded: r.counter("hilcam_live_previews_encoded_total", "Live view previews encoded", &[]),
-            encode_errors: r.counter("hilcam_live_encode_errors_total", "Live view previews that failed to encode", &[]),
+            encode_errors: r.counter(
+                "hilcam_live_encode_errors_total",
+                "Live view previews that failed to encode",
+                &[],
+            ),
             dropped: r.counter(
                 "hilcam_live_previews_dropped_total",
                 "Live view previews a viewer lost because its queue was full (slow browser)",
@@ -197,7 +201,11 @@ impl LiveView {
             ),
             sent: r.counter("hilcam_live_previews_sent_total", "Live view previews written to viewers", &[]),
             viewers: r.gauge("hilcam_live_viewers", "Live view image streams open", &[]),
-            refused: r.counter("hilcam_live_viewers_refused_total", "Live view streams refused (max_viewers open)", &[]),
+            refused: r.counter(
+                "hilcam_live_viewers_refused_total",
+                "Live view streams refused (max_viewers open)",
+                &[],
+            ),
             evicted: r.counter(
                 "hilcam_live_viewers_evicted_total",
                 "Live view streams closed because the viewer stopped reading",
