@@ -418,6 +418,19 @@ mod tests {
     }
 
     #[test]
+    fn the_live_page_needs_the_metrics_listener_and_sane_keys() {
+        let e = parse("kind = \"none\"\n[live]\nenabled = true\n").unwrap_err();
+        assert!(e.starts_with("live.enabled: "), "{e}");
+        let on = "kind = \"none\"\n[metrics]\nlisten = \"127.0.0.1:0\"\n[live]\nenabled = true\n";
+        let cfg = parse(on).unwrap();
+        assert_eq!((cfg.live.max_width, cfg.live.queue_depth), (512, 2));
+        assert!(parse(&format!("{on}max_rate_hz = 0.0\n")).unwrap_err().starts_with("live.max_rate_hz"));
+        assert!(parse(&format!("{on}jpeg_quality = 0\n")).unwrap_err().starts_with("live.jpeg_quality"));
+        assert!(parse(&format!("{on}colour = 1\n")).unwrap_err().contains("colour"));
+        assert!(!parse("kind = \"none\"\n").unwrap().live.enabled, "off by default");
+    }
+
+    #[test]
     fn each_kind_takes_its_own_keys_with_defaults() {
         let c = parse("kind = \"slcan\"\ndevice = \"/dev/ttyACM0\"\nbitrate = 500000\ncan_base = 0x300\n").unwrap();
         let InputConfig::Slcan(i) = &c.input else { panic!("{:?}", c.input) };
