@@ -49,7 +49,8 @@
 //!
 //! [live]                               # optional: the operator's page at /live on the
 //! enabled = true                       # metrics listener (needs [metrics] listen)
-//! max_width = 512                      # also max_rate_hz, jpeg_quality, queue_depth, max_viewers
+//! max_width = 512                      # also max_rate_hz, jpeg_quality, queue_depth,
+//!                                      # max_viewers, evict_after_s
 //!
 //! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
 //! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address

@@ -89,7 +89,7 @@ fn admit(s: &Shared) -> Option<Arc<Viewer>> {
 }
 
 /// Write previews until the viewer leaves or the server stops (false), or the viewer
-/// stalled for [`super::EVICT_AFTER`] (true).
+/// stalled for `evict_after_s` (true).
 ///
 /// Each part is followed by the next boundary at once: a browser shows a part only once
 /// it sees the boundary after it (the Content-Length is not enough for Chromium), and
@@ -129,7 +129,7 @@ async fn serve_previews(s: &Shared, viewer: &Viewer, sock: &mut TcpStream) -> bo
                 }
                 s.m.sent.inc();
             }
-            _ = viewer.queue.stalled(Some(super::EVICT_AFTER)) => return true,
+            _ = viewer.queue.stalled(s.cfg.evict_after()) => return true,
             _ = s.stop.wait() => return false,
         }
     }

@@ -49,6 +49,10 @@ pub struct LiveConfig {
     /// More image streams than this are answered 503.
     #[serde(default = "default_max_viewers")]
     pub max_viewers: usize,
+    /// Disconnect a viewer whose queue stayed full this long (it stopped reading), as a
+    /// stalled stream client is; 0 = never.
+    #[serde(default = "default_evict_after_s")]
+    pub evict_after_s: f64,
 }
 
 fn default_max_width() -> u32 {
@@ -66,6 +70,9 @@ fn default_queue_depth() -> usize {
 fn default_max_viewers() -> usize {
     8
 }
+fn default_evict_after_s() -> f64 {
+    5.0
+}
 
 impl Default for LiveConfig {
     fn default() -> Self {
@@ -76,6 +83,7 @@ impl Default for LiveConfig {
             jpeg_quality: default_quality(),
             queue_depth: default_queue_depth(),
             max_viewers: default_max_viewers(),
+            evict_after_s: default_evict_after_s(),
         }
     }
 }
@@ -98,13 +106,18 @@ impl LiveConfig {
         if self.max_viewers == 0 {
             return Err(("live.max_viewers", "must be at least 1".into()));
         }
+        let e = self.evict_after_s;
+        if !(e.is_finite() && (0.0..=86_400.0).contains(&e)) {
+            return Err(("live.evict_after_s", format!("must be 0 (never) or up to 86400 seconds, got {e}")));
+        }
         Ok(())
     }
-}
 
-/// A viewer that has not taken a preview for this long (its queue stayed full) is
-/// disconnected, as a stalled stream client is.
-pub const EVICT_AFTER: Duration = Duration::from_secs(5);
+    /// [`LiveConfig::evict_after_s`] as a limit (None: never).
+    pub fn evict_after(&self) -> Option<Duration> {
+        (self.evict_after_s > 0.0).then(|| Duration::from_secs_f64(self.evict_after_s))
+    }
+}
 
 /// One encoded preview, shared by every viewer.
 pub struct Preview {
