@@ -17,6 +17,7 @@ import threading
 import time
 import urllib.request
 
+DROPPED = 'hilcam_live_previews_dropped_total{reason="queue_full"}'
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -91,7 +92,7 @@ enabled = true
                 print(f"{n:7d}  {frames:6.0f}  {1e3 * dm('hilcam_render_seconds_sum') / max(frames, 1):9.1f}  "
                       f"{enc:8.0f}  {1e3 * dm('hilcam_live_encode_seconds_sum') / max(enc, 1):9.2f}  "
                       f"{dm('hilcam_live_previews_sent_total'):4.0f}  "
-                      f"{dm('hilcam_live_previews_dropped_total{reason=\"queue_full\"}'):7.0f}")
+                      f"{dm(DROPPED):7.0f}")
                 sys.stdout.flush()
                 time.sleep(1)
         finally:
