@@ -45,7 +45,10 @@ fi
 # GigE Vision (tests/serve/gige.rs): a real third-party client, Debian's Aravis tools and
 # its Python bindings.
 scripts/setup-aravis.sh
-lap "setup (python venv, vcan check, Aravis)"
+# The live page (tests/serve/live.rs): Debian's chromium driven by Playwright for Python.
+HILCAM_CHROMIUM=$(scripts/setup-chromium.sh)
+export HILCAM_CHROMIUM
+lap "setup (python venv, vcan check, Aravis, chromium)"
 
 cargo test --all-targets
 lap "cargo test --all-targets (build + run)"

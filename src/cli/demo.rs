@@ -85,6 +85,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         record: None,
         metrics: MetricsSection { listen: None, print_interval_s: 2.0 },
         output: OutputSection { gige: gige.clone() },
+        live: Default::default(),
     };
     cfg.validate().map_err(|(f, m)| anyhow::anyhow!("{f}: {m}"))?;
 

@@ -19,6 +19,7 @@ mod gige_request;
 mod golden;
 mod hardening;
 mod line_formats;
+mod live;
 mod metrics;
 mod replay;
 mod replay_truth;

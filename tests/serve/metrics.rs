@@ -243,7 +243,7 @@ async fn http_endpoint_serves_metrics_and_nothing_else() {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(serve_http(listener, r.clone(), async {
+    let server = tokio::spawn(serve_http(listener, r.clone(), None, async {
         let _ = rx.await;
     }));
     let resp = http_get(addr, "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await;

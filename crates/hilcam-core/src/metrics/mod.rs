@@ -12,7 +12,7 @@ mod prometheus;
 mod summary;
 
 pub use histogram::{BUCKETS, Histogram, HistogramSnapshot, bucket_bounds, bucket_of};
-pub use http::serve_http;
+pub use http::{Route, Routes, StreamHandler, serve_http};
 pub use summary::{spawn_summary_logger, summary_line};
 
 use std::collections::BTreeMap;

@@ -78,14 +78,21 @@ impl RadianceImage {
     /// The value a preview maps to full white: the 99.9th percentile of the non-zero
     /// pixels, so that a few glints do not turn the rest of the image black.
     pub fn preview_scale(&self) -> f32 {
-        let mut v: Vec<f32> = self.data.iter().copied().filter(|x| *x > 0.0 && x.is_finite()).collect();
-        if v.is_empty() {
-            return 1.0;
-        }
-        let k = ((v.len() as f64 * 0.999) as usize).min(v.len() - 1);
-        let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-        *x
+        preview_white(self.data.iter().copied())
     }
+}
+
+/// The value a preview maps to full white, of any image's values: the 99.9th percentile
+/// of the finite non-zero ones (1 when there are none). `hilcam render`'s 8-bit PNG and
+/// the live view (`serve`'s `[live]`) both scale by it.
+pub fn preview_white(values: impl Iterator<Item = f32>) -> f32 {
+    let mut v: Vec<f32> = values.filter(|x| *x > 0.0 && x.is_finite()).collect();
+    if v.is_empty() {
+        return 1.0;
+    }
+    let k = ((v.len() as f64 * 0.999) as usize).min(v.len() - 1);
+    let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *x
 }
 
 /// Pixels of one frame in one of the streamable formats.

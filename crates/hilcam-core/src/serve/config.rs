@@ -47,6 +47,11 @@
 //! listen = "127.0.0.1:9100"            # optional Prometheus endpoint
 //! print_interval_s = 5.0
 //!
+//! [live]                               # optional: the operator's page at /live on the
+//! enabled = true                       # metrics listener (needs [metrics] listen)
+//! max_width = 512                      # also max_rate_hz, jpeg_quality, queue_depth,
+//!                                      # max_viewers, evict_after_s
+//!
 //! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
 //! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address
 //! packet_size = 1500                   # also stream_port, serial, model, resend_ring, zip_xml
@@ -90,6 +95,8 @@ pub struct ServeConfig {
     pub metrics: MetricsSection,
     #[serde(default)]
     pub output: OutputSection,
+    #[serde(default)]
+    pub live: super::live::LiveConfig,
 }
 
 /// `[output]`: frame outputs beside the TCP stream.
@@ -384,7 +391,13 @@ impl ServeConfig {
         if !(self.metrics.print_interval_s.is_finite() && self.metrics.print_interval_s > 0.0) {
             return Err(("metrics.print_interval_s", "must be positive".into()));
         }
-        Ok(())
+        if self.live.enabled && self.metrics.listen.is_none() {
+            return Err((
+                "live.enabled",
+                "the live page is served on the metrics listener: set [metrics] listen".into(),
+            ));
+        }
+        self.live.validate()
     }
 
     /// The frame budget: explicit, else one frame period, else 100 ms.
@@ -403,6 +416,19 @@ mod tests {
         let cfg: ServeConfig = toml::from_str(&text).map_err(|e| e.to_string())?;
         cfg.validate().map_err(|(field, m)| format!("{field}: {m}"))?;
         Ok(cfg)
+    }
+
+    #[test]
+    fn the_live_page_needs_the_metrics_listener_and_sane_keys() {
+        let e = parse("kind = \"none\"\n[live]\nenabled = true\n").unwrap_err();
+        assert!(e.starts_with("live.enabled: "), "{e}");
+        let on = "kind = \"none\"\n[metrics]\nlisten = \"127.0.0.1:0\"\n[live]\nenabled = true\n";
+        let cfg = parse(on).unwrap();
+        assert_eq!((cfg.live.max_width, cfg.live.queue_depth), (512, 2));
+        assert!(parse(&format!("{on}max_rate_hz = 0.0\n")).unwrap_err().starts_with("live.max_rate_hz"));
+        assert!(parse(&format!("{on}jpeg_quality = 0\n")).unwrap_err().starts_with("live.jpeg_quality"));
+        assert!(parse(&format!("{on}colour = 1\n")).unwrap_err().contains("colour"));
+        assert!(!parse("kind = \"none\"\n").unwrap().live.enabled, "off by default");
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use super::config::ServeConfig;
 use crate::link::{InputCounters, Shutdown};
-use crate::metrics::{Registry, serve_http, spawn_summary_logger};
+use crate::metrics::{Registry, Routes, serve_http, spawn_summary_logger};
 use anyhow::Context;
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -18,10 +18,11 @@ pub(super) struct Helpers {
 }
 
 impl Helpers {
-    /// Start them; they run until `shutdown`.
+    /// Start them; they run until `shutdown`. `routes` are served beside `/metrics`.
     pub async fn start(
         cfg: &ServeConfig,
         registry: &Arc<Registry>,
+        routes: Option<Routes>,
         counters: &Arc<InputCounters>,
         shutdown: &Shutdown,
     ) -> anyhow::Result<Helpers> {
@@ -31,7 +32,7 @@ impl Helpers {
             let listener =
                 tokio::net::TcpListener::bind(addr).await.with_context(|| format!("metrics listen {addr}"))?;
             metrics_addr = Some(listener.local_addr()?);
-            tasks.push(tokio::spawn(serve_http(listener, registry.clone(), shutdown.clone().wait_owned())));
+            tasks.push(tokio::spawn(serve_http(listener, registry.clone(), routes, shutdown.clone().wait_owned())));
         }
         let mirror = CounterMirror { registry: registry.clone(), counters: counters.clone(), seen: Default::default() };
         mirror.copy();

@@ -6,6 +6,7 @@
 //! - [`governor`]: the quality ladder that keeps frames inside their budget.
 //! - [`render_times`]: the summary's render time percentiles, over a fixed window.
 //! - [`extrapolate`]: poses moved to the exposure mid-time with their rates.
+//! - [`live`]: the operator's live page on the metrics listener (`[live]`).
 //! - `inputs`, `outputs`, `helpers`, `session_file`: what [`run`] starts around the
 //!   scheduler (the pose input; the sinks; `/metrics` and the summary log; the session
 //!   file), each stopped by the one [`Shutdown`].
@@ -15,6 +16,7 @@ pub mod extrapolate;
 pub mod governor;
 mod helpers;
 mod inputs;
+pub mod live;
 mod outputs;
 pub mod render_times;
 pub mod scheduler;
@@ -99,14 +101,17 @@ pub async fn run(
     };
     let out = Outputs::start(&cfg, &scene, &camera, &registry, inputs).await?;
     let session = session_file::start(&cfg, &camera, &settings, input_name, clock, &registry)?;
-    let helpers = Helpers::start(&cfg, &registry, &counters, &shutdown).await?;
+    let live = start_live(&cfg, &scene, &camera, &registry)?;
+    let routes = live.as_ref().map(live::LiveView::routes);
+    let helpers = Helpers::start(&cfg, &registry, routes, &counters, &shutdown).await?;
     // Before the announcement: a scrape from then on lists the scheduler's series.
     let metrics = scheduler::SchedulerMetrics::new(&registry);
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 
-    let sched_cfg =
+    let mut sched_cfg =
         scheduler_config(&cfg, settings, exposure_start, &mut embed, session.as_ref(), out.requests, out.rate_requests);
+    sched_cfg.live = live.as_ref().map(live::LiveView::tap);
     let sinks = Arc::new(out.sinks);
     let summary = run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), metrics, shutdown.clone()).await;
 
@@ -117,6 +122,9 @@ pub async fn run(
         let _ = t.await;
     }
     helpers.join().await;
+    if let Some(l) = live {
+        l.close().await;
+    }
     let client_drops = outputs::close(sinks).await;
     let session = session_file::finish(session, &counters, &summary).await?;
     if let Some(cause) = &summary.fatal {
@@ -168,7 +176,24 @@ fn scheduler_config(
         fault: embed.render_fault.take(),
         requests,
         rate_requests,
+        live: None,
     }
+}
+
+/// The live view when `[live]` is enabled (nothing at all otherwise).
+fn start_live(
+    cfg: &ServeConfig,
+    scene: &crate::scene::Scene,
+    camera: &CameraModel,
+    registry: &Arc<Registry>,
+) -> anyhow::Result<Option<live::LiveView>> {
+    if !cfg.live.enabled {
+        return Ok(None);
+    }
+    let t = &scene.target;
+    let sphere =
+        live::state::TargetSphere { centre_body: t.frame_origin_body + t.bounds.centre, radius_m: t.bounds.radius };
+    Ok(Some(live::LiveView::start(&cfg.live, camera, sphere, registry).context("live view thread")?))
 }
 
 fn report(

@@ -69,6 +69,8 @@ pub struct SchedulerConfig {
     /// to `rate_hz`. The device bounds it (the configured rate is its maximum). Ignored
     /// in the other modes, where frames follow poses or triggers.
     pub rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    /// The live view (`[live]`): shown every delivered frame, never waited for.
+    pub live: Option<super::live::LiveTap>,
 }
 
 /// See [`SchedulerConfig::fault`].
@@ -457,6 +459,9 @@ impl Loop {
                 self.failures_in_row = 0;
                 for sink in self.sinks.iter() {
                     sink.publish(frame);
+                }
+                if let Some(live) = &self.cfg.live {
+                    live.frame(&d.job.pose, frame, d.render_time);
                 }
                 s.frames += 1;
                 m.frames.inc();

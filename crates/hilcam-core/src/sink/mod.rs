@@ -2,6 +2,7 @@
 //! shared) and none blocks the caller: each has a bounded queue and counts what it drops.
 //!
 //! - [`tcp`]: the TCP frame stream server (any number of clients, drop-oldest queues).
+//! - [`queue`]: the bounded drop-oldest queue of each stream client and live viewer.
 //! - [`recorder`]: image files plus a JSON-lines metadata log, on its own thread.
 //! - [`null`]: counts and discards (benchmarks).
 //! - [`failure_log`]: one report per stretch of failed writes (a full disk), not one per frame.
@@ -13,6 +14,7 @@ pub mod failure_log;
 pub mod gige;
 pub mod line_log;
 pub mod null;
+pub mod queue;
 pub mod recorder;
 pub mod tcp;
 

@@ -18,17 +18,16 @@
 //! stalled client can neither delay the renderer nor another client. Frames are shared
 //! (`Arc<EncodedFrame>`), never copied per client.
 
+use super::queue::DropOldest;
 use crate::frame::EncodedFrame;
 use crate::link::Shutdown;
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
-use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::Notify;
 use tokio::task::JoinSet;
 
 /// Stream server settings.
@@ -112,18 +111,10 @@ pub enum StreamError {
     Bind { addr: SocketAddr, source: std::io::Error },
 }
 
-/// A client's queue and, while it is full, since when (reset whenever a frame is taken).
-#[derive(Default)]
-struct Queue {
-    frames: VecDeque<Arc<EncodedFrame>>,
-    full_since: Option<Instant>,
-}
-
 struct Client {
     id: u64,
     peer: SocketAddr,
-    queue: Mutex<Queue>,
-    notify: Notify,
+    queue: DropOldest<Arc<EncodedFrame>>,
     sent: Counter,
     dropped: Counter,
     unsent: Counter,
@@ -223,12 +214,8 @@ impl StreamServer {
         self.shared.published.inc();
         let clients = self.shared.clients.lock().expect("client list poisoned");
         let mut report = PublishReport { clients: clients.len(), dropped: 0 };
-        let depth = self.shared.cfg.queue_depth;
         for c in clients.iter() {
-            let mut q = c.queue.lock().expect("client queue poisoned");
-            if q.frames.len() >= depth
-                && let Some(old) = q.frames.pop_front()
-            {
+            if let Some(old) = c.queue.push(frame.clone()) {
                 c.dropped.inc();
                 report.dropped += 1;
                 tracing::debug!(
@@ -237,12 +224,6 @@ impl StreamServer {
                     "slow stream client: dropped oldest queued frame"
                 );
             }
-            q.frames.push_back(frame.clone());
-            if q.frames.len() >= depth {
-                q.full_since.get_or_insert_with(Instant::now);
-            }
-            drop(q);
-            c.notify.notify_one();
         }
         report
     }
@@ -257,7 +238,7 @@ impl StreamServer {
                 peer: c.peer,
                 sent: c.sent.get(),
                 dropped: c.dropped.get(),
-                queued: c.queue.lock().expect("client queue poisoned").frames.len(),
+                queued: c.queue.len(),
             })
             .collect()
     }
@@ -332,8 +313,7 @@ fn admit(shared: &Shared, peer: SocketAddr) -> Option<Arc<Client>> {
     let client = Arc::new(Client {
         id,
         peer,
-        queue: Mutex::new(Queue { frames: VecDeque::with_capacity(shared.cfg.queue_depth), full_since: None }),
-        notify: Notify::new(),
+        queue: DropOldest::new(shared.cfg.queue_depth),
         sent: shared.registry.counter(
             "hilcam_stream_frames_sent_total",
             "Frames completely written to a stream client",
@@ -359,36 +339,6 @@ enum End {
     Stalled(Duration),
 }
 
-impl Client {
-    /// The next queued frame; taking one ends a "queue full" stretch.
-    fn take(&self) -> Option<Arc<EncodedFrame>> {
-        let mut q = self.queue.lock().expect("client queue poisoned");
-        let f = q.frames.pop_front()?;
-        q.full_since = None;
-        Some(f)
-    }
-
-    /// How long the queue has been full without a break, if longer than `limit`.
-    fn stalled_longer_than(&self, limit: Duration) -> Option<Duration> {
-        let since = self.queue.lock().expect("client queue poisoned").full_since?;
-        Some(since.elapsed()).filter(|d| *d > limit)
-    }
-}
-
-/// Resolves once `client` has been stalled longer than `limit` (never for None),
-/// checking a few times per `limit` so eviction comes at most ~25 % late.
-async fn stalled(client: &Client, limit: Option<Duration>) -> Duration {
-    let Some(limit) = limit else { return std::future::pending().await };
-    let mut tick = tokio::time::interval((limit / 4).clamp(Duration::from_millis(10), Duration::from_millis(500)));
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    loop {
-        tick.tick().await;
-        if let Some(d) = client.stalled_longer_than(limit) {
-            return d;
-        }
-    }
-}
-
 async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream, stop: Shutdown) {
     // Frames are written whole; Nagle would only delay the tail of each frame.
     let _ = sock.set_nodelay(true);
@@ -402,11 +352,11 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
             if stop.is_triggered() {
                 break 'frames End::Shutdown;
             }
-            if let Some(f) = client.take() {
+            if let Some(f) = client.queue.take() {
                 break f;
             }
             tokio::select! {
-                _ = client.notify.notified() => {}
+                _ = client.queue.pushed() => {}
                 _ = stop.wait() => break 'frames End::Shutdown,
                 r = rd.read(&mut scratch), if reading => {
                     if !matches!(r, Ok(n) if n > 0) {
@@ -429,7 +379,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
                 }
             }
             _ = grace => break 'frames End::GraceExpired,
-            d = stalled(&client, shared.cfg.evict_after) => break 'frames End::Stalled(d),
+            d = client.queue.stalled(shared.cfg.evict_after) => break 'frames End::Stalled(d),
         }
         let ev = FrameWritten {
             client_id: client.id,
@@ -451,7 +401,7 @@ async fn serve_client(shared: Arc<Shared>, client: Arc<Client>, sock: TcpStream,
     // Leave the list first so that publish stops queueing for us.
     shared.clients.lock().expect("client list poisoned").retain(|c| c.id != client.id);
     shared.connected.dec();
-    let left = client.queue.lock().expect("client queue poisoned").frames.drain(..).count();
+    let left = client.queue.clear();
     client.unsent.add(left as u64);
     match &end {
         End::Shutdown => {
