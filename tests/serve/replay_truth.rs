@@ -36,6 +36,7 @@ fn samples() -> Vec<TrajectorySample> {
             sun_dir: sun_at_incidence(30.0),
             velocity: None,
             angular_rate: None,
+            camera_to_inertial: None,
         })
         .collect()
 }
