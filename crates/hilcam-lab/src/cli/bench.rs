@@ -39,7 +39,7 @@ pub struct EffectsBenchArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "scenes/satellite.toml,scenes/satellite_blur.toml,scenes/satellite_rolling.toml"
+        default_value = "scenes/satellite.toml,scenes/satellite_blur.toml,scenes/satellite_rolling.toml,scenes/satellite_stars.toml,scenes/satellite_earth.toml"
     )]
     pub scenes: Vec<std::path::PathBuf>,
     /// Camera width (default: each scene's own, 1024 for the shipped satellite).
