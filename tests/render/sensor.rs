@@ -15,8 +15,8 @@ fn cam(w: u32, h: u32) -> CameraModel {
     CameraModel { width: w, height: h, pitch_um: 5.5, focal_mm: 16.0, principal_point_px: [0.0, 0.0] }
 }
 
-/// A detector config with every noise source off.
-fn quiet_detector(t: f64) -> DetectorConfig {
+/// A detector config with every noise source off (QE 0.5).
+pub(crate) fn quiet_detector(t: f64) -> DetectorConfig {
     DetectorConfig {
         qe: QeConfig::Constant(0.5),
         integration_time_s: t,

@@ -13,7 +13,7 @@ use hilcam_core::render::integrator::{RenderSettings, Spp};
 use hilcam_core::render::stars::{Star, StarField, V_ZERO_FLUX_W_M2_NM};
 use hilcam_core::render::{RenderOptions, RenderStats, render};
 use hilcam_core::scene::Scene;
-use hilcam_core::sensor::config::{AdcConfig, BandConfig, DetectorConfig, PsfConfig, QeConfig};
+use hilcam_core::sensor::config::{AdcConfig, BandConfig, PsfConfig};
 use hilcam_core::sensor::{Sensor, SensorConfig};
 
 const H: f64 = 6.626_070_15e-34;
@@ -91,20 +91,7 @@ fn a_stars_dn_sum_is_its_irradiance_times_aperture_qe_and_integration_time() {
     let (n, tau, qe, t, gain) = (4.0, 0.9, 0.5, 1.0, 0.25);
     let mut cfg = SensorConfig {
         band: Some(BandConfig { min_um: 0.45, max_um: 0.75 }),
-        detector: Some(DetectorConfig {
-            qe: QeConfig::Constant(qe),
-            integration_time_s: t,
-            full_well_e: None,
-            dark_current_e_per_s: None,
-            shot_noise: false,
-            read_noise_e: None,
-            prnu: None,
-            dsnu_e_per_s: None,
-            fpn_seed: 0,
-            effective_wavelength_um: None,
-            exposure: Default::default(),
-            line_time_us: None,
-        }),
+        detector: Some(crate::sensor::quiet_detector(t)),
         adc: Some(AdcConfig { bits: 16, gain_e_per_dn: gain, offset_dn: 0.0 }),
         ..Default::default()
     };
