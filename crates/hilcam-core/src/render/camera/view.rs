@@ -329,7 +329,11 @@ impl View {
     /// The target box's eight corners on the ideal image plane, `(x/z, y/z)` in the camera
     /// frame, or `None` unless all lie in front of the camera.
     pub(in crate::render) fn box_corners_image(&self) -> Option<[(f64, f64); 8]> {
-        let render_to_cam = self.cam_to_render.transpose();
+        self.box_corners_from(self.origin, self.cam_to_render.transpose())
+    }
+
+    /// [`View::box_corners_image`] seen from a camera at `origin` turned by `render_to_cam`.
+    fn box_corners_from(&self, origin: DVec3, render_to_cam: DMat3) -> Option<[(f64, f64); 8]> {
         let b = &self.bounds;
         let mut corners = [(0.0, 0.0); 8];
         for (i, out) in corners.iter_mut().enumerate() {
@@ -338,7 +342,7 @@ impl View {
                 if i & 2 == 0 { b.min.y } else { b.max.y },
                 if i & 4 == 0 { b.min.z } else { b.max.z },
             );
-            let q = render_to_cam * (p - self.origin);
+            let q = render_to_cam * (p - origin);
             if q.z <= 0.0 || q.z.is_nan() {
                 return None;
             }
@@ -378,31 +382,19 @@ impl View {
     /// The longest image path (pixels) a corner of the target's bounds travels through
     /// the camera poses `at`, or `None` when a corner is behind the camera at one of them.
     fn box_path_px(&self, at: &[(DVec3, DMat3)]) -> Option<f64> {
-        let b = &self.bounds;
         let f = self.focal_px();
-        let mut longest = 0.0f64;
-        for i in 0..8 {
-            let p = DVec3::new(
-                if i & 1 == 0 { b.min.x } else { b.max.x },
-                if i & 2 == 0 { b.min.y } else { b.max.y },
-                if i & 4 == 0 { b.min.z } else { b.max.z },
-            );
-            let mut prev: Option<(f64, f64)> = None;
-            let mut path = 0.0;
-            for (origin, render_to_cam) in at {
-                let q = *render_to_cam * (p - *origin);
-                if q.z <= 0.0 || q.z.is_nan() {
-                    return None;
+        let mut path = [0.0f64; 8];
+        let mut prev: Option<[(f64, f64); 8]> = None;
+        for &(origin, render_to_cam) in at {
+            let now = self.box_corners_from(origin, render_to_cam)?;
+            if let Some(was) = prev {
+                for ((p, n), w) in path.iter_mut().zip(&now).zip(&was) {
+                    *p += (n.0 * f - w.0 * f).hypot(n.1 * f - w.1 * f);
                 }
-                let now = (q.x / q.z * f, q.y / q.z * f);
-                if let Some(was) = prev {
-                    path += (now.0 - was.0).hypot(now.1 - was.1);
-                }
-                prev = Some(now);
             }
-            longest = longest.max(path);
+            prev = Some(now);
         }
-        Some(longest)
+        Some(path.into_iter().fold(0.0, f64::max))
     }
 
     /// Conservative pixel rectangle that can see the bounds (1 px margin), or `None` if
