@@ -30,6 +30,7 @@ pub mod cull;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod noise_bound;
 pub mod planet;
 pub mod sampling;
 pub mod stars;
