@@ -146,7 +146,7 @@ mod tests {
         assert_eq!(cap, Cap { whole: 16, extra: 0.5 });
         assert_eq!((cap.apply(100, 0.49), cap.apply(100, 0.5), cap.apply(3, 0.0)), (17, 16, 3));
         // Everything fits: no cap below the largest need.
-        let small = vec![1, 2, 3, 4];
+        let small = [1, 2, 3, 4];
         assert!(p.cap(vec![&small[..]].into_par_iter()).whole >= 4);
     }
 }
