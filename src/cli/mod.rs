@@ -153,3 +153,9 @@ mod tests {
         hilcam_core::scene::file::SceneError::Io { path: "scenes/x.toml".into(), source }.into()
     }
 }
+
+/// `--sensor-k`: a fraction of the camera's temporal noise in (0, 10].
+pub fn parse_sensor_k(s: &str) -> Result<f32, String> {
+    let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
+    hilcam_core::render::integrator::QualityGoal::checked_k(k)
+}

@@ -1,5 +1,6 @@
 //! `hilcam render`: one frame of a scene file to an image file.
 
+use super::parse_sensor_k;
 use anyhow::{Context, bail};
 use glam::{DQuat, DVec3};
 use hilcam_core::pipeline::{FramePipeline, FrameRequest};
@@ -7,7 +8,7 @@ use hilcam_core::pose::Pose;
 use hilcam_core::render::PrimaryVisibility;
 use hilcam_core::render::camera::Window;
 use hilcam_core::render::film::write_radiance;
-use hilcam_core::render::integrator::{SamplerKind, Spp};
+use hilcam_core::render::integrator::{QualityMode, SamplerKind, Spp};
 use hilcam_core::render::sampling::Sequence;
 use hilcam_core::scene::file::parse_name;
 use hilcam_core::scene::limits::checked_scaled_camera;
@@ -32,6 +33,15 @@ pub struct RenderArgs {
     /// Random-number sequence: sobol (stratified, default) or independent.
     #[arg(long, value_parser = parse_name::<Sequence>)]
     pub sequence: Option<Sequence>,
+    /// `sensor`: give each pixel samples until its Monte Carlo noise is below `--sensor-k`
+    /// × the camera's own temporal noise there, `--spp` being the frame's budget (average
+    /// per sampled pixel); `fixed`: `--spp` samples (default: the scene's).
+    #[arg(long, value_parser = parse_name::<QualityMode>)]
+    pub quality: Option<QualityMode>,
+    /// The Monte Carlo noise bound as a fraction of the camera's temporal noise, in (0, 10]
+    /// (default: the scene's `render.sensor_k`, 0.5); every frame's noise report uses it.
+    #[arg(long, value_parser = parse_sensor_k)]
+    pub sensor_k: Option<f32>,
     #[arg(long)]
     pub seed: Option<u64>,
     /// Disable Russian roulette (every path runs to full depth).
@@ -99,7 +109,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let scene = hilcam_core::scene::load(&a.scene)?;
-    let mut settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
+    let mut settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed).with_quality(a.quality, a.sensor_k);
     if let Some(v) = a.sequence {
         settings.sequence = v;
     }

@@ -6,12 +6,13 @@
 //! frames are complete; the same command resumes. A second signal exits at once (frames
 //! are written whole or not at all, so even that leaves no partial frame).
 
+use super::parse_sensor_k;
 use anyhow::{Context, bail};
 use hilcam_core::frame::FrameFlags;
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::trajectory::Trajectory;
 use hilcam_core::pose::validate::{PoseLimits, check_pose, describe};
-use hilcam_core::render::integrator::SamplerKind;
+use hilcam_core::render::integrator::{QualityMode, SamplerKind};
 use hilcam_core::render::truth::TruthChannels;
 use hilcam_core::replay::session_jobs;
 use hilcam_core::replay::{
@@ -63,6 +64,15 @@ pub struct ReplayArgs {
     pub depth: Option<u32>,
     #[arg(long, value_parser = parse_name::<SamplerKind>)]
     pub sampler: Option<SamplerKind>,
+    /// `sensor`: give each pixel samples until its Monte Carlo noise is below `--sensor-k`
+    /// × the camera's own temporal noise there, `--spp` being the frame's budget (average
+    /// per sampled pixel); `fixed`: `--spp` samples (default: the scene's).
+    #[arg(long, value_parser = parse_name::<QualityMode>)]
+    pub quality: Option<QualityMode>,
+    /// The Monte Carlo noise bound as a fraction of the camera's temporal noise, in (0, 10]
+    /// (default: the scene's `render.sensor_k`, 0.5); every frame's noise report uses it.
+    #[arg(long, value_parser = parse_sensor_k)]
+    pub sensor_k: Option<f32>,
     #[arg(long)]
     pub seed: Option<u64>,
     #[arg(long, value_parser = parse_name::<ImageFormat>, default_value = "png")]
@@ -116,7 +126,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if let Some(t) = a.integration_s {
         pin_integration_time(&mut scene, t)?;
     }
-    let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed);
+    let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed).with_quality(a.quality, a.sensor_k);
     let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;
     let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
     if pipeline.exposure_timing(None).integrates_motion() {

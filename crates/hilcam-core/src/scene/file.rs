@@ -252,8 +252,8 @@ struct RenderSection {
     adaptive: bool,
     /// `"fixed"` (spp samples) or `"sensor"` (samples until the Monte Carlo noise is below
     /// `sensor_k` × the camera's; spp is then the budget).
-    #[serde(default)]
-    quality: QualityMode,
+    #[serde(default = "default_quality")]
+    quality: Spanned<QualityMode>,
     #[serde(default = "default_sensor_k")]
     sensor_k: Spanned<f64>,
     #[serde(default)]
@@ -269,6 +269,9 @@ fn yes() -> bool {
 
 fn default_spp() -> Spanned<f64> {
     Spanned::new(0..0, RenderSettings::default().spp.get())
+}
+fn default_quality() -> Spanned<QualityMode> {
+    Spanned::new(0..0, QualityMode::default())
 }
 fn default_sensor_k() -> Spanned<f64> {
     Spanned::new(0..0, f64::from(QualityGoal::DEFAULT_K))
@@ -289,7 +292,7 @@ impl Default for RenderSection {
             sequence: Sequence::default(),
             roulette: true,
             adaptive: true,
-            quality: QualityMode::default(),
+            quality: default_quality(),
             sensor_k: default_sensor_k(),
             seed: 0,
             bvh: default_bvh(),
@@ -482,12 +485,15 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         roulette: r.roulette,
         adaptive: r.adaptive,
         quality: QualityGoal {
-            mode: r.quality,
+            mode: *r.quality.get_ref(),
             k: QualityGoal::checked_k(*r.sensor_k.get_ref())
                 .map_err(|m| field(r.sensor_k.span(), "render.sensor_k", m))?,
         },
         seed: r.seed,
     };
+    if let Err(m) = crate::sensor::check_quality(&render.quality, &sensor) {
+        return Err(field(r.quality.span(), "render.quality", m));
+    }
     if !(1..=limits::MAX_DEPTH).contains(&render.depth) {
         return Err(field(
             r.depth.span(),

@@ -450,3 +450,14 @@ impl SensorConfig {
         Ok(())
     }
 }
+
+/// Whether a sensor can judge `quality`: `"sensor"` measures Monte Carlo noise against the
+/// camera's, which needs a detector and DN output.
+pub fn check_quality(quality: &crate::render::integrator::QualityGoal, sensor: &SensorConfig) -> Result<(), String> {
+    if quality.is_sensor() && (sensor.detector.is_none() || sensor.output_kind() != OutputKind::Dn) {
+        return Err("\"sensor\" measures the Monte Carlo noise against the camera's own, which needs a \
+                    [sensor.detector] and DN output ([sensor.adc]); use \"fixed\" for this camera"
+            .into());
+    }
+    Ok(())
+}

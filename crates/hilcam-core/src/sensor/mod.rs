@@ -34,7 +34,7 @@ pub mod psf;
 pub mod ptc;
 pub mod shutter;
 
-pub use config::{CameraPreset, OutputKind, SensorConfig};
+pub use config::{CameraPreset, OutputKind, SensorConfig, check_quality};
 pub use exposure::{AutoExposure, ExposureUpdate};
 pub use shutter::{ExposureMode, ExposureTiming};
 

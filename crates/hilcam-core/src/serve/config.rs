@@ -251,6 +251,17 @@ pub struct RenderOverrides {
     pub depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub seed: Option<u64>,
+    /// `"fixed"` or `"sensor"` (samples until the Monte Carlo noise is below `sensor_k` ×
+    /// the camera's; `spp` is then the budget, which the fixed-rate governor lowers).
+    pub quality: Option<crate::render::integrator::QualityMode>,
+    /// The bound, a fraction of the camera's temporal noise in (0, 10].
+    #[serde(default, deserialize_with = "sensor_k")]
+    pub sensor_k: Option<f32>,
+}
+
+fn sensor_k<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    let k = <f64 as serde::Deserialize>::deserialize(d)?;
+    crate::render::integrator::QualityGoal::checked_k(k).map(Some).map_err(serde::de::Error::custom)
 }
 
 #[derive(Clone, Debug, Deserialize)]

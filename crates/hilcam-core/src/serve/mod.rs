@@ -87,7 +87,7 @@ pub async fn run(
     let scene = Arc::new(crate::scene::load(&cfg.scene)?);
     let camera = scene.camera.scaled(cfg.width, None);
     let o = &cfg.render;
-    let settings = scene.render.overridden(o.spp, o.depth, o.sampler, o.seed);
+    let settings = scene.render.overridden(o.spp, o.depth, o.sampler, o.seed).with_quality(o.quality, o.sensor_k);
     let pipeline = FramePipeline::new(scene.clone(), camera.clone()).context("sensor")?;
     // A camera that integrates over its exposure renders each frame from the pose at the
     // exposure's start.

@@ -137,6 +137,14 @@ impl RenderSettings {
         self.seed = seed.unwrap_or(self.seed);
         self
     }
+
+    /// These settings with the quality mode and bound `k` overridden (`--quality`,
+    /// `--sensor-k`, serve's `[render]`).
+    pub fn with_quality(mut self, mode: Option<QualityMode>, k: Option<f32>) -> Self {
+        self.quality.mode = mode.unwrap_or(self.quality.mode);
+        self.quality.k = k.unwrap_or(self.quality.k);
+        self
+    }
 }
 
 /// Rays traced and samples discarded; summed over threads after a frame.
