@@ -180,6 +180,16 @@ fn monte_carlo_variance_follows_the_chain_exactly() {
             assert!(rel(got_dn2[o], want / (gain * gain)) < 1e-6, "DN² at {o}");
         }
     }
+    // An interior pixel among neighbours of equal variance: v · Σ W² (the 0.7 px Gaussian
+    // of nav1024.toml: Σ W² = 0.1400, from the pixel-integrated weights).
+    let (s, img, _) = small_nav();
+    let flat = vec![1.0f32; img.data.len()];
+    let f = s.psf_variance_factor();
+    assert!((f - 0.1400).abs() < 1e-4, "{f}");
+    let centre = s.optics_variance(&flat).unwrap()[32 * 96 + 48] as f64;
+    let cos4 = optics::cos4(s.camera(), 48, 32);
+    let tau = s.config().optics.transmittance.unwrap();
+    assert!(rel(centre, f * (tau * cos4).powi(2)) < 1e-3, "{centre}");
     // Squaring each kernel weight separately (no merging at the reflecting border) would
     // be wrong at the corner, where one input reaches the output through several offsets.
     let airy = psf::Kernel::airy(4.0, 5.5, &[0.6], Some(3));
@@ -450,4 +460,47 @@ fn substituted_shot_noise_has_the_remaining_variance() {
             assert_eq!(var, 0.0);
         }
     }
+}
+
+#[test]
+fn heavy_tailed_monte_carlo_noise_keeps_the_cameras_variance_not_its_tails() {
+    // A firefly model: each pixel's Monte Carlo mean is L + D with probability p = 1 %,
+    // else L − D·p/(1 − p) (mean L, variance D²·p/(1 − p)), with v_e = λ/2. Substitution
+    // restores the camera's variance, but 1 % of the pixels sit √(0.5·99) ≈ 7σ high.
+    let (n, gain, read, lambda, p) = (256u32, 1.0, 6.0, 10_000.0, 0.01);
+    let mut det = quiet_detector(1e-3);
+    det.shot_noise = true;
+    det.read_noise_e = Some(read);
+    det.noise = NoiseMode::Substitute;
+    let mut cfg = config(det, gain);
+    cfg.optics.transmittance = None;
+    let cam = CameraModel { width: n, height: n, pitch_um: 5.5, focal_mm: 16.0, principal_point_px: [0.0; 2] };
+    let s = Sensor::new(&cam, &cfg).unwrap();
+    let c = s.electrons_per_radiance_second().unwrap() * 1e-3;
+    let (l, v) = (lambda / c, 0.5 * lambda / (c * c));
+    let d = (v * (1.0 - p) / p).sqrt();
+    let mut img = RadianceImage::new(n, n, 0.0);
+    for (i, x) in img.data.iter_mut().enumerate() {
+        let u = noise::uniform_open(&mut Rng::for_sample(0x4649_5245, 0, i as u64, 0));
+        *x = (if u < p { l + d } else { l - d * p / (1.0 - p) }) as f32;
+    }
+    let var = vec![v as f32; (n * n) as usize];
+    let out = s.apply_with_variance(&img, Some(&var), 3, 1e-3, 1.0).unwrap();
+    let dn: Vec<f64> = match &out.pixels {
+        hilcam_core::render::film::Pixels::Mono16 { data, .. } => data.iter().map(|v| *v as f64 - 100.0).collect(),
+        other => panic!("{other:?}"),
+    };
+    let m = dn.len() as f64;
+    let mean = dn.iter().sum::<f64>() / m;
+    let sd = (dn.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (m - 1.0)).sqrt();
+    let camera_sd = (lambda + read * read + 1.0 / 12.0).sqrt();
+    let tail = dn.iter().filter(|x| **x > lambda + 3.0 * camera_sd).count() as f64 / m;
+    eprintln!(
+        "firefly p = {p}: σ {sd:.1} e⁻ (camera {camera_sd:.1}), P(> +3σ_cam) {:.3} % (Gaussian 0.135 %)",
+        100.0 * tail
+    );
+    // The variance is the camera's (σ's standard error 0.3 %) ...
+    assert!(rel(sd, camera_sd) < 0.015, "σ {sd} vs {camera_sd}");
+    // ... but the upper tail holds the fireflies: ≈ 1 % instead of 0.135 %.
+    assert!(tail > 5.0 * 0.00135, "tail {tail}");
 }

@@ -121,6 +121,12 @@ impl Sensor {
         })
     }
 
+    /// Σ W² of the PSF (1 without one): the factor by which it divides an interior
+    /// pixel's Monte Carlo variance when its neighbours have the same variance.
+    pub fn psf_variance_factor(&self) -> f64 {
+        self.psf.iter().map(|k| k.weights.iter().map(|w| *w as f64 * *w as f64).sum::<f64>()).product()
+    }
+
     /// A Monte Carlo variance image (radiance², the layout of the frame) after the
     /// image-space optics: `· (τ cos⁴θ)²`, then the PSF with squared weights.
     pub fn optics_variance(&self, variance: &[f32]) -> Result<Vec<f32>, SensorError> {
