@@ -323,9 +323,9 @@ fn the_report_counts_exactly_the_pixels_above_the_bound() {
         let out = s.apply_with_variance(&img, Some(&var), 9, t, k).unwrap();
         let mc = out.stats.mc.unwrap();
         let (mut lit, mut above, mut above_shot, mut ratio, mut v_sum) = (0u64, 0u64, 0u64, 0.0, 0.0);
-        for i in 0..w * h {
-            let photo = img.data[i] as f64 * c;
-            let v_e = var[i] as f64 * c * c;
+        for (l, v) in img.data.iter().zip(&var) {
+            let photo = *l as f64 * c;
+            let v_e = *v as f64 * c * c;
             if photo >= 1.0 {
                 let cam_e2 = photo + 1.0 + read * read;
                 lit += 1;
