@@ -354,6 +354,45 @@ fn the_report_counts_exactly_the_pixels_above_the_bound() {
     assert_eq!(f.apply_with_variance(&img, Some(&var), 9, t, 1.0).unwrap().stats.mc, None);
 }
 
+#[test]
+fn the_report_and_the_renderers_bound_are_the_same_bound() {
+    // Each pixel's Monte Carlo variance set at 0.98× or 1.02× what the bound allows (the
+    // renderer's `allowed_radiance_variance`): the report finds exactly the 1.02× pixels
+    // above it, on a camera with τ, cos⁴ (40° corners) and dark charge; no PSF or PRNU.
+    let (w, h, t, k) = (40u32, 30u32, 1e-3, 0.5);
+    let cam = wide_cam(w, h);
+    let mut det = quiet_detector(t);
+    det.shot_noise = true;
+    det.read_noise_e = Some(5.0);
+    det.dark_current_e_per_s = Some(3000.0);
+    let mut cfg = config(det, 2.0);
+    cfg.optics.cos4 = true;
+    let s = Sensor::new(&cam, &cfg).unwrap();
+    let b = s.noise_bound(t, k).unwrap();
+    let mut img = RadianceImage::new(w, h, 0.0);
+    let mut var = vec![0.0f32; (w * h) as usize];
+    let (mut above, mut ratio) = (0u64, 0.0);
+    for row in 0..h {
+        for col in 0..w {
+            let i = (row * w + col) as usize;
+            // From 2 e⁻ to ≈ 4000 e⁻ on axis.
+            let l = (2.0 + 13.0 * i as f64) / b.e_per_radiance;
+            let f = if i % 3 == 0 { 1.02 } else { 0.98 };
+            img.data[i] = l as f32;
+            var[i] = (f * b.allowed_radiance_variance(img.data[i] as f64, row, col)) as f32;
+            if b.e_per_radiance_at(row, col) * img.data[i] as f64 >= 1.0 {
+                above += (f > 1.0) as u64;
+                ratio += k * f64::sqrt(f);
+            }
+        }
+    }
+    let mc = s.apply_with_variance(&img, Some(&var), 1, t, k).unwrap().stats.mc.unwrap();
+    assert!(mc.lit_pixels > 1000, "{mc:?}");
+    assert_eq!(mc.above_bound, above);
+    // f32 radiance after the optics and f32 variances: 1e-6.
+    assert!(rel(mc.mean_ratio, ratio / mc.lit_pixels as f64) < 1e-6, "{mc:?}");
+}
+
 // ---------------------------------------------------------------- bytes and config
 
 fn small_nav() -> (Sensor, RadianceImage, Vec<f32>) {

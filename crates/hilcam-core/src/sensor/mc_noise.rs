@@ -37,8 +37,8 @@ pub struct McNoiseStats {
     /// Lit pixels with σ_mc > k·σ_cam.
     pub above_bound: u64,
     /// Lit pixels whose Monte Carlo variance exceeds their shot-noise variance (v_e >
-    /// photo + dark): with `noise = "substitute"` they get no shot noise and are still
-    /// noisier than the camera.
+    /// photo + dark; with shot noise off, v_e > 0): with `noise = "substitute"` they get
+    /// no shot noise and are still noisier than the camera.
     pub above_shot: u64,
     /// Mean of σ_mc / σ_cam over lit pixels (0 without lit pixels).
     pub mean_ratio: f64,
