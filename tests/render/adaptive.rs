@@ -78,7 +78,16 @@ fn every_pixel_is_the_mean_of_its_own_first_samples_and_the_budget_is_kept() {
     ];
     for (sequence, sampler, spp, depth, adaptive) in cases {
         let spp: Spp = spp.parse().unwrap();
-        let settings = RenderSettings { spp, depth, sampler, sequence, roulette: true, adaptive, seed: 5 };
+        let settings = RenderSettings {
+            spp,
+            depth,
+            sampler,
+            sequence,
+            roulette: true,
+            adaptive,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            seed: 5,
+        };
         let mut buffers = FrameBuffers::<()>::default();
         let stats = render_into(&mut buffers, &scene, &view, &RenderOptions::new(settings, 0));
         let (img, counts) = (buffers.take_image(), buffers.sample_counts());
@@ -137,6 +146,7 @@ fn a_plate_under_a_uniform_sky_averages_to_rho_times_the_sky() {
             sequence: Sequence::Independent,
             roulette: false,
             adaptive: true,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
             seed,
         };
         let mut s =
@@ -176,6 +186,7 @@ fn adaptive_and_uniform_means_agree_with_inter_reflections() {
             sequence: Sequence::Independent,
             roulette: false,
             adaptive,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
             seed,
         };
         let s = scene(mesh.clone(), vec![lambert("paint", 0.9)], cam.clone(), pose, settings);

@@ -305,6 +305,7 @@ fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster(
             sequence,
             roulette: true,
             adaptive: false,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
             seed: 21,
         };
         let mut s =

@@ -74,6 +74,7 @@ fn check_unbiased(bsdf: Bsdf, spp: u32) {
             sequence: Sequence::Independent,
             roulette: false,
             adaptive: false,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
             seed: 7,
         };
         let (img, _) = case.render(&s);
@@ -107,6 +108,7 @@ fn cosine_is_exact_for_lambert_under_uniform_sky() {
             sequence: Sequence::Independent,
             roulette: false,
             adaptive: false,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
             seed: 3,
         };
         mean_se(&interior(&case, &case.render(&s).0))

@@ -79,6 +79,7 @@ fn rasterised_primary_hits_give_the_same_bytes_as_tracing() {
         // Uniform counts: one sample that differs (where the BVH itself is wrong) would
         // otherwise move its neighbours' adaptive counts too.
         adaptive: false,
+        quality: hilcam_core::render::integrator::QualityGoal::FIXED,
         seed: 5,
     };
     let base = scene.pose;

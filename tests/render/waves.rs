@@ -63,8 +63,16 @@ fn waves_give_the_same_bytes_as_tracing_sample_by_sample() {
         (Sequence::Independent, SamplerKind::Brdf, true, 5, 2),
     ];
     for (sequence, sampler, roulette, spp, depth) in cases {
-        let settings =
-            RenderSettings { spp: Spp::whole(spp), depth, sampler, sequence, roulette, adaptive: false, seed: 11 };
+        let settings = RenderSettings {
+            spp: Spp::whole(spp),
+            depth,
+            sampler,
+            sequence,
+            roulette,
+            adaptive: false,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            seed: 11,
+        };
         let (img, stats) = render(&scene, &scene.view(&cam, &scene.pose), &RenderOptions::new(settings, 7));
         let (reference, counts) = match sequence {
             Sequence::Independent => per_sample_reference::<Rng>(&scene, &cam, &settings, 7),

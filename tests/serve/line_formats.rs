@@ -73,6 +73,7 @@ fn session_frame_line_is_pinned_byte_for_byte() {
             sequence: Sequence::Independent,
             roulette: false,
             adaptive: true,
+            quality: hilcam_core::render::integrator::QualityGoal::FIXED,
             seed: u64::MAX,
         },
         flags: FrameFlags::LATE | FrameFlags::EXTRAPOLATED | FrameFlags::DEGRADED,

@@ -27,6 +27,7 @@ const SETTINGS: RenderSettings = RenderSettings {
     sequence: hilcam_core::render::sampling::Sequence::Sobol,
     roulette: true,
     adaptive: true,
+    quality: hilcam_core::render::integrator::QualityGoal::FIXED,
     seed: 7,
 };
 

@@ -97,23 +97,7 @@ impl Adaptive {
     /// variance of the neighbours' pilot means plus the mean of their pilot variances —
     /// or σ̂ itself when the extra budget is small ([`Adaptive::concentrated`]).
     pub fn weight(&self, stat: &[[f32; 2]], width: usize, height: usize, row: usize, col: usize) -> f32 {
-        let (mut sum, mut sum_sq, mut var, mut n) = (0.0f32, 0.0f32, 0.0f32, 0u32);
-        for r in row.saturating_sub(1)..(row + 2).min(height) {
-            for c in col.saturating_sub(1)..(col + 2).min(width) {
-                if (r, c) != (row, col) {
-                    let [m, v] = stat[r * width + c];
-                    sum += m;
-                    sum_sq += m * m;
-                    var += v;
-                    n += 1;
-                }
-            }
-        }
-        // Variance seen between the neighbours (edges, shading, and noise of their means)
-        // plus within them (noise): σ̂²; the weight is √σ̂.
-        let between = sample_variance(sum, sum_sq, n);
-        let within = if n > 0 { var / n as f32 } else { 0.0 };
-        let sigma = (between + within).sqrt();
+        let sigma = neighbour_estimate(stat, width, height, row, col).variance.sqrt();
         if self.concentrated() { sigma } else { sigma.sqrt() }
     }
 
@@ -189,6 +173,38 @@ impl Adaptive {
             self.pilot + (share + u).floor() as u32
         }));
     }
+}
+
+/// What the pilot statistics of a pixel's eight neighbours (never its own) say about it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NeighbourEstimate {
+    /// Mean of the neighbours' pilot means.
+    pub mean: f32,
+    /// σ̂²: the variance between the neighbours' pilot means (edges, shading, and the noise
+    /// of their means) plus the mean variance within their pilots (noise). With a
+    /// one-sample pilot and a locally flat radiance it is the per-sample variance; where
+    /// the radiance varies across the neighbourhood it is larger (conservative).
+    pub variance: f32,
+}
+
+/// [`NeighbourEstimate`] of pixel (`row`, `col`) from the pilot statistics `stat`
+/// (`width` × `height`, row-major, `[mean, variance]` per pixel).
+pub fn neighbour_estimate(stat: &[[f32; 2]], width: usize, height: usize, row: usize, col: usize) -> NeighbourEstimate {
+    let (mut sum, mut sum_sq, mut var, mut n) = (0.0f32, 0.0f32, 0.0f32, 0u32);
+    for r in row.saturating_sub(1)..(row + 2).min(height) {
+        for c in col.saturating_sub(1)..(col + 2).min(width) {
+            if (r, c) != (row, col) {
+                let [m, v] = stat[r * width + c];
+                sum += m;
+                sum_sq += m * m;
+                var += v;
+                n += 1;
+            }
+        }
+    }
+    let between = sample_variance(sum, sum_sq, n);
+    let within = if n > 0 { var / n as f32 } else { 0.0 };
+    NeighbourEstimate { mean: if n > 0 { sum / n as f32 } else { 0.0 }, variance: between + within }
 }
 
 /// Extra samples of a pixel of weight w: `min(cap, (w + floor) · scale)` (see

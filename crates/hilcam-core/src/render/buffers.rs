@@ -35,6 +35,10 @@ pub struct FrameBuffers<L = ()> {
     pub(super) size: (u32, u32),
     /// Pilot statistic of every pixel (adaptive frames).
     pub(super) stat: Vec<[f32; 2]>,
+    /// Monte Carlo variance of every pixel's mean (when the frame's options asked for it).
+    pub(super) variance: Vec<f32>,
+    /// Whether `variance` belongs to the last frame.
+    pub(super) variance_valid: bool,
     /// Per-row spans through a distorting lens.
     pub(super) silhouette: SilhouetteBuffers,
     pub(super) sobol: Workers<SobolStream>,
@@ -53,6 +57,8 @@ impl<L> Default for FrameBuffers<L> {
             bands_used: 0,
             size: (0, 0),
             stat: Vec::new(),
+            variance: Vec::new(),
+            variance_valid: false,
             silhouette: SilhouetteBuffers::default(),
             sobol: Workers::default(),
             independent: Workers::default(),
@@ -70,6 +76,13 @@ impl<L> FrameBuffers<L> {
     /// again by the next frame).
     pub fn take_image(&mut self) -> RadianceImage {
         std::mem::replace(&mut self.image, RadianceImage { width: 0, height: 0, data: Vec::new() })
+    }
+
+    /// The Monte Carlo variance of each pixel's radiance mean in the last frame,
+    /// (W·sr⁻¹·m⁻²)², row-major like the image: 0 where the pixel was not sampled (it is
+    /// exact). `None` unless the frame's options asked for it (`RenderOptions::with_noise`).
+    pub fn variance(&self) -> Option<&[f32]> {
+        self.variance_valid.then_some(&self.variance[..])
     }
 
     /// How many camera samples each pixel of the last frame got (row-major, 0 where none

@@ -14,7 +14,9 @@ use crate::render::camera::{PixelRect, View};
 use crate::render::cull::Silhouette;
 use crate::render::film::RadianceImage;
 use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
-use crate::render::sampling::{PerSample, Rng, Sequence, SobolStream};
+use crate::render::noise_bound::NoiseBound;
+use crate::render::sampling::{PerSample, Rng, Sequence, SobolStream, mix64};
+use crate::render::sensor_plan::SensorPlan;
 use crate::render::stars::StarStats;
 use crate::render::target::Target;
 use adaptive::Adaptive;
@@ -33,6 +35,7 @@ pub mod integrator;
 pub mod noise_bound;
 pub mod planet;
 pub mod sampling;
+pub mod sensor_plan;
 pub mod stars;
 pub mod target;
 pub mod truth;
@@ -89,12 +92,23 @@ pub struct RenderOptions {
     /// Frame index: keys every random number together with `settings.seed`.
     pub frame: u64,
     pub primary: PrimaryVisibility,
+    /// The camera's noise per pixel: what `quality = "sensor"` samples against (ignored in
+    /// a fixed-quality frame; a sensor-quality frame without it is an adaptive one).
+    pub noise: Option<NoiseBound>,
+    /// Estimate every sampled pixel's Monte Carlo variance (`FrameBuffers::variance`).
+    pub variance: bool,
 }
 
 impl RenderOptions {
     /// Frame `frame` with `settings`, primary hits found the default way.
     pub fn new(settings: RenderSettings, frame: u64) -> RenderOptions {
-        RenderOptions { settings, frame, primary: PrimaryVisibility::default() }
+        RenderOptions { settings, frame, primary: PrimaryVisibility::default(), noise: None, variance: false }
+    }
+
+    /// These options with the camera's noise bound (for `quality = "sensor"`) and, when
+    /// `variance`, each pixel's Monte Carlo variance estimated.
+    pub fn with_noise(self, noise: Option<NoiseBound>, variance: bool) -> RenderOptions {
+        RenderOptions { noise, variance, ..self }
     }
 
     /// These options with primary hits found the `primary` way.
@@ -121,7 +135,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     view: &View,
     options: &RenderOptions,
 ) -> RenderStats {
-    let RenderOptions { settings, frame, primary } = options;
+    let RenderOptions { settings, frame, primary, noise, variance } = options;
     let t0 = Instant::now();
     let (width, height) = view.size();
     buffers.reset_image(width, height, target.background);
@@ -142,6 +156,8 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         coverage: box_coverage,
         bands: band_buffers,
         stat,
+        variance: variance_buffer,
+        variance_valid,
         silhouette: spans,
         bands_used,
         size: _,
@@ -149,6 +165,13 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         independent,
     } = buffers;
     let rect = if target.accel.is_empty() { None } else { view.pixel_rect() };
+    // Pixels not sampled are exact (background, or a planet whose own sampling noise is
+    // not estimated): variance 0.
+    *variance_valid = *variance;
+    if *variance {
+        variance_buffer.clear();
+        variance_buffer.resize(width as usize * height as usize, 0.0);
+    }
     let mut rays = RayCounts::default();
     let mut traced = 0u64;
     let mut samples = 0u64;
@@ -207,7 +230,15 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
             width: width as usize,
         };
         let spp = settings.spp.floor();
-        let adaptive = Adaptive::new(settings.spp, settings.adaptive);
+        let sensor = match (settings.quality.is_sensor(), noise) {
+            (true, Some(bound)) => Some(SensorPlan { bound: *bound, budget: settings.spp, keys: view.keys }),
+            _ => None,
+        };
+        // A sensor-quality frame starts as an adaptive one: one pilot sample everywhere.
+        let adaptive = match sensor {
+            Some(_) => Some(Adaptive { pilot: SensorPlan::PILOT, spp_milli: settings.spp.milli(), uniform: false }),
+            None => Adaptive::new(settings.spp, settings.adaptive),
+        };
         let n_bands = (rect.row1 as usize).saturating_sub(rect.row0 as usize).div_ceil(BAND_ROWS);
         if band_buffers.len() < n_bands {
             band_buffers.resize_with(n_bands, Band::default);
@@ -215,10 +246,12 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         let bands = &mut band_buffers[..n_bands];
         *written_rows = rect.row0 as usize..rect.row1 as usize;
         *bands_used = n_bands;
-        let frame_buffers = FrameParts { img, bands, stat };
+        let variance_out = variance.then_some(&mut variance_buffer[..]);
+        let frame_buffers = FrameParts { img, bands, stat, variance: variance_out };
+        let plan = Plan { spp, adaptive, sensor: sensor.as_ref() };
         match settings.sequence {
-            Sequence::Independent => render_bands(&job, frame_buffers, independent, rect, &span, spp, adaptive),
-            Sequence::Sobol => render_bands(&job, frame_buffers, sobol, rect, &span, spp, adaptive),
+            Sequence::Independent => render_bands(&job, frame_buffers, independent, rect, &span, plan),
+            Sequence::Sobol => render_bands(&job, frame_buffers, sobol, rect, &span, plan),
         }
         for band in &band_buffers[..n_bands] {
             rays.add(&band.rays);
@@ -297,6 +330,19 @@ struct FrameParts<'a, L> {
     img: &'a mut RadianceImage,
     bands: &'a mut [Band<L>],
     stat: &'a mut Vec<[f32; 2]>,
+    /// Each pixel's Monte Carlo variance, when asked for (frame-sized, zeroed).
+    variance: Option<&'a mut [f32]>,
+}
+
+/// How a frame's samples are shared out.
+#[derive(Clone, Copy)]
+struct Plan<'a> {
+    /// Samples in every pixel without a second stage.
+    spp: u32,
+    /// The two-stage plan (also the pilot of a sensor-quality frame).
+    adaptive: Option<Adaptive>,
+    /// The second stage follows the camera's noise, not the pilot's weights.
+    sensor: Option<&'a SensorPlan>,
 }
 
 impl<L> Band<L> {
@@ -316,21 +362,24 @@ impl<L> Band<L> {
 
 /// Render the rectangle's rows band by band (rayon over bands), each band pass by pass:
 /// `spp` samples in every pixel, or (`adaptive`) a pilot in every pixel and the rest of
-/// the budget where the pilot saw variance (or, `uniform`, evenly).
+/// the budget where the pilot saw variance (or, `uniform`, evenly; or, `sensor`, where the
+/// camera's noise asks for it). Then, when asked, each pixel's Monte Carlo variance.
 fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
     job: &TileJob,
     parts: FrameParts<L>,
     workers: &mut Workers<S>,
     rect: PixelRect,
     span: &(dyn Fn(u32) -> (u32, u32) + Sync),
-    spp: u32,
-    adaptive: Option<Adaptive>,
+    plan: Plan,
 ) {
-    let FrameParts { img, bands, stat } = parts;
+    let FrameParts { img, bands, stat, variance } = parts;
     let w = job.width;
     let (row0, row1) = (rect.row0 as usize, rect.row1 as usize);
-    let first_stage = adaptive.map_or(spp, |a| a.pilot);
-    let squares = adaptive.is_some_and(|a| !a.uniform);
+    let first_stage = plan.adaptive.map_or(plan.spp, |a| a.pilot);
+    let weighted = plan.adaptive.is_some_and(|a| !a.uniform);
+    // Sums of squares: the pilot's for the second stage's weights, every sample's for the
+    // variance.
+    let squares = weighted || variance.is_some();
     workers.ensure();
     let shared = &*workers;
     bands.par_iter_mut().enumerate().for_each(|(b, band)| {
@@ -360,11 +409,17 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
             }
         })
     });
-    if let Some(plan) = adaptive {
+    // The pilot statistics: what the second stage's weights read, and the variance of a
+    // pixel left with one sample.
+    let statistics = (weighted || (variance.is_some() && first_stage == 1)).then(|| {
         // With a planet the pixels left unsampled are not one constant: their statistic is
         // their value in the image (which holds no traced pixel yet).
         let backdrop = job.ctx.planet.is_some().then_some(&img.data[..]);
-        add_adaptive_samples::<S, L>(job, bands, shared, (stat, backdrop), plan, img.height as usize);
+        pilot_statistics(job, bands, (stat, backdrop), first_stage, img.height as usize)
+    });
+    if let Some(adaptive) = plan.adaptive {
+        let pilot = statistics.map(|(base, rows)| PilotView { stat: &stat[..], base, rows });
+        add_second_stage::<S, L>(job, bands, shared, pilot, adaptive, plan.sensor, variance.is_some());
     }
     workers.equalise();
     img.data[row0 * w..row1 * w].par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
@@ -372,34 +427,93 @@ fn render_bands<S: PerSample + Send, L: RayLog + Default + Send + Sync>(
             out[(row as usize - band.first_row) * w + col as usize] = sum * (1.0 / n as f32);
         }
     });
+    if let Some(var) = variance {
+        let pilot = statistics.map(|(base, rows)| PilotView { stat: &stat[..], base, rows });
+        mean_variances(w, bands, pilot, &mut var[row0 * w..row1 * w]);
+    }
 }
 
-/// The second stage of an adaptive frame: share out the rest of the budget by what the
-/// pilot saw around each pixel (`adaptive`) and trace those samples.
-fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
+/// The pilot statistics of a frame: `stat` holds rows `base..base + rows` of the image.
+#[derive(Clone, Copy)]
+struct PilotView<'a> {
+    stat: &'a [[f32; 2]],
+    base: usize,
+    rows: usize,
+}
+
+/// Each sampled pixel's Monte Carlo variance of its mean into `out` (the bands' rows):
+/// s²/N from its own N ≥ 2 samples (unbiased whatever N is, since N never depends on the
+/// pixel's own samples), or, with one sample, its neighbours' estimate
+/// ([`adaptive::neighbour_estimate`]; unbiased where the radiance is flat across them,
+/// larger where it varies).
+fn mean_variances<L: Send + Sync>(w: usize, bands: &[Band<L>], pilot: Option<PilotView>, out: &mut [f32]) {
+    out.par_chunks_mut(w * BAND_ROWS).zip(bands.par_iter()).for_each(|(out, band)| {
+        for (i, &(row, col)) in band.pixels.iter().enumerate() {
+            let n = band.counts[i];
+            let v = if n >= 2 {
+                adaptive::sample_variance(band.sums[i], band.sum_sq[i], n) / n as f32
+            } else {
+                pilot.map_or(0.0, |p| {
+                    adaptive::neighbour_estimate(p.stat, w, p.rows, row as usize - p.base, col as usize).variance
+                })
+            };
+            out[(row as usize - band.first_row) * w + col as usize] = v;
+        }
+    });
+}
+
+/// The second stage of a two-stage frame: share out the rest of the budget — by what the
+/// pilot saw around each pixel (`adaptive`), evenly (`uniform`), or by what the camera's
+/// noise asks for (`sensor`) — and trace those samples.
+fn add_second_stage<S: PerSample + Send, L: RayLog + Send + Sync>(
     job: &TileJob,
     bands: &mut [Band<L>],
     workers: &Workers<S>,
-    (stat, backdrop): (&mut Vec<[f32; 2]>, Option<&[f32]>),
+    pilot: Option<PilotView>,
     plan: Adaptive,
-    height: usize,
+    sensor: Option<&SensorPlan>,
+    squares: bool,
 ) {
     let w = job.width;
-    if plan.uniform {
-        // An even share of a fraction: no pilot statistics to read.
-        bands.par_iter_mut().for_each(|b| {
-            b.weight.clear();
-            b.weight.resize(b.pixels.len(), 0.0);
-        });
-    } else {
-        pilot_weights(job, bands, (stat, backdrop), plan, height);
+    match (sensor, pilot) {
+        (Some(sensor), Some(p)) => {
+            bands.par_iter_mut().for_each(|b| {
+                b.counts.clear();
+                b.counts.extend(b.pixels.iter().map(|&(r, c)| sensor.need(p.stat, w, p.rows, p.base, r, c)));
+            });
+            let cap = sensor.cap(bands.par_iter().map(|b| &b.counts[..]));
+            let key = mix64(job.seed ^ mix64(job.frame ^ 0x7365_6e73_6f72_6361)); // "sensorca"
+            bands.par_iter_mut().for_each(|b| {
+                for (n, &(r, c)) in b.counts.iter_mut().zip(&b.pixels) {
+                    let u = (mix64(key ^ (u64::from(r) * w as u64 + u64::from(c))) >> 11) as f64 / (1u64 << 53) as f64;
+                    *n = cap.apply(*n, u);
+                }
+            });
+        }
+        _ => {
+            match pilot {
+                Some(p) if !plan.uniform => bands.par_iter_mut().for_each(|b| {
+                    b.weight.clear();
+                    b.weight.extend(
+                        b.pixels.iter().map(|&(r, c)| plan.weight(p.stat, w, p.rows, r as usize - p.base, c as usize)),
+                    );
+                }),
+                // An even share of a fraction: no pilot statistics to read.
+                _ => bands.par_iter_mut().for_each(|b| {
+                    b.weight.clear();
+                    b.weight.resize(b.pixels.len(), 0.0);
+                }),
+            }
+            let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
+            bands.par_iter_mut().for_each(|band| {
+                band.index.clear();
+                band.index.extend(band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)));
+                plan.counts_into(&shares, &band.weight, &band.index, job.seed, job.frame, &mut band.counts);
+            });
+        }
     }
-    let shares = plan.shares(bands.iter().map(|b| &b.weight[..]));
     bands.par_iter_mut().for_each(|band| {
         workers.with(|WorkerScratch { tile, pass, owner }| {
-            band.index.clear();
-            band.index.extend(band.pixels.iter().map(|&(r, c)| u64::from(r) * w as u64 + u64::from(c)));
-            plan.counts_into(&shares, &band.weight, &band.index, job.seed, job.frame, &mut band.counts);
             // Pixel by pixel (in the band's tile order), each pixel's extra samples one after
             // the other: a packet of neighbouring paths is then mostly one pixel's, whose
             // rays start together, and each pixel's samples are summed in index order.
@@ -414,39 +528,40 @@ fn add_adaptive_samples<S: PerSample + Send, L: RayLog + Send + Sync>(
             for (chunk, owners) in pass.chunks(PASS_SAMPLES).zip(owner.chunks(PASS_SAMPLES)) {
                 let values = job.trace_pass(chunk, tile, &mut band.rays, &mut band.log);
                 for (&i, &v) in owners.iter().zip(values) {
-                    band.add_sample(i as usize, v, false);
+                    band.add_sample(i as usize, v, squares);
                 }
             }
         })
     });
 }
 
-/// Each sampled pixel's weight for the second stage, from the pilot statistics of its
-/// neighbours (`Adaptive::weight`), into `band.weight`.
-fn pilot_weights<L: Send + Sync>(
+/// Every sampled pixel's pilot statistic (`[mean, variance]` of its first `pilot`
+/// samples) into `stat`, for the sampled rows and the row on either side (what the
+/// neighbour estimates read; unsampled pixels hold the background or `backdrop`'s value).
+/// Returns the image row of `stat`'s first row and how many rows it holds.
+fn pilot_statistics<L: Send + Sync>(
     job: &TileJob,
-    bands: &mut [Band<L>],
+    bands: &[Band<L>],
     (stat, backdrop): (&mut Vec<[f32; 2]>, Option<&[f32]>),
-    plan: Adaptive,
+    pilot: u32,
     height: usize,
-) {
+) -> (usize, usize) {
     let w = job.width;
-    // The statistics of the sampled rows and the row on either side (what the weights
-    // read), not of the whole frame: the rest is background and is never read.
+    let statistic = |sum: f32, sq: f32| [sum / pilot as f32, adaptive::sample_variance(sum, sq, pilot)];
+    let background = |v: f32| [v, 0.0];
     let first = bands.first().map_or(0, |b| b.first_row);
     let (base, end) = (first.saturating_sub(1), (first + bands.len() * BAND_ROWS + 1).min(height));
-    let background = plan.background_statistic(job.ctx.scene.background);
     // Every entry is written below; resizing keeps last frame's values only to overwrite
     // them. The row on either side of the bands is background.
-    stat.resize((end - base) * w, background);
+    stat.resize((end - base) * w, background(job.ctx.scene.background));
     let inside = (first - base) * w..((first + bands.len() * BAND_ROWS).min(end) - base) * w;
     // What an unsampled pixel's statistic is: the background, or its value in `backdrop`
     // (entry `i` of `stat` is the image's pixel `base·w + i`).
     let unsampled = |dst: &mut [[f32; 2]], at: usize| match backdrop {
-        None => dst.fill(background),
+        None => dst.fill(background(job.ctx.scene.background)),
         Some(img) => {
             for (d, &v) in dst.iter_mut().zip(&img[base * w + at..]) {
-                *d = plan.background_statistic(v);
+                *d = background(v);
             }
         }
     };
@@ -458,14 +573,10 @@ fn pilot_weights<L: Send + Sync>(
     stat[inside].par_chunks_mut(BAND_ROWS * w).zip(bands.par_iter()).enumerate().for_each(|(b, (mine, band))| {
         unsampled(mine, before + b * BAND_ROWS * w);
         for ((&(row, col), &sum), &sq) in band.pixels.iter().zip(&band.sums).zip(&band.sum_sq) {
-            mine[(row as usize - band.first_row) * w + col as usize] = plan.statistic(sum, sq);
+            mine[(row as usize - band.first_row) * w + col as usize] = statistic(sum, sq);
         }
     });
-    let (stat, rows) = (&*stat, end - base);
-    bands.par_iter_mut().for_each(|b| {
-        b.weight.clear();
-        b.weight.extend(b.pixels.iter().map(|&(r, c)| plan.weight(stat, w, rows, r as usize - base, c as usize)));
-    });
+    (base, end - base)
 }
 
 /// A band's pixels that may see the target, in tile order: blocks of about

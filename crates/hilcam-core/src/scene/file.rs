@@ -50,7 +50,7 @@ use crate::pose::Pose;
 use crate::render::bsdf::BsdfSpec;
 use crate::render::camera::CameraModel;
 use crate::render::geometry::{BvhLayout, TriMesh};
-use crate::render::integrator::{RenderSettings, SamplerKind, Spp};
+use crate::render::integrator::{QualityGoal, QualityMode, RenderSettings, SamplerKind, Spp};
 use crate::render::sampling::Sequence;
 use crate::render::stars::catalogue::Selection;
 use crate::render::stars::{StarField, band_zero_point_w_m2};
@@ -250,6 +250,12 @@ struct RenderSection {
     roulette: bool,
     #[serde(default = "yes")]
     adaptive: bool,
+    /// `"fixed"` (spp samples) or `"sensor"` (samples until the Monte Carlo noise is below
+    /// `sensor_k` × the camera's; spp is then the budget).
+    #[serde(default)]
+    quality: QualityMode,
+    #[serde(default = "default_sensor_k")]
+    sensor_k: Spanned<f64>,
     #[serde(default)]
     seed: u64,
     /// Any of the four names; a lab layout in a build without it is refused below.
@@ -263,6 +269,9 @@ fn yes() -> bool {
 
 fn default_spp() -> Spanned<f64> {
     Spanned::new(0..0, RenderSettings::default().spp.get())
+}
+fn default_sensor_k() -> Spanned<f64> {
+    Spanned::new(0..0, f64::from(QualityGoal::DEFAULT_K))
 }
 fn default_depth() -> Spanned<u32> {
     Spanned::new(0..0, RenderSettings::default().depth)
@@ -280,6 +289,8 @@ impl Default for RenderSection {
             sequence: Sequence::default(),
             roulette: true,
             adaptive: true,
+            quality: QualityMode::default(),
+            sensor_k: default_sensor_k(),
             seed: 0,
             bvh: default_bvh(),
         }
@@ -470,6 +481,11 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         sequence: r.sequence,
         roulette: r.roulette,
         adaptive: r.adaptive,
+        quality: QualityGoal {
+            mode: r.quality,
+            k: QualityGoal::checked_k(*r.sensor_k.get_ref())
+                .map_err(|m| field(r.sensor_k.span(), "render.sensor_k", m))?,
+        },
         seed: r.seed,
     };
     if !(1..=limits::MAX_DEPTH).contains(&render.depth) {

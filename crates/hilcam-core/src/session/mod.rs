@@ -13,7 +13,7 @@ pub mod writer;
 
 use crate::pipeline::FrameRequest;
 use crate::pose::Pose;
-use crate::render::integrator::{RenderSettings, SamplerKind};
+use crate::render::integrator::{QualityGoal, RenderSettings, SamplerKind};
 use crate::render::sampling::Sequence;
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
@@ -99,7 +99,15 @@ pub struct SettingsFields {
     /// Absent in sessions written before adaptive sampling existed: those were uniform.
     #[serde(default)]
     pub adaptive: bool,
+    /// Absent (and not written) for `quality = "fixed"` with the default k: sessions
+    /// before sensor-relative quality read as what they were.
+    #[serde(default, skip_serializing_if = "is_default_quality")]
+    pub quality: QualityGoal,
     pub seed: u64,
+}
+
+fn is_default_quality(q: &QualityGoal) -> bool {
+    *q == QualityGoal::default()
 }
 
 impl From<&RenderSettings> for SettingsFields {
@@ -111,6 +119,7 @@ impl From<&RenderSettings> for SettingsFields {
             sequence: s.sequence,
             roulette: s.roulette,
             adaptive: s.adaptive,
+            quality: s.quality,
             seed: s.seed,
         }
     }
@@ -125,6 +134,7 @@ impl SettingsFields {
             sequence: self.sequence,
             roulette: self.roulette,
             adaptive: self.adaptive,
+            quality: self.quality,
             seed: self.seed,
         }
     }

@@ -159,6 +159,7 @@ pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u
         sequence: Sequence::Sobol,
         roulette: false,
         adaptive: false,
+        quality: Default::default(),
         seed,
     };
     let (a, ta) = case.render(&s(1_000_001));
@@ -226,6 +227,7 @@ pub fn sweep(
                 sequence,
                 roulette: false,
                 adaptive: false,
+                quality: Default::default(),
                 seed,
             })
             .0
@@ -240,6 +242,7 @@ pub fn sweep(
                 sequence,
                 roulette: false,
                 adaptive: false,
+                quality: Default::default(),
                 seed,
             };
             let (img, time_s) = case.render(&settings);
@@ -401,6 +404,7 @@ mod tests {
             sequence: Sequence::Independent,
             roulette: false,
             adaptive: false,
+            quality: Default::default(),
             seed: 5,
         };
         let (img, _) = case.render(&s);

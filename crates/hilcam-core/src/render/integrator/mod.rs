@@ -48,7 +48,58 @@ pub struct RenderSettings {
     /// Share the samples out by each pixel's estimated variance (`spp` is then the
     /// average; `render::adaptive`), instead of `spp` in every pixel.
     pub adaptive: bool,
+    /// Whether samples are spent until each pixel is as good as the camera
+    /// (`render::sensor_plan`), and the fraction `k` of the camera's noise that means.
+    pub quality: QualityGoal,
     pub seed: u64,
+}
+
+/// What a frame's samples aim at: a fixed budget, or the camera's own noise.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum QualityMode {
+    /// `spp` samples per pixel (on average, when adaptive).
+    #[default]
+    Fixed,
+    /// Each pixel gets samples until its Monte Carlo standard deviation, in electrons, is
+    /// below `k` × the camera's temporal noise there; `spp` is then the frame's budget
+    /// (the average over sampled pixels never exceeds it).
+    Sensor,
+}
+
+/// [`QualityMode`] and the bound `k` (also what every frame's noise report measures
+/// against, in either mode).
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct QualityGoal {
+    pub mode: QualityMode,
+    /// Monte Carlo σ allowed as a fraction of the camera's temporal noise, in (0, 10].
+    pub k: f32,
+}
+
+impl QualityGoal {
+    pub const DEFAULT_K: f32 = 0.5;
+    /// `quality = "fixed"` with the default k (the default).
+    pub const FIXED: QualityGoal = QualityGoal { mode: QualityMode::Fixed, k: Self::DEFAULT_K };
+
+    pub fn is_sensor(&self) -> bool {
+        self.mode == QualityMode::Sensor
+    }
+
+    /// `k` checked: finite, in (0, 10].
+    pub fn checked_k(k: f64) -> Result<f32, String> {
+        if k.is_finite() && k > 0.0 && k <= 10.0 {
+            Ok(k as f32)
+        } else {
+            Err(format!("the Monte Carlo noise bound k must be in (0, 10] (a fraction of the camera's noise), got {k}"))
+        }
+    }
+}
+
+impl Default for QualityGoal {
+    fn default() -> Self {
+        Self::FIXED
+    }
 }
 
 impl Default for RenderSettings {
@@ -60,6 +111,7 @@ impl Default for RenderSettings {
             sequence: Sequence::Sobol,
             roulette: true,
             adaptive: true,
+            quality: QualityGoal::default(),
             seed: 0,
         }
     }
