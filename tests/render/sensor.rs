@@ -23,6 +23,7 @@ pub(crate) fn quiet_detector(t: f64) -> DetectorConfig {
         full_well_e: None,
         dark_current_e_per_s: None,
         shot_noise: false,
+        noise: Default::default(),
         read_noise_e: None,
         prnu: None,
         dsnu_e_per_s: None,

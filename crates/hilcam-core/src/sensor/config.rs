@@ -124,6 +124,12 @@ pub struct DetectorConfig {
     /// Photon (and dark) shot noise: Poisson sampling of the collected charge.
     #[serde(default)]
     pub shot_noise: bool,
+    /// How the shot noise meets the renderer's Monte Carlo noise (when a frame comes with
+    /// its per-pixel Monte Carlo variance): `"add"` (default) draws the full shot noise on
+    /// top; `"substitute"` draws only the part the Monte Carlo noise does not already
+    /// supply (docs/sensor.md, "Monte Carlo noise and the sensor").
+    #[serde(default)]
+    pub noise: NoiseMode,
     /// Read noise, electrons rms (Gaussian, added after the full-well clip).
     #[serde(default)]
     pub read_noise_e: Option<f64>,
@@ -146,6 +152,18 @@ pub struct DetectorConfig {
     /// Rolling shutter: delay between the starts of consecutive rows, µs.
     #[serde(default)]
     pub line_time_us: Option<f64>,
+}
+
+/// How the detector's shot noise combines with a frame's Monte Carlo noise.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NoiseMode {
+    /// Full shot noise on top of the Monte Carlo noise (the frame is noisier than the camera).
+    #[default]
+    Add,
+    /// Shot noise of variance λ − v_e only (v_e the pixel's Monte Carlo variance in e⁻²),
+    /// so the frame's temporal variance is the camera's wherever v_e ≤ λ.
+    Substitute,
 }
 
 /// Analogue-to-digital conversion.
@@ -400,6 +418,20 @@ impl SensorConfig {
         }
         if let Some(v) = d.dsnu_e_per_s {
             non_negative("sensor.detector.dsnu_e_per_s", v)?;
+        }
+        if d.noise == NoiseMode::Substitute {
+            if !d.shot_noise {
+                return Err(invalid(
+                    "sensor.detector.noise",
+                    "\"substitute\" replaces part of the shot noise: it needs shot_noise = true",
+                ));
+            }
+            if self.output_kind() != OutputKind::Dn {
+                return Err(invalid(
+                    "sensor.detector.noise",
+                    "\"substitute\" acts on the detector's charge: it needs DN output ([sensor.adc])",
+                ));
+            }
         }
         if let Some(v) = d.effective_wavelength_um {
             positive("sensor.detector.effective_wavelength_um", v)?;

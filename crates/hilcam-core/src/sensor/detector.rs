@@ -101,6 +101,13 @@ impl Detector {
     /// function of (`fpn_seed`, pixel), identical in every frame.
     #[inline]
     pub fn expected(&self, radiance: f64, pixel: u64) -> f64 {
+        let (photo, dark) = self.expected_parts(radiance, pixel);
+        photo + dark
+    }
+
+    /// [`Detector::expected`] as its (photo, dark) parts, e⁻.
+    #[inline]
+    pub fn expected_parts(&self, radiance: f64, pixel: u64) -> (f64, f64) {
         let mut photo = radiance.max(0.0) * self.e_per_radiance;
         let mut dark = self.dark_e;
         if let Some(fp) = &self.fixed_pattern {
@@ -108,7 +115,17 @@ impl Detector {
             photo *= (1.0 + self.prnu * z1 as f64).max(0.0);
             dark = (dark + self.dsnu_e * z2 as f64).max(0.0);
         }
-        photo + dark
+        (photo, dark)
+    }
+
+    /// Photo-electrons per unit radiance at `pixel`, PRNU included: the slope of
+    /// [`Detector::expected`] in the radiance (for radiance ≥ 0).
+    #[inline]
+    pub fn photo_gain(&self, pixel: u64) -> f64 {
+        match &self.fixed_pattern {
+            Some(fp) => self.e_per_radiance * (1.0 + self.prnu * fp.z(pixel)[0] as f64).max(0.0),
+            None => self.e_per_radiance,
+        }
     }
 
     /// Sample the pixel's charge: Poisson shot noise (if on), full-well clip, then
@@ -118,6 +135,26 @@ impl Detector {
         let need_normal = self.read_noise_e > 0.0 || (self.shot_noise && expected_e >= noise::POISSON_EXACT_BELOW);
         let (z_shot, z_read) = if need_normal { noise::normal_pair(rng) } else { (0.0, 0.0) };
         let mut e = if self.shot_noise { noise::poisson(expected_e, z_shot, rng) } else { expected_e };
+        let mut full = false;
+        if let Some(fw) = self.full_well_e
+            && e >= fw
+        {
+            e = fw;
+            full = true;
+        }
+        PixelCharge { expected_e, collected_e: e, full, read_e: e + self.read_noise_e * z_read }
+    }
+
+    /// [`Detector::sample`] for a pixel whose expected charge already carries Monte Carlo
+    /// noise of variance `mc_var_e2` (e⁻², > 0): only the remaining shot-noise variance is
+    /// drawn, Gaussian, `⌊λ + √max(0, λ − v − 1/12)·z + ½⌋` (the 1/12 is what rounding
+    /// adds, as in [`noise::poisson_normal`]), so that Monte Carlo plus shot noise has the
+    /// camera's variance λ wherever v ≤ λ. Shot noise must be on (validated).
+    #[inline]
+    pub fn sample_substituted(&self, expected_e: f64, mc_var_e2: f64, rng: &mut Rng) -> PixelCharge {
+        let (z_shot, z_read) = noise::normal_pair(rng);
+        let sd = (expected_e - mc_var_e2 - 1.0 / 12.0).max(0.0).sqrt();
+        let mut e = super::adc::floor(expected_e + sd * z_shot + 0.5).max(0.0);
         let mut full = false;
         if let Some(fw) = self.full_well_e
             && e >= fw

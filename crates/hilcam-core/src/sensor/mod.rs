@@ -12,6 +12,8 @@
 //! - [`adc`]: gain, offset, bit depth, clipping.
 //! - [`exposure`]: auto-exposure state across frames.
 //! - [`ptc`]: photon-transfer measurement (gain and read noise from flat fields).
+//! - [`mc_noise`]: the renderer's Monte Carlo variance through the chain, the camera's
+//!   noise bound for `quality = "sensor"`, and the per-frame report.
 //!
 //! ```
 //! use crate::render::camera::CameraModel;
@@ -28,14 +30,16 @@ pub mod adc;
 pub mod config;
 pub mod detector;
 pub mod exposure;
+pub mod mc_noise;
 pub mod noise;
 pub mod optics;
 pub mod psf;
 pub mod ptc;
 pub mod shutter;
 
-pub use config::{CameraPreset, OutputKind, SensorConfig, check_quality};
+pub use config::{CameraPreset, NoiseMode, OutputKind, SensorConfig, check_quality};
 pub use exposure::{AutoExposure, ExposureUpdate};
+pub use mc_noise::McNoiseStats;
 pub use shutter::{ExposureMode, ExposureTiming};
 
 use crate::render::camera::{CameraModel, PixelKeys, Window};
@@ -58,6 +62,8 @@ pub enum SensorError {
     Parse { path: PathBuf, message: String },
     #[error("radiance image is {got_w}×{got_h} but the camera is {want_w}×{want_h}")]
     SizeMismatch { got_w: u32, got_h: u32, want_w: u32, want_h: u32 },
+    #[error("Monte Carlo variance image has {got} pixels but the frame has {want}")]
+    VarianceSize { got: usize, want: usize },
 }
 
 /// A validated sensor model for one camera, ready to convert frames.
@@ -104,6 +110,9 @@ pub struct FrameStats {
     pub adc_high_clipped: u64,
     /// Mean output DN (0 for float output).
     pub mean_dn: f64,
+    /// The frame's Monte Carlo noise against the camera's (present when a variance image
+    /// was given and the sensor has a detector with DN output).
+    pub mc: Option<McNoiseStats>,
 }
 
 /// Per-row partial sums; reduced in row order so the totals are thread-count independent.
@@ -116,6 +125,7 @@ struct RowStats {
     low: u64,
     high: u64,
     dn: f64,
+    mc: mc_noise::McRow,
 }
 
 impl Sensor {
@@ -282,7 +292,31 @@ impl Sensor {
         frame_seed: u64,
         t_s: f64,
     ) -> Result<SensorOutput, SensorError> {
+        self.apply_with_variance(img, None, frame_seed, t_s, 0.0)
+    }
+
+    /// Convert one frame at integration time `t_s` that comes with the renderer's
+    /// per-pixel Monte Carlo variance of the radiance mean (`variance`, radiance², the
+    /// layout of `img`; 0 where exact). The variance is carried through the chain
+    /// ([`mc_noise`]); with `noise = "substitute"` the shot noise drawn at a pixel with
+    /// variance `v_e > 0` is only the remainder; `stats.mc` reports the noise against
+    /// `k` times the camera's. Without a variance image this is
+    /// [`Sensor::apply_with_integration`], byte for byte; with `noise = "add"` the pixels
+    /// are the same as without one.
+    pub fn apply_with_variance(
+        &self,
+        img: &RadianceImage,
+        variance: Option<&[f32]>,
+        frame_seed: u64,
+        t_s: f64,
+        k: f64,
+    ) -> Result<SensorOutput, SensorError> {
         let rad = self.optics(img)?;
+        if let Some(v) = variance
+            && v.len() != img.data.len()
+        {
+            return Err(SensorError::VarianceSize { got: v.len(), want: img.data.len() });
+        }
         let w = img.width as usize;
         if self.output == OutputKind::Float32 {
             let s = self.radiance_scale;
@@ -304,10 +338,14 @@ impl Sensor {
             });
         }
         let adc = self.adc.expect("validated: DN output has an ADC");
-        let det = match (&self.cfg.detector, self.e_per_radiance_s) {
-            (Some(d), Some(k)) => Some(Detector::new(d, k, t_s, self.fixed_pattern.clone())),
+        let det = self.detector(t_s);
+        // The Monte Carlo variance after the optics, radiance² (only with a detector: the
+        // comparison and the substitution are in electrons).
+        let mc_var = match (variance, &det) {
+            (Some(v), Some(_)) => Some(self.optics_variance(v)?),
             _ => None,
         };
+        let substitute = self.cfg.detector.as_ref().is_some_and(|d| d.noise == NoiseMode::Substitute);
         let scale = self.radiance_scale;
         let keys = self.keys();
         let n = rad.data.len();
@@ -318,12 +356,27 @@ impl Sensor {
             .enumerate()
             .map(|(row, (out, src))| {
                 let mut st = RowStats::default();
+                let mc_row = mc_var.as_ref().map(|v| &v[row * w..(row + 1) * w]);
                 for (col, (o, l)) in out.iter_mut().zip(src).enumerate() {
                     let pixel = keys.key(row as u32, col as u32);
                     let (expected, collected, full, read) = match &det {
                         Some(d) => {
-                            let e = d.expected(*l as f64, pixel);
-                            let c = d.sample(e, &mut noise::frame_rng(frame_seed, pixel));
+                            let mut rng = noise::frame_rng(frame_seed, pixel);
+                            let c = match mc_row {
+                                None => d.sample(d.expected(*l as f64, pixel), &mut rng),
+                                Some(vr) => {
+                                    let (photo, dark) = d.expected_parts(*l as f64, pixel);
+                                    let g = d.photo_gain(pixel);
+                                    let v_e = vr[col] as f64 * g * g;
+                                    let rn2 = d.read_noise_e * d.read_noise_e;
+                                    st.mc.add(k, d.shot_noise, photo, dark, v_e, rn2);
+                                    if substitute && v_e > 0.0 {
+                                        d.sample_substituted(photo + dark, v_e, &mut rng)
+                                    } else {
+                                        d.sample(photo + dark, &mut rng)
+                                    }
+                                }
+                            };
                             (c.expected_e, c.collected_e, c.full, c.read_e)
                         }
                         None => {
@@ -358,6 +411,7 @@ impl Sensor {
             s.adc_high_clipped += r.high;
             s.mean_dn += r.dn;
         }
+        s.mc = mc_var.as_ref().map(|_| McNoiseStats::from_rows(k, rows.iter().map(|r| r.mc)));
         s.mean_expected_e /= n as f64;
         s.mean_collected_e /= n as f64;
         s.mean_dn /= n as f64;
@@ -375,6 +429,14 @@ impl Sensor {
             Pixels::Mono16 { data: dn, bits: adc.bits }
         };
         Ok(SensorOutput { pixels, integration_time_s: det.as_ref().map(|_| t_s), stats: s })
+    }
+
+    /// The detector at integration time `t_s` (None without one, or with float output).
+    fn detector(&self, t_s: f64) -> Option<Detector> {
+        match (&self.cfg.detector, self.e_per_radiance_s, self.output) {
+            (Some(d), Some(k), OutputKind::Dn) => Some(Detector::new(d, k, t_s, self.fixed_pattern.clone())),
+            _ => None,
+        }
     }
 
     fn keys(&self) -> PixelKeys {

@@ -208,6 +208,52 @@ pub fn convolve(img: &[f32], width: usize, height: usize, k: &Kernel) -> Vec<f32
     out
 }
 
+/// The variance image of [`convolve`]`(img)` when the input pixels carry independent
+/// errors of variance `var` (a Monte Carlo render's): `Var(out[o]) = Σᵢ W(o,i)² var[i]`,
+/// `W(o,i)` the total weight input `i` has at output `o`. In the interior that is the
+/// convolution with the squared kernel; at a reflecting border one input can reach one
+/// output through two kernel offsets, and their weights add before squaring. Accumulated
+/// in f64; parallel over output rows, the result does not depend on the thread count.
+pub fn convolve_variance(var: &[f32], width: usize, height: usize, k: &Kernel) -> Vec<f32> {
+    assert_eq!(var.len(), width * height, "image size");
+    let lx = Gather::new(width, k.rx);
+    let ly = Gather::new(height, k.ry);
+    let (lo, hi) = if width > 2 * k.rx { (k.rx, width - k.rx) } else { (0, 0) };
+    let rx = k.rx as i64;
+    let mut out = vec![0.0f32; width * height];
+    out.par_chunks_mut(width).enumerate().for_each(|(oy, orow)| {
+        let mut acc = vec![0.0f64; width];
+        let mut col_w = vec![0.0f64; 2 * k.rx + 1];
+        // The gather lists are sorted by input index: one chunk per distinct input row.
+        for rows in ly.of(oy).chunk_by(|a, b| a.0 == b.0) {
+            let src = &var[rows[0].0 * width..(rows[0].0 + 1) * width];
+            // This input row's weight at each horizontal offset, its vertical offsets summed.
+            for (i, cw) in col_w.iter_mut().enumerate() {
+                *cw = rows.iter().map(|&(_, my)| k.at(i as i64 - rx, my) as f64).sum();
+            }
+            if hi > lo {
+                for (i, cw) in col_w.iter().enumerate() {
+                    let w2 = cw * cw;
+                    let s0 = (lo as i64 - (i as i64 - rx)) as usize;
+                    for (o, s) in acc[lo..hi].iter_mut().zip(&src[s0..s0 + (hi - lo)]) {
+                        *o += w2 * *s as f64;
+                    }
+                }
+            }
+            for ox in (0..lo).chain(hi.max(lo)..width) {
+                for cols in lx.of(ox).chunk_by(|a, b| a.0 == b.0) {
+                    let w: f64 = cols.iter().map(|&(_, mx)| col_w[(mx + rx) as usize]).sum();
+                    acc[ox] += w * w * src[cols[0].0] as f64;
+                }
+            }
+        }
+        for (o, a) in orow.iter_mut().zip(&acc) {
+            *o = *a as f32;
+        }
+    });
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

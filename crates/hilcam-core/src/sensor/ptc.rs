@@ -41,14 +41,22 @@ fn as_f64(px: &Pixels) -> Vec<f64> {
 pub fn measure(sensor: &Sensor, radiance: f64, seed: u64) -> Result<PtcPoint, SensorError> {
     let cam = sensor.camera();
     let img = RadianceImage::new(cam.width, cam.height, radiance as f32);
-    let a = as_f64(&sensor.apply(&img, seed)?.pixels);
-    let b = as_f64(&sensor.apply(&img, seed.wrapping_add(1))?.pixels);
+    let a = sensor.apply(&img, seed)?.pixels;
+    let b = sensor.apply(&img, seed.wrapping_add(1))?.pixels;
+    Ok(point_from_frames(radiance, &a, &b))
+}
+
+/// One level from two frames of the same scene taken with independent noise (for frames
+/// made elsewhere, e.g. from renders with their own Monte Carlo noise).
+pub fn point_from_frames(radiance: f64, a: &Pixels, b: &Pixels) -> PtcPoint {
+    let (a, b) = (as_f64(a), as_f64(b));
+    assert_eq!(a.len(), b.len(), "frame sizes");
     let n = a.len() as f64;
     let mean = (a.iter().sum::<f64>() + b.iter().sum::<f64>()) / (2.0 * n);
     let d: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x - y).collect();
     let dm = d.iter().sum::<f64>() / n;
     let var = d.iter().map(|v| (v - dm) * (v - dm)).sum::<f64>() / (n - 1.0) / 2.0;
-    Ok(PtcPoint { radiance, mean_dn: mean, var_dn: var })
+    PtcPoint { radiance, mean_dn: mean, var_dn: var }
 }
 
 /// Fit `K` through the origin of (μ − μ_dark, σ² − σ²_dark) over `points` (which should
