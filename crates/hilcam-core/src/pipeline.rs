@@ -12,6 +12,7 @@ use crate::render::sampling::mix64;
 use crate::render::truth::{TruthChannels, TruthImage, render_truth};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
+use crate::sensor::mc_noise::McNoiseStats;
 use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -30,6 +31,8 @@ pub struct RenderedFrame {
     pub integration_s: Option<f64>,
     /// When the rows integrated (what the frame's metadata reports for time-tagging).
     pub exposure: ExposureTiming,
+    /// How the frame's Monte Carlo noise compares with the camera's (DN frames).
+    pub mc_noise: Option<McNoiseStats>,
 }
 
 /// What a camera client asked of one frame besides its pose and render settings (a
@@ -208,7 +211,19 @@ impl FramePipeline {
         // The integration time is chosen before rendering: a moving view needs it.
         let fixed = request.integration_s.filter(|_| self.scene.sensor.detector.is_some());
         let timing = self.exposure_timing(fixed);
-        let (mut view, options) = (self.view(pose, &timing), self.options(settings, index));
+        // The camera's noise at this integration time: what `quality = "sensor"` samples
+        // against and every DN frame's Monte Carlo noise report measures against.
+        let noise = self.sensor.noise_bound(timing.integration_s, f64::from(settings.quality.k));
+        if settings.quality.is_sensor() && noise.is_none() {
+            return Err(SensorError::Invalid {
+                field: "render.quality".into(),
+                message: crate::sensor::check_quality(&settings.quality, self.sensor.config())
+                    .err()
+                    .unwrap_or_default(),
+            });
+        }
+        let (mut view, options) =
+            (self.view(pose, &timing), self.options(settings, index).with_noise(noise, noise.is_some()));
         if let Some(roi) = &roi {
             let (mx, my) = self.sensor.psf_margin();
             let area = roi.grown(mx, my, &self.camera);
@@ -218,13 +233,17 @@ impl FramePipeline {
             view = view.window(&area);
         }
         let render = render_into(&mut self.buffers, &self.scene, &view, &options);
-        let radiance = self.buffers.image();
+        let (radiance, variance) = (self.buffers.image(), self.buffers.variance());
         let sensor = if roi.is_some() { self.windowed.as_ref().expect("set above") } else { &self.sensor };
         let t0 = Instant::now();
         let seed = Self::sensor_seed(settings, index);
+        let k = f64::from(settings.quality.k);
         let out = match fixed.or_else(|| self.auto_exposure.as_ref().map(AutoExposure::integration_time_s)) {
-            Some(t) => sensor.apply_with_integration(radiance, seed, t)?,
-            None => sensor.apply(radiance, seed)?,
+            Some(t) => sensor.apply_with_variance(radiance, variance, seed, t, k)?,
+            None => {
+                let t = self.scene.sensor.detector.as_ref().map_or(0.0, |d| d.integration_time_s);
+                sensor.apply_with_variance(radiance, variance, seed, t, k)?
+            }
         };
         let (pixels, width, height) = match &roi {
             None => (out.pixels, self.camera.width, self.camera.height),
@@ -247,6 +266,7 @@ impl FramePipeline {
             sensor_time: t0.elapsed(),
             integration_s: out.integration_time_s,
             exposure: timing,
+            mc_noise: out.stats.mc,
         })
     }
 }
