@@ -377,7 +377,7 @@ fn the_report_and_the_renderers_bound_are_the_same_bound() {
             let i = (row * w + col) as usize;
             // From 2 e⁻ to ≈ 4000 e⁻ on axis.
             let l = (2.0 + 13.0 * i as f64) / b.e_per_radiance;
-            let f = if i % 3 == 0 { 1.02 } else { 0.98 };
+            let f = if i.is_multiple_of(3) { 1.02 } else { 0.98 };
             img.data[i] = l as f32;
             var[i] = (f * b.allowed_radiance_variance(img.data[i] as f64, row, col)) as f32;
             if b.e_per_radiance_at(row, col) * img.data[i] as f64 >= 1.0 {
