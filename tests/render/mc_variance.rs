@@ -160,7 +160,7 @@ fn assert_agree(what: &str, a: Total, b: Total) {
 
 fn sensor_bound(k: f64) -> NoiseBound {
     // About 6 000 e⁻ in the satellite's brightest pixels, 10 e⁻ read noise.
-    NoiseBound { k, e_per_radiance: 40.0, floor_e2: 100.0, shot: true, cos4: None }
+    NoiseBound { k, e_per_radiance: 40.0, floor_e2: 100.0, shot: true, cos4: None, psf_factor: 1.0 }
 }
 
 fn sensor_quality(k: f64) -> QualityGoal {

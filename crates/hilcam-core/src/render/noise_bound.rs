@@ -6,10 +6,14 @@
 //! sensor model builds a [`NoiseBound`] for the frame's integration time
 //! (`Sensor::noise_bound`); the renderer only reads it (render never depends on sensor).
 //!
-//! The bound is taken on the pixel before the PSF: a PSF averages neighbouring pixels'
-//! independent Monte Carlo errors (their variance falls by Σk² ≤ 1), so the converted
-//! frame meets it at least as well. Photo-response non-uniformity (≤ a few per cent of the
-//! gain) is left out.
+//! The renderer's pixel is the one before the PSF. A PSF averages neighbouring pixels'
+//! independent Monte Carlo errors: where they have about the same variance, the frame's
+//! pixel keeps Σw² of it (0.14 for the nav camera's Gaussian, `psf_factor`), so the
+//! renderer may leave 1/Σw² times more variance than the frame's pixel is allowed. Where
+//! a pixel's variance stands out from its neighbours' (an isolated glint) the PSF spreads
+//! it and the frame's pixels there may exceed the bound: the sensor's report, taken on
+//! the converted frame, counts them. Photo-response non-uniformity (≤ a few per cent of
+//! the gain) is left out.
 
 /// What "as good as the camera" means for one frame (see the module comment).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -19,13 +23,16 @@ pub struct NoiseBound {
     /// Photo-electrons per unit radiance (W·sr⁻¹·m⁻²) over the integration time on the
     /// optical axis: transmittance, aperture, pixel area, QE, integration time.
     pub e_per_radiance: f64,
-    /// Temporal noise variance that does not grow with the signal: mean dark charge plus
-    /// read noise², e⁻².
+    /// Temporal noise variance that does not grow with the signal, e⁻²: read noise², plus
+    /// the mean dark charge when shot noise is on.
     pub floor_e2: f64,
     /// Shot noise on: the camera's variance grows with the signal.
     pub shot: bool,
     /// Natural vignetting (None when the optics have no cos⁴ term).
     pub cos4: Option<Cos4>,
+    /// Σw² of the PSF's weights (1 without a PSF): the share of a pixel's Monte Carlo
+    /// variance its converted value keeps when its neighbours' is alike.
+    pub psf_factor: f64,
 }
 
 /// cos⁴θ of a pixel, θ its field angle: the camera's focal length and optical centre in
@@ -71,7 +78,7 @@ impl NoiseBound {
         if c <= 0.0 {
             return f64::INFINITY;
         }
-        self.k * self.k * self.camera_variance_e2(radiance * c) / (c * c)
+        self.k * self.k * self.camera_variance_e2(radiance * c) / (c * c * self.psf_factor)
     }
 }
 
@@ -81,12 +88,15 @@ mod tests {
 
     #[test]
     fn the_allowed_variance_is_k_squared_times_the_cameras_in_radiance_units() {
-        let b = NoiseBound { k: 0.5, e_per_radiance: 100.0, floor_e2: 25.0, shot: true, cos4: None };
+        let b = NoiseBound { k: 0.5, e_per_radiance: 100.0, floor_e2: 25.0, shot: true, cos4: None, psf_factor: 1.0 };
         // 2 W·sr⁻¹·m⁻² → 200 e⁻; camera variance 225 e⁻²; allowed (0.5·15 e⁻)² = 56.25 e⁻²,
         // i.e. 56.25 / 100² radiance².
         assert!((b.allowed_radiance_variance(2.0, 0, 0) - 56.25e-4).abs() < 1e-12);
         let no_shot = NoiseBound { shot: false, ..b };
         assert_eq!(no_shot.camera_variance_e2(1e6), 25.0);
+        // A PSF keeping a seventh of the variance allows seven times more before it.
+        let psf = NoiseBound { psf_factor: 1.0 / 7.0, ..b };
+        assert!((psf.allowed_radiance_variance(2.0, 0, 0) - 7.0 * 56.25e-4).abs() < 1e-12);
     }
 
     #[test]

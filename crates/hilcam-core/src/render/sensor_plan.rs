@@ -108,7 +108,7 @@ mod tests {
     use crate::render::camera::Window;
 
     fn plan(k: f64, budget: &str) -> SensorPlan {
-        let bound = NoiseBound { k, e_per_radiance: 100.0, floor_e2: 0.0, shot: true, cos4: None };
+        let bound = NoiseBound { k, e_per_radiance: 100.0, floor_e2: 0.0, shot: true, cos4: None, psf_factor: 1.0 };
         let keys = PixelKeys::window(&Window { x: 0, y: 0, width: 3, height: 3 }, 3);
         SensorPlan { bound, budget: budget.parse().unwrap(), keys }
     }

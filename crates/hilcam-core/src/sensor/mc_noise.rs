@@ -118,6 +118,7 @@ impl Sensor {
             floor_e2: if d.shot_noise { d.dark_e } else { 0.0 } + d.read_noise_e * d.read_noise_e,
             shot: d.shot_noise,
             cos4,
+            psf_factor: self.psf_variance_factor(),
         })
     }
 
