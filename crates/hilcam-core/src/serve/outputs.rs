@@ -50,7 +50,9 @@ impl Outputs {
         if let Some(r) = &cfg.record
             && let Some(dir) = &r.dir
         {
-            out.sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(dir, r.format), registry)?));
+            let materials = if cfg.output.truth.is_empty() { Vec::new() } else { scene.materials.clone() };
+            let rc = RecorderConfig { materials, ..RecorderConfig::new(dir, r.format) };
+            out.sinks.push(Sink::Recorder(Recorder::start(rc, registry)?));
         }
         if let Some(g) = &cfg.output.gige {
             out.start_gige(g, cfg, scene, camera, registry).await?;
