@@ -23,5 +23,6 @@ mod live;
 mod metrics;
 mod replay;
 mod replay_truth;
+mod serve_truth;
 mod session;
 mod stream;
