@@ -39,6 +39,7 @@ pub(crate) fn camera(w: u32, h: u32) -> CameraDescription {
         auto_exposure: true,
         frame_rate_hz: RATE_HZ as f32,
         frame_rate_max_hz: reg::FRAME_RATE_MAX,
+        truth: Default::default(),
     }
 }
 

@@ -72,6 +72,7 @@ impl Outputs {
         let rate_sets_schedule = cfg.trigger.mode == super::scheduler::TriggerMode::Rate;
         let desc = CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz, rate_sets_schedule)
             .map_err(anyhow::Error::msg)?;
+        let desc = CameraDescription { truth: cfg.output.truth, ..desc };
         let device = GigeDevice::start(g, desc, registry.clone()).await?;
         let dropped =
             registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
