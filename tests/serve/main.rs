@@ -16,6 +16,7 @@ mod gige_pending;
 mod gige_pending_roi;
 mod gige_rate;
 mod gige_request;
+mod gige_truth;
 mod golden;
 mod hardening;
 mod line_formats;

@@ -446,9 +446,7 @@ pub fn decode_frame(buf: &[u8]) -> Result<(Frame, usize), DecodeError> {
 /// [`decode_frame`] with the frame's truth block, decoded (`None` without one; a block
 /// that fails its checks is an error after the whole frame has arrived).
 #[allow(clippy::type_complexity)]
-pub fn decode_frame_with_truth(
-    buf: &[u8],
-) -> Result<(Frame, Option<truth_block::WireTruth>, usize), DecodeError> {
+pub fn decode_frame_with_truth(buf: &[u8]) -> Result<(Frame, Option<truth_block::WireTruth>, usize), DecodeError> {
     let header = decode_header(buf)?;
     let (w, h) = (header.meta.width, header.meta.height);
     let end = HEADER_LEN as u64 + header.payload_len;
@@ -469,9 +467,10 @@ pub fn decode_frame_with_truth(
     check_payload(&header, payload)?;
     let truth = match header.truth_block {
         false => None,
-        true => Some(truth_block::decode_truth_block(w, h, &buf[end as usize + 8..total as usize]).map_err(|e| {
-            Malformed::TruthBlock { seq: header.meta.frame_seq, message: e.to_string() }
-        })?),
+        true => Some(
+            truth_block::decode_truth_block(w, h, &buf[end as usize + 8..total as usize])
+                .map_err(|e| Malformed::TruthBlock { seq: header.meta.frame_seq, message: e.to_string() })?,
+        ),
     };
     let pixels = pixels_from_le_bytes(header.meta.format, header.meta.bit_depth, payload);
     let frame = Frame { meta: header.meta, pixels };

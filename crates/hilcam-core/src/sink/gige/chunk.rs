@@ -74,7 +74,8 @@ pub fn append_truth_chunks(block: &mut Vec<u8>, truth: &TruthImage, window: Wind
     let tw = truth.width as usize;
     let (x0, x1) = (window.x as usize, (window.x + window.width) as usize);
     let rows = window.y as usize..(window.y + window.height) as usize;
-    let crop = |plane: &[f32]| -> Vec<f32> { rows.clone().flat_map(|r| plane[r * tw + x0..r * tw + x1].to_vec()).collect() };
+    let crop =
+        |plane: &[f32]| -> Vec<f32> { rows.clone().flat_map(|r| plane[r * tw + x0..r * tw + x1].to_vec()).collect() };
     let mask: Vec<u32> = rows.clone().flat_map(|r| truth.mask[r * tw + x0..r * tw + x1].to_vec()).collect();
     // The footprint of the window's own mask, in its coordinates.
     let windowed = TruthImage {
@@ -100,9 +101,7 @@ pub fn append_truth_chunks(block: &mut Vec<u8>, truth: &TruthImage, window: Wind
         push_chunk(block, truth_chunk_id(c), |b| match c {
             TruthChannel::Depth => b.extend(crop(&truth.depth).iter().flat_map(|v| v.to_le_bytes())),
             TruthChannel::Mask => b.extend(windowed.mask.iter().flat_map(|v| v.to_le_bytes())),
-            TruthChannel::Normal => {
-                b.extend(truth.normal.iter().flat_map(|p| crop(p)).flat_map(|v| v.to_le_bytes()))
-            }
+            TruthChannel::Normal => b.extend(truth.normal.iter().flat_map(|p| crop(p)).flat_map(|v| v.to_le_bytes())),
             TruthChannel::BodyXyz => {
                 b.extend(truth.body_xyz.iter().flat_map(|p| crop(p)).flat_map(|v| v.to_le_bytes()))
             }

@@ -21,8 +21,8 @@ use super::registers::{
     self as reg, AcquisitionMode, CameraDescription, CameraSettings, DeviceIdentity, Effect, Registers, StreamChannel,
 };
 use crate::frame::{EncodedFrame, unix_ns_now};
-use crate::render::camera::Window;
 use crate::metrics::{Counter, Histogram, Registry};
+use crate::render::camera::Window;
 use std::collections::VecDeque;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};

@@ -235,8 +235,8 @@ impl CameraSettings {
     /// Bytes of one block (pixels, plus the chunks when chunk mode is on: metadata, and
     /// truth when configured).
     pub fn payload_size(&self) -> u64 {
-        let chunks = super::chunk::CHUNK_OVERHEAD as u64
-            + super::chunk::truth_chunks_len(self.truth, self.width, self.height);
+        let chunks =
+            super::chunk::CHUNK_OVERHEAD as u64 + super::chunk::truth_chunks_len(self.truth, self.width, self.height);
         self.image_bytes() + if self.chunk_mode { chunks } else { 0 }
     }
 }
