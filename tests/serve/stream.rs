@@ -696,8 +696,12 @@ fn a_truncated_or_oversized_truth_block_waits_or_is_refused_before_allocating() 
     *flipped.last_mut().unwrap() ^= 1;
     assert!(matches!(decode_frame_with_truth(&flipped), Err(DecodeError::Malformed(Malformed::TruthBlock { .. }))));
     // A version 1 header with bit 4 set has no block: the frame ends at its payload.
-    let mut v1 = example_frame();
-    v1.meta.flags = FrameFlags(FrameFlags::TRUTH);
-    let enc = v1.encode();
-    assert_eq!(decode_frame_with_truth(&enc.bytes).unwrap().2, HEADER_LEN + 8);
+    let mut v1 = EXAMPLE_BYTES;
+    v1[20] |= FrameFlags::TRUTH as u8;
+    reseal(&mut v1);
+    assert_eq!(decode_frame_with_truth(&v1).unwrap().2, HEADER_LEN + 8);
+    // And a frame encoded without truth never claims a block, whatever its meta says.
+    let mut f = example_frame();
+    f.meta.flags = f.meta.flags.with(FrameFlags::TRUTH);
+    assert_eq!(f.encode().bytes, EXAMPLE_BYTES);
 }

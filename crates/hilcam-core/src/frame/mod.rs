@@ -197,13 +197,15 @@ impl Frame {
         Ok(Frame { meta, pixels })
     }
 
-    /// Header + payload as one buffer, ready to be shared by all sinks.
+    /// Header + payload as one buffer, ready to be shared by all sinks (version 1: the
+    /// `TRUTH` bit is cleared, as no block follows; [`Frame::encode_with_truth`] adds one).
     pub fn encode(&self) -> EncodedFrame {
+        let meta = FrameMeta { flags: FrameFlags(self.meta.flags.0 & !FrameFlags::TRUTH), ..self.meta };
         let payload = self.pixels.to_le_bytes();
         let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
-        bytes.extend_from_slice(&encode_header(&self.meta, &payload));
+        bytes.extend_from_slice(&encode_header(&meta, &payload));
         bytes.extend_from_slice(&payload);
-        EncodedFrame { meta: self.meta, bytes, roi: None, truth: None }
+        EncodedFrame { meta, bytes, roi: None, truth: None }
     }
 }
 
