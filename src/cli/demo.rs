@@ -84,7 +84,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         stream: StreamSection { listen: "127.0.0.1:0".parse()?, ..Default::default() },
         record: None,
         metrics: MetricsSection { listen: None, print_interval_s: 2.0 },
-        output: OutputSection { gige: gige.clone() },
+        output: OutputSection { gige: gige.clone(), ..Default::default() },
         live: Default::default(),
     };
     cfg.validate().map_err(|(f, m)| anyhow::anyhow!("{f}: {m}"))?;

@@ -4,12 +4,14 @@ Usage: aravis_client.py ADDRESS FRAMES [Feature=value ...] [--trigger] [--roi-ce
 Opens the camera at ADDRESS, writes the features, acquires FRAMES buffers (with
 --trigger: TriggerMode=On, checks that nothing arrives untriggered, then one
 TriggerSoftware per frame) and prints one JSON object: per buffer its status,
-geometry, pixel format, leader timestamp, hilcam's metadata chunk and the centroid
-of the pixels above half the frame's maximum.
+geometry, pixel format, leader timestamp, hilcam's metadata chunk, its truth chunks
+(footprint; length and CRC-32 of each channel) and the centroid of the pixels above
+half the frame's maximum.
 """
 import json
 import struct
 import sys
+import zlib
 
 import gi
 
@@ -17,6 +19,8 @@ gi.require_version("Aravis", "0.8")
 from gi.repository import Aravis  # noqa: E402
 
 META_CHUNK_ID = 0x48430002
+FOOTPRINT_CHUNK_ID = 0x48430010
+TRUTH_CHUNK_IDS = {"depth": 0x48430011, "mask": 0x48430012, "normal": 0x48430013, "body_xyz": 0x48430014}
 
 
 def meta(buf):
@@ -29,6 +33,22 @@ def meta(buf):
         ">QIIQQQIHBBQ", bytes(raw[:56]))
     return {"frame_seq": frame_seq, "pose_seq": pose_seq, "flags": flags, "pose_t_ns": pose_t,
             "spp_milli": spp_milli, "integration_ns": integ, "bit_depth": bits}
+
+
+def truth(buf):
+    """hilcam's truth chunks: the footprint, and per channel present its length and CRC-32."""
+    if not buf.has_chunks():
+        return None
+    raw = buf.get_chunk_data(FOOTPRINT_CHUNK_ID)
+    if raw is None or len(raw) < 40:
+        return None
+    pixels, cx, cy, c0, r0, c1, r1 = struct.unpack(">QddIIII", bytes(raw[:40]))
+    out = {"target_pixels": pixels, "centroid": [cx, cy] if pixels else None, "bbox": [c0, r0, c1, r1]}
+    for name, cid in TRUTH_CHUNK_IDS.items():
+        data = buf.get_chunk_data(cid)
+        if data:  # Aravis gives empty data for a chunk id not in the block
+            out[name] = {"len": len(data), "crc32": zlib.crc32(bytes(data))}
+    return out
 
 
 def centroid(data, w, h, bpp):
@@ -102,7 +122,7 @@ def main():
             w, h = buf.get_image_width(), buf.get_image_height()
             fmt = buf.get_image_pixel_format()
             bpp = 1 if fmt == 0x01080001 else 2
-            rec.update({"width": w, "height": h, "pixel_format": fmt, "meta": meta(buf)})
+            rec.update({"width": w, "height": h, "pixel_format": fmt, "meta": meta(buf), "truth": truth(buf)})
             c, mx = centroid(buf.get_data(), w, h, bpp)
             rec.update({"centroid": c, "max": mx})
         out["buffers"].append(rec)

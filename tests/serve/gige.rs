@@ -39,6 +39,7 @@ pub(crate) fn camera(w: u32, h: u32) -> CameraDescription {
         auto_exposure: true,
         frame_rate_hz: RATE_HZ as f32,
         frame_rate_max_hz: reg::FRAME_RATE_MAX,
+        truth: Default::default(),
     }
 }
 
@@ -453,7 +454,7 @@ async fn resend_requests_are_answered_and_packet_delay_is_honoured() {
 
 /// A 96×96 camera (f = 200 px) looking at a unit sphere, with a 12-bit ADC: the
 /// sensor's DN is what the GigE stream carries.
-fn dn_sphere_scene(dir: &std::path::Path) -> std::path::PathBuf {
+pub(crate) fn dn_sphere_scene(dir: &std::path::Path) -> std::path::PathBuf {
     serve_common::sphere_scene_with(
         dir,
         96,

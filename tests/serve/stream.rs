@@ -65,9 +65,9 @@ fn decoder_names_each_violation() {
     b[0] = b'X';
     assert!(matches!(mal(&b), Malformed::Magic(_)));
     let mut b = good;
-    b[4] = 2;
+    b[4] = 3;
     reseal(&mut b);
-    assert_eq!(mal(&b), Malformed::Version(2));
+    assert_eq!(mal(&b), Malformed::Version(3));
     let mut b = good;
     b[6] = 96;
     reseal(&mut b);
@@ -636,4 +636,72 @@ async fn recv_command_saves_frames_and_reports_gaps() {
         assert_eq!(img.into_raw(), data);
     }
     server.shutdown().await;
+}
+
+/// The truth of the worked example in docs/protocol.md ("Ground truth block"): the
+/// frame's pixels (1, 0) and (0, 1) see material 0 at 5 m and 5.25 m.
+fn example_truth() -> hilcam_core::render::truth::TruthImage {
+    hilcam_core::render::truth::TruthImage {
+        width: 2,
+        height: 2,
+        channels: hilcam_core::render::truth::TruthChannels::parse("depth,mask").unwrap(),
+        mask: vec![0, 1, 1, 0],
+        depth: vec![f32::INFINITY, 5.0, 5.25, f32::INFINITY],
+        normal: Default::default(),
+        body_xyz: Default::default(),
+    }
+}
+
+/// The hex dump of the truth worked example in docs/protocol.md, as bytes.
+fn documented_truth_example() -> Vec<u8> {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/protocol.md")).unwrap();
+    let start = doc.find("### Worked example with truth").expect("section in docs/protocol.md");
+    let block = doc[start..].split("```").nth(1).expect("a code block");
+    block
+        .lines()
+        .filter_map(|l| l.split_once(": "))
+        .flat_map(|(_, rest)| {
+            rest.split("   ").next().unwrap().split_whitespace().map(|h| u8::from_str_radix(h, 16).unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn truth_worked_example_encodes_to_the_documented_bytes_and_decodes_back() {
+    let enc = example_frame().encode_with_truth(Arc::new(example_truth()));
+    let doc = documented_truth_example();
+    assert_eq!(enc.bytes, doc, "docs/protocol.md \"Worked example with truth\"");
+    let (frame, truth, used) = decode_frame_with_truth(&doc).unwrap();
+    assert_eq!(used, doc.len());
+    assert_eq!(frame.pixels, example_frame().pixels);
+    assert_eq!(frame.meta.flags.0, FrameFlags::LATE | FrameFlags::EXTRAPOLATED | FrameFlags::TRUTH);
+    let t = truth.unwrap();
+    assert_eq!((t.image.mask.clone(), t.image.depth.clone()), (example_truth().mask, example_truth().depth));
+    let fp = t.footprint.unwrap();
+    assert_eq!((fp.pixels, fp.centroid_px, fp.bbox_px), (2, [1.0, 1.0], [0, 0, 2, 2]));
+    // The payload accessor stops before the block.
+    assert_eq!(enc.payload(), &doc[HEADER_LEN..HEADER_LEN + 8]);
+}
+
+#[test]
+fn a_truncated_or_oversized_truth_block_waits_or_is_refused_before_allocating() {
+    let doc = example_frame().encode_with_truth(Arc::new(example_truth())).bytes;
+    for cut in [HEADER_LEN + 8, HEADER_LEN + 12, doc.len() - 1] {
+        assert!(matches!(decode_frame_with_truth(&doc[..cut]), Err(DecodeError::Incomplete { .. })), "cut {cut}");
+    }
+    let mut big = doc.clone();
+    big[HEADER_LEN + 8..HEADER_LEN + 16].copy_from_slice(&u64::MAX.to_le_bytes());
+    assert!(matches!(decode_frame_with_truth(&big), Err(DecodeError::Malformed(Malformed::TruthLen { .. }))));
+    let mut flipped = doc.clone();
+    *flipped.last_mut().unwrap() ^= 1;
+    assert!(matches!(decode_frame_with_truth(&flipped), Err(DecodeError::Malformed(Malformed::TruthBlock { .. }))));
+    // A version 1 header with bit 4 set has no block: the frame ends at its payload.
+    let mut v1 = EXAMPLE_BYTES;
+    v1[20] |= FrameFlags::TRUTH as u8;
+    reseal(&mut v1);
+    assert_eq!(decode_frame_with_truth(&v1).unwrap().2, HEADER_LEN + 8);
+    // And a frame encoded without truth never claims a block, whatever its meta says.
+    let mut f = example_frame();
+    f.meta.flags = f.meta.flags.with(FrameFlags::TRUTH);
+    assert_eq!(f.encode().bytes, EXAMPLE_BYTES);
 }

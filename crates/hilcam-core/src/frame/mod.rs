@@ -13,6 +13,8 @@ use crate::render::integrator::Spp;
 use serde::{Deserialize, Serialize};
 use std::time::{SystemTime, UNIX_EPOCH};
 
+pub mod truth_block;
+
 pub use crate::render::film::PixelFormat;
 
 /// Per-frame flag bits (header bytes 20..24). Unknown bits are preserved, not rejected,
@@ -34,6 +36,9 @@ impl FrameFlags {
     /// `[pose_t_ns + r·line_time_ns, … + integration_s]`. Without it the frame shows the
     /// instant `pose_t_ns`.
     pub const EXPOSURE_START: u32 = 1 << 3;
+    /// A ground-truth block follows the payload ([`truth_block`]); only in version 2
+    /// headers (a version 1 receiver cannot skip the block, so it must refuse the frame).
+    pub const TRUTH: u32 = 1 << 4;
 
     pub fn contains(self, bit: u32) -> bool {
         self.0 & bit == bit
@@ -192,13 +197,15 @@ impl Frame {
         Ok(Frame { meta, pixels })
     }
 
-    /// Header + payload as one buffer, ready to be shared by all sinks.
+    /// Header + payload as one buffer, ready to be shared by all sinks (version 1: the
+    /// `TRUTH` bit is cleared, as no block follows; [`Frame::encode_with_truth`] adds one).
     pub fn encode(&self) -> EncodedFrame {
+        let meta = FrameMeta { flags: FrameFlags(self.meta.flags.0 & !FrameFlags::TRUTH), ..self.meta };
         let payload = self.pixels.to_le_bytes();
         let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
-        bytes.extend_from_slice(&encode_header(&self.meta, &payload));
+        bytes.extend_from_slice(&encode_header(&meta, &payload));
         bytes.extend_from_slice(&payload);
-        EncodedFrame { meta: self.meta, bytes, roi: None }
+        EncodedFrame { meta, bytes, roi: None, truth: None }
     }
 }
 
@@ -222,11 +229,14 @@ pub struct EncodedFrame {
     /// (`FrameRequest::roi`); None: the whole array. Not on the wire: the header has
     /// the size, and a GigE Vision stream carries the offsets in its leader.
     pub roi: Option<crate::render::camera::Window>,
+    /// The frame's ground truth when `[output] truth` asks for it (also encoded in
+    /// `bytes`, after the payload: [`truth_block`]).
+    pub truth: Option<std::sync::Arc<crate::render::truth::TruthImage>>,
 }
 
 impl EncodedFrame {
     pub fn payload(&self) -> &[u8] {
-        &self.bytes[HEADER_LEN..]
+        &self.bytes[HEADER_LEN..HEADER_LEN + self.meta.payload_len() as usize]
     }
     /// The pixels, decoded from the payload (a copy; for sinks that need typed pixels).
     pub fn pixels(&self) -> Pixels {
@@ -236,8 +246,12 @@ impl EncodedFrame {
 
 /// Header magic, bytes 0..4: ASCII "HLCF" (HiLcam Frame).
 pub const MAGIC: [u8; 4] = *b"HLCF";
-/// Wire version this codec writes and accepts.
+/// Wire version of a frame without a truth block (every frame when `[output] truth` is
+/// off); this codec accepts it and [`VERSION_TRUTH`].
 pub const VERSION: u16 = 1;
+/// Wire version of a frame that may carry a truth block ([`FrameFlags::TRUTH`]): the
+/// same 88-byte header.
+pub const VERSION_TRUTH: u16 = 2;
 /// Header size in bytes for version 1 (also sent in bytes 6..8).
 pub const HEADER_LEN: usize = 88;
 
@@ -256,6 +270,9 @@ pub struct FrameHeader {
     pub meta: FrameMeta,
     pub payload_len: u64,
     pub payload_crc: u32,
+    /// A truth block (`u64` length, then the block) follows the payload: version 2 with
+    /// [`FrameFlags::TRUTH`].
+    pub truth_block: bool,
 }
 
 /// Why bytes could not be decoded. `Incomplete` is normal on a stream (read more);
@@ -273,9 +290,9 @@ pub enum DecodeError {
 pub enum Malformed {
     #[error("bad magic {0:02x?} (expected \"HLCF\")")]
     Magic([u8; 4]),
-    #[error("unsupported version {0} (this build speaks {VERSION})")]
+    #[error("unsupported version {0} (this build speaks {VERSION} and {VERSION_TRUTH})")]
     Version(u16),
-    #[error("header_len {0} (version 1 requires {HEADER_LEN})")]
+    #[error("header_len {0} (versions 1 and 2 require {HEADER_LEN})")]
     HeaderLen(u16),
     #[error("header CRC {found:#010x}, computed {computed:#010x}")]
     HeaderCrc { found: u32, computed: u32 },
@@ -292,13 +309,20 @@ pub enum Malformed {
     /// A width or height above `MAX_SIDE_PX`: refused before anything is allocated.
     #[error("{field} {value} above the limit of {limit} pixels")]
     Dimension { field: &'static str, value: u32, limit: u32 },
+    /// A truth block length no `width`×`height` frame can have: refused before allocating.
+    #[error("truth_len {found} above the limit of {limit} bytes for {width}x{height}")]
+    TruthLen { found: u64, limit: u64, width: u32, height: u32 },
+    /// A truth block that fails its CRC or layout (its frame only; the length was read).
+    #[error("frame {seq}: {message}")]
+    TruthBlock { seq: u64, message: String },
 }
 
 /// Encode the header for `meta` and `payload` (the payload's length and CRC go in it).
 pub fn encode_header(meta: &FrameMeta, payload: &[u8]) -> [u8; HEADER_LEN] {
     let mut h = [0u8; HEADER_LEN];
     h[0..4].copy_from_slice(&MAGIC);
-    h[4..6].copy_from_slice(&VERSION.to_le_bytes());
+    let version = if meta.flags.contains(FrameFlags::TRUTH) { VERSION_TRUTH } else { VERSION };
+    h[4..6].copy_from_slice(&version.to_le_bytes());
     h[6..8].copy_from_slice(&(HEADER_LEN as u16).to_le_bytes());
     h[8..16].copy_from_slice(&meta.frame_seq.to_le_bytes());
     h[16..20].copy_from_slice(&meta.pose_seq.to_le_bytes());
@@ -348,7 +372,7 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
         return Err(Malformed::Magic(magic).into());
     }
     let version = u16_at(b, 4);
-    if version != VERSION {
+    if version != VERSION && version != VERSION_TRUTH {
         return Err(Malformed::Version(version).into());
     }
     let header_len = u16_at(b, 6);
@@ -402,7 +426,8 @@ pub fn decode_header(buf: &[u8]) -> Result<FrameHeader, DecodeError> {
         }
         .into());
     }
-    Ok(FrameHeader { meta, payload_len, payload_crc: u32_at(b, 68) })
+    let truth_block = version == VERSION_TRUTH && meta.flags.contains(FrameFlags::TRUTH);
+    Ok(FrameHeader { meta, payload_len, payload_crc: u32_at(b, 68), truth_block })
 }
 
 /// Check a payload against its header's CRC.
@@ -414,18 +439,44 @@ pub fn check_payload(header: &FrameHeader, payload: &[u8]) -> Result<(), Malform
     Ok(())
 }
 
-/// Decode one whole frame from the start of `buf`; returns it and the bytes consumed.
+/// Decode one whole frame from the start of `buf`; returns it and the bytes consumed
+/// (a truth block, if any, is consumed and dropped: [`decode_frame_with_truth`]).
 pub fn decode_frame(buf: &[u8]) -> Result<(Frame, usize), DecodeError> {
+    decode_frame_with_truth(buf).map(|(f, _, used)| (f, used))
+}
+
+/// [`decode_frame`] with the frame's truth block, decoded (`None` without one; a block
+/// that fails its checks is an error after the whole frame has arrived).
+#[allow(clippy::type_complexity)]
+pub fn decode_frame_with_truth(buf: &[u8]) -> Result<(Frame, Option<truth_block::WireTruth>, usize), DecodeError> {
     let header = decode_header(buf)?;
-    let total = HEADER_LEN as u64 + header.payload_len;
+    let (w, h) = (header.meta.width, header.meta.height);
+    let end = HEADER_LEN as u64 + header.payload_len;
+    let total = if header.truth_block {
+        let Some(len) = buf.get(end as usize..end as usize + 8) else {
+            return Err(DecodeError::Incomplete { needed: (end + 8 - buf.len() as u64) as usize });
+        };
+        let len = u64::from_le_bytes(len.try_into().expect("8 bytes"));
+        truth_block::check_truth_len(w, h, len)?;
+        end + 8 + len
+    } else {
+        end
+    };
     if (buf.len() as u64) < total {
         return Err(DecodeError::Incomplete { needed: (total - buf.len() as u64) as usize });
     }
-    let payload = &buf[HEADER_LEN..total as usize];
+    let payload = &buf[HEADER_LEN..end as usize];
     check_payload(&header, payload)?;
+    let truth = match header.truth_block {
+        false => None,
+        true => Some(
+            truth_block::decode_truth_block(w, h, &buf[end as usize + 8..total as usize])
+                .map_err(|e| Malformed::TruthBlock { seq: header.meta.frame_seq, message: e.to_string() })?,
+        ),
+    };
     let pixels = pixels_from_le_bytes(header.meta.format, header.meta.bit_depth, payload);
     let frame = Frame { meta: header.meta, pixels };
-    Ok((frame, total as usize))
+    Ok((frame, truth, total as usize))
 }
 
 /// Pixels from a little-endian payload (length must be a multiple of the pixel size;

@@ -39,7 +39,8 @@ pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
 
 pub mod manifest;
 mod shard;
-pub mod truth_exr;
+/// The truth EXR writer, shared with the recorder (`hilcam serve`).
+pub use crate::sink::truth_exr;
 pub use shard::{SHARD_COUNT_VAR, Shard};
 
 /// Errors of replay, sharding and merging; each names the file, line or variable.

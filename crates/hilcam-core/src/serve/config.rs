@@ -52,6 +52,10 @@
 //! max_width = 512                      # also max_rate_hz, jpeg_quality, queue_depth,
 //!                                      # max_viewers, evict_after_s
 //!
+//! [output]
+//! truth = ["depth", "mask"]            # optional ground truth with every frame: depth,
+//!                                      # mask, normal, body_xyz (docs/protocol.md)
+//!
 //! [output.gige]                        # optional: also a GigE Vision camera (docs/gige.md)
 //! address = "127.0.0.1"                # GVCP on UDP 3956, GVSP from the same address
 //! packet_size = 1500                   # also stream_port, serial, model, resend_ring, zip_xml
@@ -60,6 +64,7 @@
 use super::governor::Policy;
 use super::scheduler::TriggerMode;
 use crate::render::integrator::SamplerKind;
+use crate::render::truth::TruthChannels;
 use crate::sink::ImageFormat;
 use serde::Deserialize;
 use std::net::SocketAddr;
@@ -105,6 +110,18 @@ pub struct ServeConfig {
 pub struct OutputSection {
     /// `[output.gige]`: also be a GigE Vision camera (docs/gige.md).
     pub gige: Option<crate::sink::gige::GigeConfig>,
+    /// Ground-truth channels sent with every frame (`truth = ["depth", "mask"]`): a block
+    /// after the payload on the stream, `truth_<k>.exr` from the recorder, chunks on GigE.
+    /// Empty (the default): none, and no frame changes.
+    #[serde(default, deserialize_with = "truth_channels")]
+    pub truth: TruthChannels,
+}
+
+/// `truth = [...]`: channel names; an unknown one is refused with the allowed list (the
+/// TOML error adds file, line and column).
+fn truth_channels<'de, D: serde::Deserializer<'de>>(d: D) -> Result<TruthChannels, D::Error> {
+    let names = Vec::<String>::deserialize(d)?;
+    TruthChannels::from_names(names.iter().map(String::as_str)).map_err(serde::de::Error::custom)
 }
 
 /// `[input]`: where poses come from. `kind` picks the variant and each variant takes
@@ -440,6 +457,16 @@ mod tests {
         assert!(parse(&format!("{on}jpeg_quality = 0\n")).unwrap_err().starts_with("live.jpeg_quality"));
         assert!(parse(&format!("{on}colour = 1\n")).unwrap_err().contains("colour"));
         assert!(!parse("kind = \"none\"\n").unwrap().live.enabled, "off by default");
+    }
+
+    #[test]
+    fn truth_channels_parse_and_an_unknown_name_is_refused_with_its_line_and_the_allowed_list() {
+        assert!(parse("kind = \"none\"\n").unwrap().output.truth.is_empty(), "off by default");
+        let c = parse("kind = \"none\"\n[output]\ntruth = [\"mask\", \"depth\"]\n").unwrap();
+        assert_eq!(c.output.truth.to_string(), "depth,mask");
+        let e = parse("kind = \"none\"\n[output]\ntruth = [\"depth\", \"range\"]\n").unwrap_err();
+        assert!(e.contains("line 5"), "{e}");
+        assert!(e.contains("unknown truth channel `range` (allowed: depth, mask, normal, body_xyz)"), "{e}");
     }
 
     #[test]

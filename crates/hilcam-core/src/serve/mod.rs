@@ -177,6 +177,7 @@ fn scheduler_config(
         requests,
         rate_requests,
         live: None,
+        truth: cfg.output.truth,
     }
 }
 

@@ -18,6 +18,7 @@ use crate::metrics::{Counter, Gauge, Histogram, Registry};
 use crate::pipeline::{FramePipeline, FrameRequest};
 use crate::pose::Pose;
 use crate::render::integrator::RenderSettings;
+use crate::render::truth::TruthChannels;
 use crate::session::writer::SessionTap;
 use crate::session::{FrameFailedLine, FrameLine, SessionLine};
 use crate::sink::Sink;
@@ -71,6 +72,9 @@ pub struct SchedulerConfig {
     pub rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
     /// The live view (`[live]`): shown every delivered frame, never waited for.
     pub live: Option<super::live::LiveTap>,
+    /// Ground truth computed with every frame and sent after its payload (`[output] truth`);
+    /// empty: none, and the frames are the same bytes as without the key.
+    pub truth: TruthChannels,
 }
 
 /// See [`SchedulerConfig::fault`].
@@ -147,6 +151,8 @@ struct Done {
     quality: Quality,
     late: bool,
     integration_s: Option<f64>,
+    /// Time spent computing the frame's truth (None with truth off).
+    truth_time: Option<Duration>,
 }
 
 /// The scheduler's metric series. Built once by `serve::run` before the server
@@ -161,6 +167,7 @@ pub struct SchedulerMetrics {
     failed: Vec<(&'static str, Counter)>,
     triggers: Counter,
     render: Arc<Histogram>,
+    truth: Arc<Histogram>,
     spp: Gauge,
     spp_milli: Gauge,
     depth: Gauge,
@@ -198,6 +205,11 @@ impl SchedulerMetrics {
                 .collect(),
             triggers: r.counter("hilcam_triggers_total", "External trigger messages received", &[]),
             render: r.histogram("hilcam_render_seconds", "Render + sensor + encode time per frame", &[]),
+            truth: r.histogram(
+                "hilcam_truth_seconds",
+                "Ground-truth time per frame ([output] truth; part of hilcam_render_seconds)",
+                &[],
+            ),
             spp: r.gauge(
                 "hilcam_frame_spp",
                 "Whole samples per pixel of the last frame (the budget's integer part)",
@@ -270,6 +282,7 @@ fn spawn_renderer(
     mut pipeline: FramePipeline,
     budget: Duration,
     fault: Option<FaultInjector>,
+    truth: TruthChannels,
     jobs: std::sync::mpsc::Receiver<Job>,
     done: mpsc::Sender<Done>,
 ) -> std::io::Result<std::thread::JoinHandle<()>> {
@@ -281,15 +294,15 @@ fn spawn_renderer(
                 if let Some(f) = &fault {
                     f(job.index);
                 }
-                render_job(&mut pipeline, &job, budget)
+                render_job(&mut pipeline, &job, budget, truth)
             }));
-            let (frame, integration_s) = attempt.unwrap_or_else(|payload| {
+            let (frame, integration_s, truth_time) = attempt.unwrap_or_else(|payload| {
                 pipeline.reset();
                 let message = panic_message(payload.as_ref());
-                (Err(FrameFailure { reason: "panic", message }), None)
+                (Err(FrameFailure { reason: "panic", message }), None, None)
             });
             let late = frame.as_ref().map(|f| f.meta.flags.contains(FrameFlags::LATE)).unwrap_or(false);
-            let d = Done { job, frame, render_time: t0.elapsed(), quality, late, integration_s };
+            let d = Done { job, frame, render_time: t0.elapsed(), quality, late, integration_s, truth_time };
             if done.blocking_send(d).is_err() {
                 break;
             }
@@ -297,16 +310,27 @@ fn spawn_renderer(
     })
 }
 
-/// Render, convert and encode one job.
+/// Render, convert and encode one job (with its truth when `truth` is not empty: the
+/// frame's time to compute it is returned).
 fn render_job(
     pipeline: &mut FramePipeline,
     job: &Job,
     budget: Duration,
-) -> (Result<Arc<EncodedFrame>, FrameFailure>, Option<f64>) {
+    truth: TruthChannels,
+) -> (Result<Arc<EncodedFrame>, FrameFailure>, Option<f64>, Option<Duration>) {
     let f = match pipeline.frame_requested(&job.pose, &job.settings, job.index, &job.request) {
         Ok(f) => f,
-        Err(e) => return (Err(FrameFailure { reason: "sensor", message: e.to_string() }), None),
+        Err(e) => return (Err(FrameFailure { reason: "sensor", message: e.to_string() }), None, None),
     };
+    let t0 = Instant::now();
+    let truth = match truth.is_empty() {
+        true => None,
+        false => match pipeline.truth(&job.pose, &job.request, truth) {
+            Ok(t) => Some(Arc::new(t)),
+            Err(e) => return (Err(FrameFailure { reason: "sensor", message: e.to_string() }), None, None),
+        },
+    };
+    let truth_time = truth.as_ref().map(|_| t0.elapsed());
     let late = job.reference.elapsed() > budget;
     let flags = if late { job.flags.with(FrameFlags::LATE) } else { job.flags };
     let meta =
@@ -314,9 +338,13 @@ fn render_job(
     let integration_s = f.integration_s;
     let encoded = Frame::new(meta, f.pixels).map(|mut fr| {
         fr.meta.emit_unix_ns = unix_ns_now();
-        Arc::new(EncodedFrame { roi: job.request.roi, ..fr.encode() })
+        let encoded = match truth {
+            Some(t) => fr.encode_with_truth(t),
+            None => fr.encode(),
+        };
+        Arc::new(EncodedFrame { roi: job.request.roi, ..encoded })
     });
-    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), integration_s)
+    (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), integration_s, truth_time)
 }
 
 /// The text of a panic payload (`panic!` with a literal or a formatted message).
@@ -453,6 +481,9 @@ impl Loop {
         let (m, s) = (&self.m, &mut self.s);
         self.render_times.record(d.render_time);
         m.render.record_duration(d.render_time);
+        if let Some(t) = d.truth_time {
+            m.truth.record_duration(t);
+        }
         record(self.cfg.session.as_ref(), d);
         match &d.frame {
             Ok(frame) => {
@@ -654,7 +685,7 @@ pub async fn run_scheduler(
 ) -> SchedulerSummary {
     let (job_tx, job_rx) = std::sync::mpsc::channel::<Job>();
     let (done_tx, mut done_rx) = mpsc::channel::<Done>(1);
-    let renderer = spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), job_rx, done_tx);
+    let renderer = spawn_renderer(pipeline, cfg.budget, cfg.fault.clone(), cfg.truth, job_rx, done_tx);
     let mut rate = configured_rate(&cfg).map(|hz| TickRate::new(hz, cfg.rate_requests.clone()));
     let mut ticker = rate.as_ref().map(|r| ticker_at(r.current, tokio::time::Instant::now()));
     metrics.rate_millihz.set(rate.as_ref().map_or(0, |r| (r.current * 1e3).round() as i64));

@@ -1,10 +1,12 @@
-//! The reference frame stream client: connect, verify both CRCs of every frame, save
-//! frames, and measure rate, sequence gaps and latency. `hilcam recv` is a thin CLI
+//! The reference frame stream client: connect, verify both CRCs of every frame (and of
+//! its truth block), save frames (and `truth_<k>.exr`), and measure rate, sequence gaps
+//! and latency. `hilcam recv` is a thin CLI
 //! over [`receive`]; the demo runs it in-process.
 
 use super::recorder::{ImageFormat, frame_file_name, write_frame_image};
+use crate::frame::truth_block::{WireTruth, check_truth_len, decode_truth_block};
 use crate::frame::{
-    DecodeError, HEADER_LEN, Malformed, check_payload, decode_header, pixels_from_le_bytes, unix_ns_now,
+    DecodeError, FrameHeader, HEADER_LEN, Malformed, check_payload, decode_header, pixels_from_le_bytes, unix_ns_now,
 };
 use crate::metrics::Histogram;
 use std::net::SocketAddr;
@@ -68,6 +70,10 @@ pub struct RecvSummary {
     pub missing: u64,
     /// Frames whose payload CRC did not match (not saved, not in `seqs`).
     pub payload_crc_errors: u64,
+    /// Good frames that carried a truth block ([`crate::frame::truth_block`]) that decoded.
+    pub truth_frames: u64,
+    /// Truth blocks that failed their CRC or layout (the frame's image is still kept).
+    pub truth_errors: u64,
     /// The server closed in the middle of a frame.
     pub truncated: bool,
     /// From the first header byte to the last frame's last byte.
@@ -108,6 +114,32 @@ async fn read_full(rd: &mut (impl AsyncReadExt + Unpin), buf: &mut [u8]) -> std:
     Ok(true)
 }
 
+enum RecvFail {
+    Protocol(Malformed),
+    Truncated,
+}
+
+/// Read a frame's truth block (its length first, checked before allocating) into
+/// `block` and decode it; a block whose content fails is that frame's truth error only.
+async fn read_truth(
+    rd: &mut (impl AsyncReadExt + Unpin),
+    h: &FrameHeader,
+    block: &mut Vec<u8>,
+) -> Result<Result<WireTruth, Malformed>, RecvFail> {
+    let mut len = [0u8; 8];
+    if !matches!(read_full(rd, &mut len).await, Ok(true)) {
+        return Err(RecvFail::Truncated);
+    }
+    let len = u64::from_le_bytes(len);
+    check_truth_len(h.meta.width, h.meta.height, len).map_err(RecvFail::Protocol)?;
+    block.resize(len as usize, 0);
+    if !matches!(read_full(rd, block).await, Ok(true)) && !block.is_empty() {
+        return Err(RecvFail::Truncated);
+    }
+    Ok(decode_truth_block(h.meta.width, h.meta.height, block)
+        .map_err(|e| Malformed::TruthBlock { seq: h.meta.frame_seq, message: e.to_string() }))
+}
+
 /// Receive frames from a hilcam stream at `addr` until `opts.count` frames or the
 /// server closes; see [`RecvSummary`].
 pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary, RecvError> {
@@ -126,6 +158,7 @@ pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary,
     let mut last_progress = Instant::now();
     let mut header = [0u8; HEADER_LEN];
     let mut payload = Vec::new();
+    let mut block = Vec::new();
     while opts.count.is_none_or(|n| s.frames < n) {
         match read_full(&mut rd, &mut header).await {
             Ok(true) => {}
@@ -154,6 +187,18 @@ pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary,
                 break;
             }
         }
+        let truth = match h.truth_block {
+            false => None,
+            true => match read_truth(&mut rd, &h, &mut block).await {
+                Ok(t) => Some(t),
+                Err(RecvFail::Protocol(source)) => return Err(RecvError::Protocol { addr, frames: s.frames, source }),
+                Err(RecvFail::Truncated) => {
+                    s.truncated = true;
+                    tracing::warn!(seq = h.meta.frame_seq, "stream closed in the middle of a truth block");
+                    break;
+                }
+            },
+        };
         let now_ns = unix_ns_now();
         last_done = Instant::now();
         if let Err(e) = check_payload(&h, &payload) {
@@ -172,7 +217,19 @@ pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary,
         }
         s.seqs.push(seq);
         s.frames += 1;
-        s.bytes += (HEADER_LEN + payload.len()) as u64;
+        s.bytes += (HEADER_LEN + payload.len()) as u64 + if h.truth_block { 8 + block.len() as u64 } else { 0 };
+        let truth = match truth {
+            Some(Ok(t)) => {
+                s.truth_frames += 1;
+                Some(t)
+            }
+            Some(Err(e)) => {
+                s.truth_errors += 1;
+                tracing::warn!(seq, "{e}");
+                None
+            }
+            None => None,
+        };
         emit_h.record(now_ns.saturating_sub(h.meta.emit_unix_ns));
         pose_h.record(now_ns.saturating_sub(h.meta.pose_arrival_unix_ns));
         if let Some(dir) = &opts.out_dir {
@@ -184,6 +241,15 @@ pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary,
                 .await
                 .map_err(|e| RecvError::Save { path: path.clone(), message: e.to_string() })?
                 .map_err(|e| RecvError::Save { path, message: e.to_string() })?;
+            if let Some(t) = truth {
+                // The client does not know the scene: the mask table stays empty.
+                let path = dir.join(super::truth_exr::truth_file_name(seq));
+                let p = path.clone();
+                tokio::task::spawn_blocking(move || super::truth_exr::write_truth_exr(&p, &t.image, &[]))
+                    .await
+                    .map_err(|e| RecvError::Save { path: path.clone(), message: e.to_string() })?
+                    .map_err(|e| RecvError::Save { path, message: e.to_string() })?;
+            }
         }
         if let Some(every) = opts.progress
             && last_progress.elapsed() >= every

@@ -8,6 +8,7 @@
 //! - [`failure_log`]: one report per stretch of failed writes (a full disk), not one per frame.
 //! - [`line_log`]: append-only JSON lines, each written whole or not at all.
 //! - [`client`]: the reference stream client (`hilcam recv`, and the in-process demo).
+//! - [`truth_exr`]: a frame's ground truth as a multi-channel EXR (recorder and replay).
 
 pub mod client;
 pub mod failure_log;
@@ -17,6 +18,7 @@ pub mod null;
 pub mod queue;
 pub mod recorder;
 pub mod tcp;
+pub mod truth_exr;
 
 pub use client::{RecvError, RecvOptions, RecvSummary, receive};
 pub use null::NullSink;

@@ -160,11 +160,20 @@ pub struct RecorderConfig {
     pub queue_depth: usize,
     /// While writes keep failing, report "still failing" at most this often (default 5 s).
     pub failure_report_every: Duration,
+    /// The scene's materials, named in a truth EXR's mask table (frames that carry truth
+    /// are saved with `truth_<k>.exr` beside the image).
+    pub materials: Vec<crate::render::target::Material>,
 }
 
 impl RecorderConfig {
     pub fn new(dir: impl Into<PathBuf>, format: ImageFormat) -> Self {
-        RecorderConfig { dir: dir.into(), format, queue_depth: 8, failure_report_every: Duration::from_secs(5) }
+        RecorderConfig {
+            dir: dir.into(),
+            format,
+            queue_depth: 8,
+            failure_report_every: Duration::from_secs(5),
+            materials: Vec::new(),
+        }
     }
 }
 
@@ -175,6 +184,9 @@ pub enum RecorderError {
     /// The image file could not be written (the error names the file).
     #[error("{0}")]
     Image(ImageWriteError),
+    /// The truth EXR could not be written (the error names the file).
+    #[error("{0}")]
+    Truth(super::truth_exr::TruthWriteError),
     #[error("recorder thread panicked")]
     Panicked,
 }
@@ -304,10 +316,37 @@ impl Recorder {
     }
 }
 
-/// Save one frame: the image (whole or not at all), then its log line; if the line
-/// cannot be written the image is removed again, so the log never misses a file present
-/// nor claims one absent.
+/// Save one frame: its truth EXR when it carries truth, the image (each whole or not at
+/// all), then its log line; when a later step fails the files already written are
+/// removed again, so the log never misses a file present nor claims one absent.
 fn record_one(cfg: &RecorderConfig, frame: &EncodedFrame, log: &mut LineLog) -> Result<(), (Reason, RecorderError)> {
+    let Some(truth) = &frame.truth else { return record_image(cfg, frame, log, None) };
+    let name = super::truth_exr::truth_file_name(frame.meta.frame_seq);
+    let path = cfg.dir.join(&name);
+    super::truth_exr::write_truth_exr(&path, truth, &cfg.materials).map_err(|e| {
+        let reason = match &e {
+            e if e.is_disk_full() => Reason::DiskFull,
+            super::truth_exr::TruthWriteError::Io { .. } => Reason::Io,
+            _ => Reason::Encode,
+        };
+        (reason, RecorderError::Truth(e))
+    })?;
+    record_image(cfg, frame, log, Some(TruthRecord::new(name, truth))).inspect_err(|_| remove(&path))
+}
+
+fn remove(path: &Path) {
+    if let Err(e) = std::fs::remove_file(path) {
+        tracing::error!(file = %path.display(), "cannot remove the file of a frame not logged: {e}");
+    }
+}
+
+/// Save the image, then the log line (with `truth`, whose file is written already).
+fn record_image(
+    cfg: &RecorderConfig,
+    frame: &EncodedFrame,
+    log: &mut LineLog,
+    truth: Option<TruthRecord>,
+) -> Result<(), (Reason, RecorderError)> {
     let m = &frame.meta;
     let name = frame_file_name(m.frame_seq, cfg.format);
     let path = cfg.dir.join(&name);
@@ -319,13 +358,11 @@ fn record_one(cfg: &RecorderConfig, frame: &EncodedFrame, log: &mut LineLog) -> 
         };
         (reason, RecorderError::Image(e))
     })?;
-    let rec = FrameRecord::new(m, frame.payload(), name);
+    let rec = FrameRecord { truth, ..FrameRecord::new(m, frame.payload(), name) };
     let line = serde_json::to_string(&rec).expect("FrameRecord serialises");
     log.append(&line).map_err(|source| {
         let reason = if film::is_disk_full(&source) { Reason::DiskFull } else { Reason::Io };
-        if let Err(e) = std::fs::remove_file(&path) {
-            tracing::error!(file = %path.display(), "cannot remove the image of a frame not logged: {e}");
-        }
+        remove(&path);
         (reason, RecorderError::Io { path: log.path().to_path_buf(), source })
     })
 }

@@ -5,9 +5,15 @@
 //! previous frame has arrived, so nothing is superseded); a loopback client reads every
 //! frame. The difference between the two p99s is what the scheduler, encoder and stream
 //! add to the render.
+//!
+//! With ground truth on (`[output] truth`), the server's own histograms give the truth
+//! time and the whole frame time of the same frames (`hilcam_truth_seconds`,
+//! `hilcam_render_seconds`, read off `/metrics` before it stops): their ratio is the cost
+//! of truth measured side by side, whatever the machine's load.
 
 use hilcam_core::link::InputEvent;
 use hilcam_core::render::integrator::Spp;
+use hilcam_core::render::truth::TruthChannels;
 use hilcam_core::serve::config::ServeConfig;
 use hilcam_core::serve::{Embed, ServeReport, run};
 use hilcam_core::sink::{ImageFormat, RecvOptions, receive};
@@ -21,14 +27,30 @@ pub struct ServeBenchRow {
     pub label: String,
     pub frames: u64,
     pub report: ServeReport,
+    /// With truth on: mean truth time and mean frame time (render + sensor + truth +
+    /// encode) of the same frames, ms.
+    pub truth_ms: Option<(f64, f64)>,
+    /// Bytes the client received per frame (header, payload and truth block).
+    pub bytes_per_frame: u64,
 }
 
 /// Serve `frames` frames of `scene` (scaled to `width`) and measure. Poses are paced at
 /// 1.5× the render time of a warm-up frame, so none waits behind another (superseded
 /// poses, if the machine slows down, are reported).
-pub async fn measure(scene: &Path, width: u32, spp: Spp, frames: u64, label: &str) -> anyhow::Result<ServeBenchRow> {
+pub async fn measure(
+    scene: &Path,
+    width: u32,
+    spp: Spp,
+    frames: u64,
+    truth: TruthChannels,
+    label: &str,
+) -> anyhow::Result<ServeBenchRow> {
     let text = "scene = \"x\"\n[stream]\nlisten = \"127.0.0.1:0\"\n[metrics]\nprint_interval_s = 3600.0\n";
     let mut cfg: ServeConfig = toml::from_str(text)?;
+    cfg.output.truth = truth;
+    if !truth.is_empty() {
+        cfg.metrics.listen = Some("127.0.0.1:0".parse()?);
+    }
     cfg.scene = scene.to_path_buf();
     cfg.width = Some(width);
     cfg.render.spp = Some(spp);
@@ -41,6 +63,11 @@ pub async fn measure(scene: &Path, width: u32, spp: Spp, frames: u64, label: &st
         let mut p = hilcam_core::pipeline::FramePipeline::new(loaded, camera)?;
         let t0 = Instant::now();
         p.frame(&base, &settings, 0)?;
+        if !truth.is_empty() {
+            // A frame with truth also computes and encodes it: pace for that too.
+            let t = p.truth(&base, &Default::default(), truth)?;
+            std::hint::black_box(hilcam_core::frame::truth_block::encode_truth_block(&t));
+        }
         Ok(t0.elapsed().mul_f64(1.5).max(Duration::from_millis(20)))
     })
     .await??;
@@ -60,10 +87,34 @@ pub async fn measure(scene: &Path, width: u32, spp: Spp, frames: u64, label: &st
         tx.send(InputEvent::Pose { pose, arrival: Instant::now() }).await?;
     }
     let summary = tokio::time::timeout(period * (frames as u32 + 4) + Duration::from_secs(30), client).await???;
+    let truth_ms = match info.metrics {
+        Some(addr) => {
+            let text = metrics_text(addr).await?;
+            let mean_ms = |name: &str| -> Option<f64> {
+                let get = |suffix: &str| {
+                    text.lines().find_map(|l| l.strip_prefix(&format!("{name}_{suffix} "))?.parse::<f64>().ok())
+                };
+                Some(get("sum")? / get("count")?.max(1.0) * 1e3)
+            };
+            mean_ms("hilcam_truth_seconds").zip(mean_ms("hilcam_render_seconds"))
+        }
+        None => None,
+    };
     let _ = stop_tx.send(());
     let report = server.await??;
     anyhow::ensure!(summary.frames == frames, "client received {} of {frames} frames", summary.frames);
-    Ok(ServeBenchRow { label: label.to_string(), frames, report })
+    let bytes_per_frame = summary.bytes / summary.frames.max(1);
+    Ok(ServeBenchRow { label: label.to_string(), frames, report, truth_ms, bytes_per_frame })
+}
+
+/// GET /metrics as text.
+async fn metrics_text(addr: std::net::SocketAddr) -> anyhow::Result<String> {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(addr).await?;
+    s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").await?;
+    let mut text = String::new();
+    s.read_to_string(&mut text).await?;
+    Ok(text)
 }
 
 pub fn print_table(rows: &[ServeBenchRow]) {
@@ -84,5 +135,15 @@ pub fn print_table(rows: &[ServeBenchRow]) {
             l99,
             l99 - s.render_p99_ms
         );
+    }
+    for r in rows {
+        println!("{}: {:.1} MB per frame on the stream", r.label, r.bytes_per_frame as f64 / 1e6);
+        if let Some((truth, frame)) = r.truth_ms {
+            println!(
+                "{}: truth {truth:.1} ms of a {frame:.1} ms frame ({:.1} %), means over the same frames",
+                r.label,
+                100.0 * truth / frame
+            );
+        }
     }
 }

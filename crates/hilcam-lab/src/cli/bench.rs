@@ -63,6 +63,11 @@ pub struct ServeBenchArgs {
     /// Samples per pixel for both cases (each scene's own depth is kept).
     #[arg(long, default_value_t = 2)]
     pub spp: u32,
+    /// Instead of the two cameras: the satellite's nav camera with ground truth off, then
+    /// on with these channels (`depth,mask,normal,body_xyz`), and truth's share of each
+    /// frame from the server's own histograms.
+    #[arg(long, value_parser = hilcam_core::render::truth::TruthChannels::parse)]
+    pub truth: Option<hilcam_core::render::truth::TruthChannels>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -269,21 +274,24 @@ fn render(a: RenderBenchArgs) -> anyhow::Result<()> {
 fn serve_bench(a: ServeBenchArgs) -> anyhow::Result<()> {
     use crate::bench::serve::{measure, print_table};
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    let spp = hilcam_core::render::integrator::Spp::whole(a.spp);
+    let satellite = std::path::Path::new("scenes/satellite.toml");
     let rows = rt.block_on(async {
-        let nav = measure(
-            std::path::Path::new("scenes/satellite.toml"),
-            1024,
-            hilcam_core::render::integrator::Spp::whole(a.spp),
-            a.frames,
-            "satellite, nav camera 1024²",
-        )
-        .await?;
+        if let Some(truth) = a.truth {
+            let none = hilcam_core::render::truth::TruthChannels::NONE;
+            let off = measure(satellite, 1024, spp, a.frames, none, "satellite 1024², truth off").await?;
+            let label = format!("satellite 1024², truth {truth}");
+            let on = measure(satellite, 1024, spp, a.frames, truth, &label).await?;
+            return anyhow::Ok(vec![off, on]);
+        }
+        let nav = measure(satellite, 1024, spp, a.frames, Default::default(), "satellite, nav camera 1024²").await?;
         let label = format!("Jason, paper camera at {}²", a.paper_width);
         let paper = measure(
             std::path::Path::new("scenes/jason_paper.toml"),
             a.paper_width,
-            hilcam_core::render::integrator::Spp::whole(a.spp),
+            spp,
             a.frames,
+            Default::default(),
             &label,
         )
         .await?;

@@ -16,8 +16,20 @@
 //! `pose_arrival_unix_ns` u64 @24, `emit_unix_ns` u64 @32, `spp_milli` u32 @40
 //! (samples per pixel × 1000), `depth` u16 @44, `bit_depth` u8 @46 (the ADC's),
 //! reserved u8 @47, `integration_ns` u64 @48.
+//!
+//! With `[output] truth` each block also carries the frame's ground truth, after the
+//! metadata: a footprint chunk ([`FOOTPRINT_CHUNK_ID`], [`FOOTPRINT_LEN`] bytes,
+//! big-endian like the metadata: `target_pixels` u64 @0, centroid x, y f64 @8 and @16
+//! (continuous pixel coordinates of the block's window; NaN when no pixel), bbox
+//! col0, row0, col1, row1 u32 @24, half-open) and one chunk per channel
+//! ([`truth_chunk_id`]: depth 0x48430011, mask 0x48430012, normal 0x48430013, body_xyz
+//! 0x48430014), whose data are the channel's planes over the block's window,
+//! little-endian like the pixels: f32 (mask u32), x plane then y then z.
 
 use crate::frame::FrameMeta;
+use crate::frame::truth_block::channel_id;
+use crate::render::camera::Window;
+use crate::render::truth::{TruthChannel, TruthChannels, TruthImage};
 
 /// Chunk id of the pixels ("HC" 0x0001).
 pub const IMAGE_CHUNK_ID: u32 = 0x4843_0001;
@@ -27,6 +39,84 @@ pub const META_CHUNK_ID: u32 = 0x4843_0002;
 pub const META_LEN: usize = 56;
 /// Bytes the chunks add to the pixels: two trailers and the metadata.
 pub const CHUNK_OVERHEAD: usize = 8 + META_LEN + 8;
+
+/// Chunk id of the truth footprint ("HC" 0x0010).
+pub const FOOTPRINT_CHUNK_ID: u32 = 0x4843_0010;
+/// Bytes of the footprint chunk's data.
+pub const FOOTPRINT_LEN: usize = 40;
+
+/// Chunk id of truth channel `c`: [`FOOTPRINT_CHUNK_ID`] + its stream id (depth 1, mask 2,
+/// normal 3, body_xyz 4).
+pub fn truth_chunk_id(c: TruthChannel) -> u32 {
+    FOOTPRINT_CHUNK_ID + u32::from(channel_id(c))
+}
+
+fn components(c: TruthChannel) -> usize {
+    match c {
+        TruthChannel::Depth | TruthChannel::Mask => 1,
+        TruthChannel::Normal | TruthChannel::BodyXyz => 3,
+    }
+}
+
+/// Bytes the truth chunks add to a `width`×`height` block (0 without channels).
+pub fn truth_chunks_len(channels: TruthChannels, width: u32, height: u32) -> u64 {
+    if channels.is_empty() {
+        return 0;
+    }
+    let n = u64::from(width) * u64::from(height);
+    let data: u64 = channels.iter().map(|c| 8 + n * 4 * components(c) as u64).sum();
+    (8 + FOOTPRINT_LEN as u64) + data
+}
+
+/// Append the footprint and channel chunks of `truth` over `window` (whose offsets are
+/// relative to the truth image, which must contain it) to `block`.
+pub fn append_truth_chunks(block: &mut Vec<u8>, truth: &TruthImage, window: Window) {
+    let tw = truth.width as usize;
+    let (x0, x1) = (window.x as usize, (window.x + window.width) as usize);
+    let rows = window.y as usize..(window.y + window.height) as usize;
+    let crop =
+        |plane: &[f32]| -> Vec<f32> { rows.clone().flat_map(|r| plane[r * tw + x0..r * tw + x1].to_vec()).collect() };
+    let mask: Vec<u32> = rows.clone().flat_map(|r| truth.mask[r * tw + x0..r * tw + x1].to_vec()).collect();
+    // The footprint of the window's own mask, in its coordinates.
+    let windowed = TruthImage {
+        width: window.width,
+        height: window.height,
+        channels: TruthChannels::NONE,
+        mask,
+        depth: Vec::new(),
+        normal: Default::default(),
+        body_xyz: Default::default(),
+    };
+    let f = windowed.footprint();
+    let mut fp = [0u8; FOOTPRINT_LEN];
+    fp[0..8].copy_from_slice(&f.map_or(0, |f| f.pixels).to_be_bytes());
+    let [cx, cy] = f.map_or([f64::NAN; 2], |f| f.centroid_px);
+    fp[8..16].copy_from_slice(&cx.to_be_bytes());
+    fp[16..24].copy_from_slice(&cy.to_be_bytes());
+    for (k, v) in f.map_or([0; 4], |f| f.bbox_px).into_iter().enumerate() {
+        fp[24 + 4 * k..28 + 4 * k].copy_from_slice(&v.to_be_bytes());
+    }
+    push_chunk(block, FOOTPRINT_CHUNK_ID, |b| b.extend_from_slice(&fp));
+    for c in truth.channels.iter() {
+        push_chunk(block, truth_chunk_id(c), |b| match c {
+            TruthChannel::Depth => b.extend(crop(&truth.depth).iter().flat_map(|v| v.to_le_bytes())),
+            TruthChannel::Mask => b.extend(windowed.mask.iter().flat_map(|v| v.to_le_bytes())),
+            TruthChannel::Normal => b.extend(truth.normal.iter().flat_map(|p| crop(p)).flat_map(|v| v.to_le_bytes())),
+            TruthChannel::BodyXyz => {
+                b.extend(truth.body_xyz.iter().flat_map(|p| crop(p)).flat_map(|v| v.to_le_bytes()))
+            }
+        });
+    }
+}
+
+/// Append a chunk: its data (written by `data`), then its trailer.
+fn push_chunk(block: &mut Vec<u8>, id: u32, data: impl FnOnce(&mut Vec<u8>)) {
+    let start = block.len();
+    data(block);
+    let len = (block.len() - start) as u32;
+    block.extend_from_slice(&id.to_be_bytes());
+    block.extend_from_slice(&len.to_be_bytes());
+}
 
 /// The metadata chunk's data.
 pub fn encode_meta(m: &FrameMeta) -> [u8; META_LEN] {
@@ -105,5 +195,37 @@ mod tests {
         assert_eq!(u32::from_be_bytes(m[40..44].try_into().unwrap()), 2500);
         assert_eq!(u64::from_be_bytes(m[48..56].try_into().unwrap()), 1_000_000);
         assert_eq!(find_chunk(&block, 0x1234), None);
+    }
+
+    #[test]
+    fn truth_chunks_hold_the_windows_planes_and_its_own_footprint() {
+        let channels = TruthChannels::parse("depth,mask,normal").unwrap();
+        // 3×2: pixels (1, 0) and (2, 1) hit; the window is columns 1..3, both rows.
+        let truth = TruthImage {
+            width: 3,
+            height: 2,
+            channels,
+            mask: vec![0, 1, 0, 0, 0, 2],
+            depth: vec![9.0, 1.0, 9.0, 9.0, 9.0, 2.0],
+            normal: [vec![0.5; 6], vec![0.25; 6], vec![-1.0; 6]],
+            body_xyz: Default::default(),
+        };
+        let window = Window { x: 1, y: 0, width: 2, height: 2 };
+        let mut block = vec![7; 8];
+        append_truth_chunks(&mut block, &truth, window);
+        assert_eq!(block.len() as u64, 8 + truth_chunks_len(channels, 2, 2));
+        let f32s = |b: &[u8]| b.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect::<Vec<_>>();
+        assert_eq!(f32s(find_chunk(&block, 0x4843_0011).unwrap()), [1.0, 9.0, 9.0, 2.0]);
+        let mask = find_chunk(&block, 0x4843_0012).unwrap();
+        assert_eq!(mask, [1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0]);
+        assert_eq!(f32s(find_chunk(&block, 0x4843_0013).unwrap()), [[0.5; 4], [0.25; 4], [-1.0; 4]].concat());
+        let fp = find_chunk(&block, FOOTPRINT_CHUNK_ID).unwrap();
+        assert_eq!(u64::from_be_bytes(fp[0..8].try_into().unwrap()), 2);
+        // Window columns 0 and 1 (image columns 1 and 2): centres 0.5 and 1.5, rows 0.5 and 1.5.
+        assert_eq!(f64::from_be_bytes(fp[8..16].try_into().unwrap()), 1.0);
+        assert_eq!(f64::from_be_bytes(fp[16..24].try_into().unwrap()), 1.0);
+        let bbox: Vec<u32> = fp[24..40].chunks_exact(4).map(|c| u32::from_be_bytes(c.try_into().unwrap())).collect();
+        assert_eq!(bbox, [0, 0, 2, 2]);
+        assert_eq!(find_chunk(&block, 0x4843_0014), None, "body_xyz not asked for");
     }
 }

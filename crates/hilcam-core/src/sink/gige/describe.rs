@@ -45,6 +45,7 @@ impl CameraDescription {
                 Some(r) if rate_sets_schedule => r as f32,
                 _ => FRAME_RATE_MAX,
             },
+            truth: Default::default(),
         })
     }
 }

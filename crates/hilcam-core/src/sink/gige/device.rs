@@ -22,6 +22,7 @@ use super::registers::{
 };
 use crate::frame::{EncodedFrame, unix_ns_now};
 use crate::metrics::{Counter, Histogram, Registry};
+use crate::render::camera::Window;
 use std::collections::VecDeque;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
@@ -785,6 +786,12 @@ fn stream_loop(socket: UdpSocket, jobs: mpsc::Receiver<StreamJob>, shared: Arc<S
                 let mut payload_type = gvsp::PAYLOAD_IMAGE;
                 if settings.chunk_mode {
                     chunk::append_chunks(&mut data, &frame.meta);
+                    if let Some(t) = frame.truth.as_ref().filter(|t| t.channels == settings.truth) {
+                        // Whole-array frames are cropped at the offsets, as the pixels.
+                        let w = settings.window();
+                        let w = if frame.roi.is_some() { Window { x: 0, y: 0, ..w } } else { w };
+                        chunk::append_truth_chunks(&mut data, t, w);
+                    }
                     payload_type |= gvsp::PAYLOAD_CHUNK_FLAG;
                 }
                 block_id = gvsp::next_block_id(block_id);

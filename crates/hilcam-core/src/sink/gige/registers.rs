@@ -160,6 +160,9 @@ pub struct CameraDescription {
     /// The highest AcquisitionFrameRate a client may write (Hz; the XML's Max): the
     /// configured rate when it sets the renderer's rate, [`FRAME_RATE_MAX`] otherwise.
     pub frame_rate_max_hz: f32,
+    /// Ground-truth channels sent as chunks with every block in chunk mode (`[output]
+    /// truth`; empty: none).
+    pub truth: crate::render::truth::TruthChannels,
 }
 
 impl CameraDescription {
@@ -197,6 +200,8 @@ pub struct CameraSettings {
     pub trigger_on: bool,
     pub frame_rate_hz: f32,
     pub chunk_mode: bool,
+    /// The truth channels each block carries in chunk mode (the device's, fixed).
+    pub truth: crate::render::truth::TruthChannels,
 }
 
 impl CameraSettings {
@@ -213,6 +218,7 @@ impl CameraSettings {
             trigger_on: false,
             frame_rate_hz: cam.frame_rate_hz,
             chunk_mode: true,
+            truth: cam.truth,
         }
     }
 
@@ -226,9 +232,12 @@ impl CameraSettings {
         u64::from(self.width) * u64::from(self.height) * self.pixel_format.bytes_per_pixel() as u64
     }
 
-    /// Bytes of one block (pixels, plus the chunks when chunk mode is on).
+    /// Bytes of one block (pixels, plus the chunks when chunk mode is on: metadata, and
+    /// truth when configured).
     pub fn payload_size(&self) -> u64 {
-        self.image_bytes() + if self.chunk_mode { super::chunk::CHUNK_OVERHEAD as u64 } else { 0 }
+        let chunks =
+            super::chunk::CHUNK_OVERHEAD as u64 + super::chunk::truth_chunks_len(self.truth, self.width, self.height);
+        self.image_bytes() + if self.chunk_mode { chunks } else { 0 }
     }
 }
 
@@ -690,6 +699,7 @@ pub(crate) mod tests {
             auto_exposure: true,
             frame_rate_hz: 10.0,
             frame_rate_max_hz: FRAME_RATE_MAX,
+            truth: Default::default(),
         }
     }
 

@@ -1,0 +1,100 @@
+//! `[output] truth` on the GigE Vision camera: `hilcam serve` renders the pose sent over
+//! a pty on each software trigger, and Aravis (its Python bindings) finds the footprint
+//! and one chunk per truth channel in the block, equal to `FramePipeline::truth` for
+//! the same pose — over the whole sensor and over a client's ROI.
+
+use crate::gige::{dn_sphere_scene, python_client};
+use glam::DVec3;
+use hilcam_core::link::send::{MessageWriter, SerialWriter};
+use hilcam_core::pipeline::{FramePipeline, FrameRequest};
+use hilcam_core::pose::{Message, Pose};
+use hilcam_core::render::camera::Window;
+use hilcam_core::render::truth::TruthChannels;
+use hilcam_core::serve::config::ServeConfig;
+use hilcam_core::serve::{Embed, run};
+use serialport::SerialPort;
+use std::net::Ipv4Addr;
+use std::sync::Arc;
+use std::time::Duration;
+
+fn crc32(bytes: impl IntoIterator<Item = [u8; 4]>) -> u64 {
+    let v: Vec<u8> = bytes.into_iter().flatten().collect();
+    u64::from(hilcam_core::frame::CRC32.checksum(&v))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn aravis_reads_truth_chunks_equal_to_the_pipelines_truth_whole_and_in_an_roi() {
+    let ip = Ipv4Addr::new(127, 0, 0, 54);
+    let dir = tempfile::tempdir().unwrap();
+    let (master, slave) = serialport::TTYPort::pair().unwrap();
+    let scene_path = dn_sphere_scene(dir.path());
+    let text = format!(
+        "scene = {:?}\n[input]\nkind = \"serial\"\ndevice = {:?}\nbaud = 921600\n[trigger]\nmode = \"external\"\n\
+         [stream]\nlisten = \"127.0.0.1:0\"\n[metrics]\nprint_interval_s = 60.0\n\
+         [output]\ntruth = [\"mask\", \"depth\"]\n[output.gige]\naddress = \"{ip}\"\n",
+        scene_path,
+        slave.name().unwrap()
+    );
+    let cfg: ServeConfig = toml::from_str(&text).unwrap();
+    cfg.validate().unwrap();
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(run(cfg, Embed { ready: Some(ready_tx), ..Default::default() }, stop_rx));
+    tokio::time::timeout(Duration::from_secs(60), ready_rx).await.expect("serve starts").expect("serve ready");
+    tokio::time::sleep(Duration::from_millis(200)).await;
+
+    let scene = Arc::new(hilcam_core::scene::load(&scene_path).unwrap());
+    let pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
+    let channels = TruthChannels::parse("depth,mask").unwrap();
+    let mut writer = SerialWriter::new(master, "test pty");
+    let pose = |seq: u32, p: DVec3| Pose {
+        seq,
+        t_ns: 5_000_000_000 + u64::from(seq) * 1_000_000,
+        position: p,
+        sun_dir: (-p).normalize(),
+        ..Pose::ahead(10.0)
+    };
+    let roi = Window { x: 30, y: 20, width: 48, height: 40 };
+    let cases = [
+        (1u32, DVec3::new(0.8, -0.5, 10.0), None, vec![]),
+        (2, DVec3::new(0.4, 0.3, 11.0), Some(roi), vec!["Width=48", "Height=40", "OffsetX=30", "OffsetY=20"]),
+    ];
+    for (seq, p, roi, features) in cases {
+        writer.send(&Message::Pose(pose(seq, p))).unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let mut args = features.clone();
+        args.push("--trigger");
+        let v = python_client(ip, 1, &args).await;
+        let b = &v["buffers"][0];
+        assert_eq!(b["status"], "success", "{v}");
+        assert_eq!(b["meta"]["pose_seq"].as_u64(), Some(u64::from(seq)), "{v}");
+        let want = pipeline.truth(&pose(seq, p), &FrameRequest { roi, ..Default::default() }, channels).unwrap();
+        let n = u64::from(want.width) * u64::from(want.height);
+        assert_eq!(
+            (b["width"].as_u64(), b["height"].as_u64()),
+            (Some(u64::from(want.width)), Some(u64::from(want.height)))
+        );
+        let t = &b["truth"];
+        let fp = want.footprint().expect("the sphere is in view");
+        assert_eq!(t["target_pixels"].as_u64(), Some(fp.pixels), "{v}");
+        assert_eq!(t["centroid"][0].as_f64(), Some(fp.centroid_px[0]), "{v}");
+        assert_eq!(t["centroid"][1].as_f64(), Some(fp.centroid_px[1]), "{v}");
+        let bbox: Vec<u64> = fp.bbox_px.iter().map(|&x| u64::from(x)).collect();
+        assert_eq!(t["bbox"], serde_json::json!(bbox), "{v}");
+        assert_eq!(t["depth"]["len"].as_u64(), Some(4 * n));
+        assert_eq!(
+            t["depth"]["crc32"].as_u64(),
+            Some(crc32(want.depth.iter().map(|d| d.to_le_bytes()))),
+            "depth bit for bit"
+        );
+        assert_eq!(t["mask"]["crc32"].as_u64(), Some(crc32(want.mask.iter().map(|m| m.to_le_bytes()))), "mask");
+        assert!(t.get("normal").is_none(), "normal not configured: {v}");
+        let payload = v["features"]["PayloadSize"].as_u64().unwrap();
+        // Pixels (Mono16) + trailers and metadata + footprint chunk + the two channels.
+        assert_eq!(payload, 2 * n + (8 + 56 + 8) + (40 + 8) + 2 * (4 * n + 8));
+    }
+    let _ = stop_tx.send(());
+    let report = tokio::time::timeout(Duration::from_secs(60), server).await.unwrap().unwrap().unwrap();
+    assert_eq!(report.scheduler.triggers, 2);
+    drop(slave);
+}
