@@ -322,7 +322,7 @@ fn the_report_counts_exactly_the_pixels_above_the_bound() {
     for k in [1.0, 0.5] {
         let out = s.apply_with_variance(&img, Some(&var), 9, t, k).unwrap();
         let mc = out.stats.mc.unwrap();
-        let (mut lit, mut above, mut above_shot, mut ratio, mut v_sum) = (0u64, 0u64, 0u64, 0.0, 0.0);
+        let (mut lit, mut above, mut above_shot, mut ratio, mut ratio2, mut v_sum) = (0u64, 0u64, 0u64, 0.0, 0.0, 0.0);
         for (l, v) in img.data.iter().zip(&var) {
             let photo = *l as f64 * c;
             let v_e = *v as f64 * c * c;
@@ -332,6 +332,7 @@ fn the_report_counts_exactly_the_pixels_above_the_bound() {
                 above += (v_e.sqrt() > k * cam_e2.sqrt()) as u64;
                 above_shot += (v_e > photo + 1.0) as u64;
                 ratio += (v_e / cam_e2).sqrt();
+                ratio2 += v_e / cam_e2;
                 v_sum += v_e;
             }
         }
@@ -341,6 +342,7 @@ fn the_report_counts_exactly_the_pixels_above_the_bound() {
         assert_eq!(above, set_above);
         assert_eq!((mc.k, mc.lit_pixels, mc.above_bound, mc.above_shot), (k, lit, above, above_shot));
         assert!(rel(mc.mean_ratio, ratio / lit as f64) < 1e-12, "{} vs {}", mc.mean_ratio, ratio / lit as f64);
+        assert!(rel(mc.rms_ratio, (ratio2 / lit as f64).sqrt()) < 1e-12, "{mc:?}");
         assert!(rel(mc.mc_variance_e2_mean, v_sum / lit as f64) < 1e-12);
         // The mean ratio is the mean of the ratios set, to f32 rounding of the inputs.
         let set: f64 = (2 * w..w * h).map(|i| ratios[i % ratios.len()]).sum::<f64>() / lit as f64;

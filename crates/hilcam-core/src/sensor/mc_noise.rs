@@ -40,8 +40,12 @@ pub struct McNoiseStats {
     /// photo + dark; with shot noise off, v_e > 0): with `noise = "substitute"` they get
     /// no shot noise and are still noisier than the camera.
     pub above_shot: u64,
-    /// Mean of σ_mc / σ_cam over lit pixels (0 without lit pixels).
+    /// Mean of σ_mc / σ_cam over lit pixels (0 without lit pixels). Each pixel's σ_mc
+    /// is the square root of an estimate, so this mean reads low at few samples.
     pub mean_ratio: f64,
+    /// √(mean of σ_mc² / σ_cam²) over lit pixels: built from the unbiased variance
+    /// estimates, the ratio's honest summary (0 without lit pixels).
+    pub rms_ratio: f64,
     /// Mean Monte Carlo variance over lit pixels, e⁻².
     pub mc_variance_e2_mean: f64,
 }
@@ -53,6 +57,7 @@ pub(super) struct McRow {
     pub above: u64,
     pub above_shot: u64,
     pub ratio: f64,
+    pub ratio2: f64,
     pub var_e2: f64,
 }
 
@@ -69,7 +74,9 @@ impl McRow {
         self.lit += 1;
         self.above += (v_e > k * k * cam) as u64;
         self.above_shot += (v_e > shot_e2) as u64;
-        self.ratio += if cam > 0.0 { (v_e / cam).sqrt() } else { 0.0 };
+        let r2 = if cam > 0.0 { v_e / cam } else { 0.0 };
+        self.ratio += r2.sqrt();
+        self.ratio2 += r2;
         self.var_e2 += v_e;
     }
 }
@@ -82,10 +89,12 @@ impl McNoiseStats {
             s.above_bound += r.above;
             s.above_shot += r.above_shot;
             s.mean_ratio += r.ratio;
+            s.rms_ratio += r.ratio2;
             s.mc_variance_e2_mean += r.var_e2;
         }
         if s.lit_pixels > 0 {
             s.mean_ratio /= s.lit_pixels as f64;
+            s.rms_ratio = (s.rms_ratio / s.lit_pixels as f64).sqrt();
             s.mc_variance_e2_mean /= s.lit_pixels as f64;
         }
         s
