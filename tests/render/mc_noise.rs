@@ -412,6 +412,34 @@ fn small_nav() -> (Sensor, RadianceImage, Vec<f32>) {
     (s, img, var)
 }
 
+/// `Sensor::mc_noise_stats` judges a frame at any bound without converting it: the
+/// report `apply_with_variance` gives at that bound, on the nav camera's full chain
+/// (τ, cos⁴, PSF, PRNU, DSNU), for bounds that split the pixels differently.
+#[test]
+fn the_report_at_another_bound_is_the_converted_frames_report_there() {
+    let (s, img, var) = small_nav();
+    let t = 25e-6;
+    let mut above = Vec::new();
+    for k in [0.05, 0.25, 0.5, 1.0] {
+        let got = s.mc_noise_stats(&img, &var, t, k).unwrap().unwrap();
+        assert_eq!(Some(got), s.apply_with_variance(&img, Some(&var), 42, t, k).unwrap().stats.mc, "k {k}");
+        above.push(got.above_bound);
+    }
+    // The bounds split them differently: fewer above as k grows, with some above at
+    // k = 1 and some below at k = 0.25.
+    assert!(above.windows(2).all(|w| w[0] > w[1]), "{above:?}");
+    let lit = s.mc_noise_stats(&img, &var, t, 1.0).unwrap().unwrap().lit_pixels;
+    assert!(above[3] > 0 && above[1] < lit, "{above:?} of {lit}");
+    assert!(matches!(
+        s.mc_noise_stats(&img, &var[1..], t, 0.5),
+        Err(SensorError::VarianceSize { got: 6143, want: 6144 })
+    ));
+    let mut fcfg = s.config().clone();
+    fcfg.output = Some(OutputKind::Float32);
+    fcfg.auto_exposure = None;
+    assert_eq!(Sensor::new(s.camera(), &fcfg).unwrap().mc_noise_stats(&img, &var, t, 0.5).unwrap(), None);
+}
+
 #[test]
 fn without_variance_or_with_noise_add_the_bytes_are_unchanged() {
     let (s, img, var) = small_nav();

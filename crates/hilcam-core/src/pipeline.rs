@@ -185,6 +185,14 @@ impl FramePipeline {
         (self.buffers.image(), stats)
     }
 
+    /// The radiance and Monte Carlo variance of the last frame rendered into the
+    /// pipeline's buffers (by [`FramePipeline::frame`] or [`FramePipeline::radiance_warm`];
+    /// with an ROI, its grown window): to judge a frame after the fact, e.g. with
+    /// [`Sensor::mc_noise_stats`] at another bound.
+    pub fn last_render(&self) -> (&RadianceImage, Option<&[f32]>) {
+        (self.buffers.image(), self.buffers.variance())
+    }
+
     /// Render and convert frame `index` at `pose`.
     pub fn frame(&mut self, pose: &Pose, settings: &RenderSettings, index: u64) -> Result<RenderedFrame, SensorError> {
         self.frame_requested(pose, settings, index, &FrameRequest::default())

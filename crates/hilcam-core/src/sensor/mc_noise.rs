@@ -16,6 +16,7 @@
 use super::config::OutputKind;
 use super::detector::Detector;
 use super::{Sensor, SensorError, psf};
+use crate::render::film::RadianceImage;
 use crate::render::noise_bound::{Cos4, NoiseBound};
 use rayon::prelude::*;
 
@@ -164,6 +165,43 @@ impl Sensor {
             out = psf::convolve_variance(&out, w, h, k);
         }
         Ok(out)
+    }
+
+    /// The report [`Sensor::apply_with_variance`] gives for this radiance and variance
+    /// at integration time `t_s`, against bound `k`, without converting the frame: the
+    /// same pixels counted the same way, so one frame can be judged against several `k`.
+    /// None without a detector with DN output.
+    pub fn mc_noise_stats(
+        &self,
+        img: &RadianceImage,
+        variance: &[f32],
+        t_s: f64,
+        k: f64,
+    ) -> Result<Option<McNoiseStats>, SensorError> {
+        let Some(d) = self.detector(t_s) else { return Ok(None) };
+        let rad = self.optics(img)?;
+        if variance.len() != img.data.len() {
+            return Err(SensorError::VarianceSize { got: variance.len(), want: img.data.len() });
+        }
+        let v = self.optics_variance(variance)?;
+        let (w, keys, rn2) = (img.width as usize, self.keys(), d.read_noise_e * d.read_noise_e);
+        let rows: Vec<McRow> = rad
+            .data
+            .par_chunks(w)
+            .zip(v.par_chunks(w))
+            .enumerate()
+            .map(|(row, (l, vr))| {
+                let mut r = McRow::default();
+                for (col, (l, v)) in l.iter().zip(vr).enumerate() {
+                    let pixel = keys.key(row as u32, col as u32);
+                    let (photo, dark) = d.expected_parts(*l as f64, pixel);
+                    let g = d.photo_gain(pixel);
+                    r.add(k, d.shot_noise, photo, dark, *v as f64 * g * g, rn2);
+                }
+                r
+            })
+            .collect();
+        Ok(Some(McNoiseStats::from_rows(k, rows.into_iter())))
     }
 
     /// The Monte Carlo variance of each pixel's charge, e⁻² (PRNU included), at
