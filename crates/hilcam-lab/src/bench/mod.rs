@@ -6,6 +6,7 @@ pub mod sampling;
 pub mod serve;
 pub mod table1;
 pub mod trade;
+pub mod trade_sensor;
 
 /// Median of a few timings (robust against a neighbour's burst on a shared machine).
 pub fn median(mut v: Vec<f64>) -> f64 {

@@ -1,10 +1,12 @@
-//! `hilcam bench trade`: the quality/time trade of spp × depth × sampler, measured.
+//! `hilcam bench trade`: the quality/time trade of spp × depth × sampler, measured (with
+//! `--sensor`, its sensor axis: `bench_trade_sensor`).
 
 use crate::bench::trade::{
     TradeGrid, best_for_error, best_for_fps, chart, measure, pareto_front, sampler_name, to_csv,
 };
 use anyhow::Context;
 use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::render::integrator::Spp;
 use hilcam_core::scene::limits::checked_scaled_camera;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -38,11 +40,33 @@ pub struct TradeArgs {
     pub out: PathBuf,
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Measure the sensor axis instead of the grid: frames through render + sensor at the
+    /// settled auto-exposure, fixed spp against `quality = "sensor"`, judged by the share
+    /// of lit pixels whose Monte Carlo noise is above k × the camera's (docs/performance.md).
+    /// Uses --scene, --width, --rounds, --reference-spp (default 1024), --out, --threads.
+    #[arg(long)]
+    pub sensor: bool,
+    /// With --sensor: the fixed-spp rows.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4", requires = "sensor")]
+    pub fixed_spp: Vec<Spp>,
+    /// With --sensor: the bounds k of the `quality = "sensor"` rows.
+    #[arg(long, value_delimiter = ',', default_value = "1,0.5,0.25", value_parser = crate::cli::bench_trade_sensor::parse_k, requires = "sensor")]
+    pub sensor_k: Vec<f32>,
+    /// With --sensor: the budget (mean spp per traced pixel) of the `quality = "sensor"` rows.
+    #[arg(long, default_value_t = 256, requires = "sensor")]
+    pub sensor_budget: u32,
+    /// With --sensor: the largest budget the k = 0.5 frame-rate sweep tries (2, 4, 8 … up
+    /// to this; it stops at the first whose frames have ≤ 1 % of lit pixels above the bound).
+    #[arg(long, default_value_t = 1024, requires = "sensor")]
+    pub max_budget: u32,
 }
 
 pub fn run(a: TradeArgs) -> anyhow::Result<()> {
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
+    }
+    if a.sensor {
+        return crate::cli::bench_trade_sensor::run(&a);
     }
     let scene = hilcam_core::scene::load(&a.scene)?;
     let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod bench_trade;
+pub mod bench_trade_sensor;
 pub mod brdf;
 pub mod fold;
 pub mod model;
