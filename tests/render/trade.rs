@@ -103,3 +103,91 @@ fn tiny_grid_measures_and_its_front_is_monotone() {
         assert!(front.iter().any(|f| f.time_s <= p.time_s && f.rel_rmse <= p.rel_rmse), "{p:?}");
     }
 }
+
+/// The sensor axis (issue 27) on the shipped satellite through its nav camera scaled to
+/// 128×96 (PRNU and DSNU off, so each pixel's charge is the optics' radiance times one
+/// gain): every row's counts are a recount of the frame's own radiance and variance image,
+/// and samples spent where the bound asks beat 1 spp on the common k = 0.5 axis.
+#[test]
+fn sensor_axis_counts_each_frames_own_variance_and_beats_one_spp() {
+    use hilcam_lab::bench::trade_sensor::{COMMON_K, RowKind, fraction_above, measure_frame, reference, settle};
+    let mut scene = hilcam_core::scene::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let det = scene.sensor.detector.as_mut().unwrap();
+    (det.prnu, det.dsnu_e_per_s) = (None, None);
+    let (dark_rate, read) = (det.dark_current_e_per_s.unwrap(), det.read_noise_e.unwrap());
+    assert!(det.shot_noise);
+    let cam = scaled_camera(&scene, 128, 96, [0.0, 0.0]);
+    let (pose, base) = (scene.pose, scene.render);
+    let mut pipeline = FramePipeline::new(Arc::new(scene), cam).unwrap();
+    let settled = settle(&mut pipeline, &pose, &base, 40, 0.01).unwrap();
+    assert!(settled.converged, "{settled:?}");
+    let t = settled.integration_s;
+    let (reference, _) = reference(&pipeline, &pose, &base, 64);
+    let budget = Spp::whole(64);
+    let kinds =
+        [RowKind::Fixed { spp: Spp::ONE }, RowKind::Sensor { k: 0.25, budget }, RowKind::Sensor { k: 1.0, budget }];
+    let mut above_common = Vec::new();
+    for kind in kinds {
+        let f = measure_frame(&mut pipeline, &pose, &base, kind, t, 3, &reference).unwrap();
+        let (img, var) = pipeline.last_render();
+        let sensor = pipeline.sensor();
+        let rad = sensor.optics(img).unwrap();
+        let v_e = sensor.mc_variance_e2(var.unwrap(), t).unwrap().unwrap();
+        let c = sensor.electrons_per_radiance_second().unwrap() * t;
+        let floor = dark_rate * t + read * read;
+        let (mut lit, mut above_half, mut above_own) = (0u64, 0u64, 0u64);
+        for (l, v) in rad.data.iter().zip(&v_e) {
+            let photo = *l as f64 * c;
+            if photo >= 1.0 {
+                let cam_e2 = photo + floor;
+                lit += 1;
+                above_half += (*v > COMMON_K * COMMON_K * cam_e2) as u64;
+                above_own += (*v > kind.k() * kind.k() * cam_e2) as u64;
+            }
+        }
+        assert!(lit > 1000, "{lit}");
+        assert_eq!((f.common.lit_pixels, f.common.above_bound, f.common.k), (lit, above_half, COMMON_K), "{kind:?}");
+        assert_eq!((f.own.lit_pixels, f.own.above_bound, f.own.k), (lit, above_own, kind.k()), "{kind:?}");
+        assert_eq!(f.rel_rmse, relative_rmse(img, &reference));
+        assert!(f.render_s > 0.0 && f.sensor_s > 0.0);
+        match kind {
+            RowKind::Fixed { .. } => assert_eq!(f.spp, 1.0),
+            // The bound asks for more than 64 at many pixels: the budget is spent (to 1 %:
+            // the pixels above the cap get one more sample at random).
+            RowKind::Sensor { .. } => assert!(f.spp > 32.0 && f.spp <= 64.0 * 1.01, "{}", f.spp),
+        }
+        above_common.push(fraction_above(&f.common));
+    }
+    assert!(above_common[1] < above_common[0] - 0.05, "{above_common:?}");
+}
+
+#[test]
+fn sensor_axis_summary_sweep_and_csv() {
+    use hilcam_core::sensor::McNoiseStats;
+    use hilcam_lab::bench::trade_sensor::{RowFrame, RowKind, SensorRow, first_meeting, sweep_budgets, to_csv};
+    let b: Vec<String> = sweep_budgets(64).iter().map(|s| s.to_string()).collect();
+    assert_eq!(b, ["2", "4", "8", "16", "32", "64"]);
+    assert_eq!(sweep_budgets(1).len(), 1, "the pilot's 2 is the least a sensor frame spends");
+    let frame = |render_s: f64, above: u64| RowFrame {
+        spp: 10.0 + render_s,
+        render_s,
+        sensor_s: 0.5,
+        own: McNoiseStats { k: 1.0, lit_pixels: 100, above_bound: above / 2, rms_ratio: 2.0, ..Default::default() },
+        common: McNoiseStats { k: 0.5, lit_pixels: 100, above_bound: above, ..Default::default() },
+        rel_rmse: 0.1,
+    };
+    let kind = RowKind::Sensor { k: 1.0, budget: Spp::whole(16) };
+    // Times: medians (of 1, 9, 2 → 2; frame 2.5); quality: means.
+    let r = SensorRow::from_frames(kind, &[frame(1.0, 10), frame(9.0, 20), frame(2.0, 30)]);
+    assert_eq!((r.render_s, r.sensor_s, r.frame_s), (2.0, 0.5, 2.5));
+    assert!((r.spp - 14.0).abs() < 1e-12 && (r.above_common - 0.2).abs() < 1e-12);
+    assert!((r.above_own - 0.1).abs() < 1e-12 && r.rms_ratio == 2.0 && r.lit_pixels == 100.0);
+    let met = SensorRow { above_common: 0.008, ..r };
+    let sweep = [r, met, SensorRow { above_common: 0.001, ..r }];
+    assert_eq!(first_meeting(&sweep, 0.01), Some(&met));
+    assert_eq!(first_meeting(&sweep[..1], 0.01), None);
+    let csv = to_csv(&[r], &sweep);
+    assert_eq!(csv.lines().count(), 5);
+    assert!(csv.lines().nth(1).unwrap().starts_with("table,sensor,16,1,14.000,2000.000,500.000,2500.000,100,0.200000"));
+    assert!(csv.lines().nth(2).unwrap().starts_with("sweep,"));
+}
