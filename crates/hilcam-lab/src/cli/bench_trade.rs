@@ -56,7 +56,8 @@ pub struct TradeArgs {
     #[arg(long, default_value_t = 256, requires = "sensor")]
     pub sensor_budget: u32,
     /// With --sensor: the largest budget the k = 0.5 frame-rate sweep tries (2, 4, 8 … up
-    /// to this; it stops at the first whose frames have ≤ 1 % of lit pixels above the bound).
+    /// to this; it stops at the first whose frames have ≤ 1 % of lit pixels above the bound,
+    /// or whose frames did not spend the budget: the bound limits them, not the budget).
     #[arg(long, default_value_t = 1024, requires = "sensor")]
     pub max_budget: u32,
 }

@@ -84,6 +84,12 @@ pub fn run(a: &TradeArgs) -> anyhow::Result<()> {
         if row.above_common <= MEET_LIMIT {
             break;
         }
+        // Frames that spent < 95 % of the budget were limited by the bound: a larger
+        // budget renders the same frames.
+        if row.spp < 0.95 * b.get() {
+            println!("(the bound, not the budget, limits from here on: larger budgets give these frames)");
+            break;
+        }
     }
     match first_meeting(&sweep, MEET_LIMIT) {
         Some(r) => println!(
