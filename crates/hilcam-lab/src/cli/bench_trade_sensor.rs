@@ -106,9 +106,13 @@ pub fn run(a: &TradeArgs) -> anyhow::Result<()> {
             1.0 / r.frame_s,
             rayon::current_num_threads()
         ),
-        None => {
-            println!("99 % of lit pixels within {COMMON_K} × camera noise: not reached up to budget {}", a.max_budget)
-        }
+        None => println!(
+            "99 % of lit pixels within {COMMON_K} × camera noise: not reached (the sweep stopped at budget {})",
+            sweep.last().map_or(Spp::ONE, |r| match r.kind {
+                RowKind::Sensor { budget, .. } => budget,
+                RowKind::Fixed { spp } => spp,
+            })
+        ),
     }
 
     let csv = a.out.with_extension("csv");
