@@ -2,8 +2,9 @@
 //! 0 and 1, same settings) of a scene through its own camera at the settled auto-exposure,
 //! each pixel judged as the sensor's report judges it (PRNU and DSNU off here, so the
 //! recount from the frame's radiance and variance is exact). Prints how many of one
-//! frame's pixels above the bound are above in the other (the rest: variance estimates
-//! that scattered across the bound) and how many lie within 2 px of the background.
+//! frame's pixels above the bound are above in the other (the rest landed above by chance:
+//! a pixel's count and its variance estimate both vary from frame to frame) and how many
+//! lie within 2 px of the background.
 //!
 //!     cargo run --example sensor_bound_where -- [scene] [k] [budget]
 //!

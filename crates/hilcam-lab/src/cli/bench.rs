@@ -24,6 +24,7 @@ pub enum BenchKind {
     /// The paper's Fig. 7 glint case: gold polyimide, cosine vs MIS at equal rays and time.
     Glints(GlintBenchArgs),
     /// Frame time and relative error over spp × depth × sampler; Pareto front, CSV, plot.
+    /// With `--sensor`: fixed spp against `quality = "sensor"`, noise against the camera's.
     Trade(crate::cli::bench_trade::TradeArgs),
     /// Latency (pose arrival → last byte out) beside render time through the real server,
     /// at the navigation camera and the paper's camera scaled down.
