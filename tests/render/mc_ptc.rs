@@ -224,3 +224,224 @@ fn photon_transfer_of_rendered_plate_frames() {
     assert!((fit.gain_e_per_dn / GAIN - 1.0).abs() < 0.03, "{fit:?}");
     assert!((fit.read_noise_e / READ - 1.0).abs() < 0.03, "{fit:?}");
 }
+
+// ---------------------------------------------------------------- the report's truth
+
+/// The satellite with every material Lambertian (albedo 0.5): no glints.
+fn matte_satellite() -> Scene {
+    let mut scene = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    for m in &mut scene.target.materials {
+        *m = lambert(&m.name, 0.5);
+    }
+    scene
+}
+
+/// ln Γ(x), x > 0 (Lanczos, g = 7, 9 terms: ≈ 1e-15 relative).
+fn ln_gamma(x: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let t = x + 7.5;
+    let a = C[0] + (1..9).map(|i| C[i] / (x + i as f64)).sum::<f64>();
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// The regularised upper incomplete gamma function Q(a, x) = P(χ²₂ₐ > 2x): its series
+/// below x = a + 1, Lentz's continued fraction above (Numerical Recipes §6.2).
+fn gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let front = (-x + a * x.ln() - ln_gamma(a)).exp();
+    if x < a + 1.0 {
+        let (mut term, mut sum, mut n) = (1.0 / a, 1.0 / a, a);
+        while term.abs() > sum.abs() * 1e-15 {
+            n += 1.0;
+            term *= x / n;
+            sum += term;
+        }
+        1.0 - sum * front
+    } else {
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let (mut c, mut d) = (1.0 / tiny, 1.0 / b);
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            d = if d.abs() < tiny { tiny } else { d };
+            c = b + an / c;
+            c = if c.abs() < tiny { tiny } else { c };
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        front * h
+    }
+}
+
+/// P(s² > τ) for the unbiased sample variance s² of n Gaussian values of variance σ²:
+/// (n − 1)s²/σ² is χ² with n − 1 degrees of freedom.
+fn p_sample_variance_above(n: f64, sigma2: f64, tau: f64) -> f64 {
+    if sigma2 <= 0.0 {
+        return 0.0;
+    }
+    gamma_q((n - 1.0) / 2.0, (n - 1.0) * tau / (2.0 * sigma2))
+}
+
+#[test]
+fn gamma_q_against_closed_forms() {
+    // Q(1, x) = e^(−x); Q(1/2, x) = erfc(√x); χ²₁ at 3.841 and χ²₁₀ at 18.307: 5 %.
+    for x in [0.01, 0.5, 1.0, 2.0, 7.0, 30.0] {
+        assert!((gamma_q(1.0, x) / (-x).exp() - 1.0).abs() < 1e-12, "{x}");
+    }
+    assert!((gamma_q(0.5, 1.0) - 0.157_299_207_050_285_1).abs() < 1e-12);
+    assert!((gamma_q(0.5, 3.841_458_820_694_124 / 2.0) - 0.05).abs() < 1e-9);
+    assert!((gamma_q(5.0, 18.307_038_053_275_146 / 2.0) - 0.05).abs() < 1e-9);
+    assert!((ln_gamma(0.5) - std::f64::consts::PI.sqrt().ln()).abs() < 1e-13);
+    assert!((ln_gamma(101.0) - 363.739_375_555_563_5).abs() < 1e-9);
+}
+
+/// What `seeds` sensor-quality frames report, and what the renders show.
+#[derive(Debug)]
+struct ReportTruth {
+    /// Mean over the frames of their reported fraction of lit pixels above the bound.
+    reported: f64,
+    /// Standard error of `reported − per_frame` (spread of the per-frame differences).
+    se: f64,
+    /// The fraction above the bound of the pixels' variance measured across the frames
+    /// (the sample variance of each pixel's radiance over the seeds), on the mean image.
+    empirical: f64,
+    /// Mean over the frames of the fraction whose count N in that frame gives σ²/N above
+    /// the bound, σ² each pixel's per-sample variance pooled over every frame.
+    per_frame: f64,
+    /// What the report would be if each pixel's samples were Gaussian: the mean over the
+    /// frames of P(s²/N > bound) with (N − 1)s²/σ² a χ² variate.
+    gaussian: f64,
+    lit: f64,
+}
+
+fn report_truth(scene: &Scene, cam: &CameraModel, budget: u32, depth: u32, seeds: u64) -> ReportTruth {
+    let k = 0.5;
+    let sensor = plate_sensor(cam, NoiseMode::Add);
+    // The brightest pixels at ≈ 6000 e⁻, 6 e⁻ read noise.
+    let t = 6000.0 / (sensor.electrons_per_radiance_second().unwrap() * 150.0);
+    let bound = sensor.noise_bound(t, k).unwrap();
+    let settings = RenderSettings { spp: Spp::whole(budget), depth, sequence: Sequence::Independent, ..scene.render }
+        .with_quality(Some(hilcam_core::render::integrator::QualityMode::Sensor), Some(k as f32));
+    let view = scene.view(cam, &scene.pose);
+    let (w, n) = (cam.width as usize, (cam.width * cam.height) as usize);
+    let (mut sum, mut sum_sq, mut sigma2) = (vec![0.0f64; n], vec![0.0f64; n], vec![0.0f64; n]);
+    let mut frames = vec![];
+    let r = seeds as f64;
+    for seed in 0..seeds {
+        let mut buffers = FrameBuffers::<()>::default();
+        let options =
+            RenderOptions::new(RenderSettings { seed: 5000 + seed, ..settings }, 0).with_noise(Some(bound), true);
+        render_into(&mut buffers, scene, &view, &options);
+        let var = buffers.variance().unwrap().to_vec();
+        let count = buffers.sample_counts();
+        let img = buffers.take_image();
+        let mc = sensor.apply_with_variance(&img, Some(&var), seed, t, k).unwrap().stats.mc.unwrap();
+        for p in 0..n {
+            let x = f64::from(img.data[p]);
+            sum[p] += x;
+            sum_sq[p] += x * x;
+            sigma2[p] += f64::from(var[p]) * f64::from(count[p]) / r;
+        }
+        frames.push((img, count, mc.above_bound as f64 / mc.lit_pixels as f64));
+    }
+    // Per frame: the truth (σ²/N through the report's own code, on the frame's radiance)
+    // and the Gaussian model's expectation of the report.
+    let (mut diffs, mut reported, mut per_frame, mut gaussian) = (vec![], 0.0, 0.0, 0.0);
+    for (img, count, frac) in &frames {
+        let v: Vec<f32> =
+            (0..n).map(|p| if count[p] > 0 { (sigma2[p] / f64::from(count[p])) as f32 } else { 0.0 }).collect();
+        let mc = sensor.apply_with_variance(img, Some(&v), 0, t, k).unwrap().stats.mc.unwrap();
+        let truth = mc.above_bound as f64 / mc.lit_pixels as f64;
+        let (mut expect, mut lit) = (0.0, 0u64);
+        for p in 0..n {
+            let (row, col) = ((p / w) as u32, (p % w) as u32);
+            let l = f64::from(img.data[p]);
+            if bound.e_per_radiance_at(row, col) * l >= 1.0 {
+                lit += 1;
+                let allowed = bound.allowed_radiance_variance(l, row, col);
+                let n = f64::from(count[p]);
+                expect += p_sample_variance_above(n, sigma2[p], allowed * n);
+            }
+        }
+        assert_eq!(lit, mc.lit_pixels);
+        diffs.push(frac - truth);
+        reported += frac / r;
+        per_frame += truth / r;
+        gaussian += expect / lit as f64 / r;
+    }
+    let (_, se) = mean_se(diffs.iter().copied());
+    let mean =
+        RadianceImage { width: cam.width, height: cam.height, data: sum.iter().map(|s| (s / r) as f32).collect() };
+    let emp: Vec<f32> = (0..n).map(|p| ((sum_sq[p] - sum[p] * sum[p] / r) / (r - 1.0)).max(0.0) as f32).collect();
+    let mc = sensor.apply_with_variance(&mean, Some(&emp), 0, t, k).unwrap().stats.mc.unwrap();
+    let empirical = mc.above_bound as f64 / mc.lit_pixels as f64;
+    ReportTruth { reported, se, empirical, per_frame, gaussian, lit: mc.lit_pixels as f64 }
+}
+
+/// `quality = "sensor"` (k = 0.5, budget 64) on the matte satellite at depth 1, 100 seeds
+/// at 128 × 96: the fraction of lit pixels above the bound that the frames report is the
+/// fraction their true variance puts there.
+///
+/// Depth 1's only noise is where a pixel's samples differ (the target's edges, shadow
+/// boundaries), two-valued and bounded. The report thresholds each pixel's s²/N, an
+/// unbiased but skewed estimate at few samples, so its count is biased low: for Gaussian
+/// samples the χ² distribution of s² predicts 0.001 of it here, the two-valued samples
+/// make it 0.007 (measured: reported 0.367, per-frame truth 0.374, Gaussian model 0.373;
+/// the frame-to-frame standard error of the difference is 0.0003). The test holds the
+/// report to within 0.02 (about 5 % of the fraction) of the truth and never above it by
+/// more than 4 standard errors: the trust docs/sensor.md states for this regime.
+#[test]
+fn the_sensor_quality_report_counts_the_pixels_truly_above_the_bound() {
+    let scene = matte_satellite();
+    let cam = scaled_camera(&scene, 128, 96, [0.0, 0.0]);
+    let r = report_truth(&scene, &cam, 64, 1, 100);
+    eprintln!("matte satellite, depth 1, budget 64: {r:?}");
+    assert!(r.lit > 2000.0, "{r:?}");
+    assert!(r.reported <= r.per_frame + 4.0 * r.se, "{r:?}");
+    assert!(r.per_frame - r.reported < 0.02, "{r:?}");
+    // Against each pixel's variance measured across the 100 frames (the renders' own
+    // truth, with the 14 % scatter of a 100-frame variance: thresholded, it reads higher).
+    assert!(r.reported <= r.empirical && r.empirical - r.reported < 0.03, "{r:?}");
+}
+
+/// Where the report cannot be trusted: indirect light (depth 2) on the matte satellite and
+/// the glossy satellite's glints, where a pixel's rare bright samples make s²/N at a
+/// sample count near the bound read low in most frames. Measured (50 seeds each, budget
+/// 64), asserted only in sign and loosely.
+#[test]
+fn the_sensor_quality_report_under_counts_rare_bright_samples() {
+    let matte = matte_satellite();
+    let glossy = hilcam_core::scene::file::load(std::path::Path::new("scenes/satellite.toml")).unwrap();
+    let cam = scaled_camera(&matte, 128, 96, [0.0, 0.0]);
+    for (what, scene) in [("matte", &matte), ("glossy", &glossy)] {
+        let r = report_truth(scene, &cam, 64, 2, 50);
+        eprintln!("{what} satellite, depth 2, budget 64: {r:?}");
+        assert!(r.reported < r.per_frame && r.reported > 0.6 * r.per_frame, "{what}: {r:?}");
+        // The Gaussian model explains part of it, the samples' skew the rest.
+        assert!(r.reported < r.gaussian && r.gaussian < r.per_frame, "{what}: {r:?}");
+    }
+}
