@@ -136,6 +136,12 @@ fn error_chain(e: &anyhow::Error) -> String {
     out
 }
 
+/// `--sensor-k`: a fraction of the camera's temporal noise in (0, 10].
+pub fn parse_sensor_k(s: &str) -> Result<f32, String> {
+    let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
+    hilcam_core::render::integrator::QualityGoal::checked_k(k)
+}
+
 #[cfg(test)]
 mod tests {
     use super::error_chain;
@@ -152,10 +158,4 @@ mod tests {
     fn hilcam_scene_error(source: std::io::Error) -> anyhow::Error {
         hilcam_core::scene::file::SceneError::Io { path: "scenes/x.toml".into(), source }.into()
     }
-}
-
-/// `--sensor-k`: a fraction of the camera's temporal noise in (0, 10].
-pub fn parse_sensor_k(s: &str) -> Result<f32, String> {
-    let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
-    hilcam_core::render::integrator::QualityGoal::checked_k(k)
 }
