@@ -296,13 +296,8 @@ fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -
         cfg.out_dir.join(cfg.shard.log_name()).display()
     );
     if stats.mc_lit_pixels > 0 {
-        println!(
-            "Monte Carlo noise: {} of {} lit pixels ({:.2} %) above {} × the camera's temporal noise (each frame's `mc_noise` in the log)",
-            stats.mc_above_bound,
-            stats.mc_lit_pixels,
-            100.0 * stats.mc_above_bound as f64 / stats.mc_lit_pixels as f64,
-            stats.mc_k
-        );
+        let total = super::mc_noise_total(stats.mc_above_bound, stats.mc_lit_pixels, stats.mc_k);
+        println!("{total} (each frame's `mc_noise` in the log)");
     }
     if !cfg.truth.is_empty() && stats.rendered > 0 {
         let per_frame = |d: Duration| d.as_secs_f64() / stats.rendered as f64;

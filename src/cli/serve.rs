@@ -48,13 +48,7 @@ pub fn print_report(r: &ServeReport) {
     );
     println!("render time p50 {:.1} ms, p99 {:.1} ms", s.render_p50_ms, s.render_p99_ms);
     if s.mc_lit_pixels > 0 {
-        println!(
-            "Monte Carlo noise: {} of {} lit pixels ({:.2} %) above {} × the camera's temporal noise",
-            s.mc_above_bound,
-            s.mc_lit_pixels,
-            100.0 * s.mc_above_bound as f64 / s.mc_lit_pixels as f64,
-            s.mc_k
-        );
+        println!("{}", super::mc_noise_total(s.mc_above_bound, s.mc_lit_pixels, s.mc_k));
     }
     if let Some((p50, p95, p99)) = r.latency_ms {
         println!("latency pose arrival → last byte: p50 {p50:.1} ms, p95 {p95:.1} ms, p99 {p99:.1} ms");

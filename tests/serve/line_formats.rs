@@ -99,11 +99,9 @@ fn session_frame_line_is_pinned_byte_for_byte() {
     assert_eq!(SessionLine::decode(expected, Path::new("pin.session.jsonl"), 1).unwrap(), line);
 }
 
-/// A `frames.jsonl` reader skips fields it does not know (a newer hilcam's log still
-/// reads) but refuses an unknown pixel format, naming the file and line.
-#[test]
-fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel_format() {
-    let meta = FrameMeta {
+/// The 3 × 2 Mono16 frame of [`payload`], frame 0, 1 spp, no flags.
+fn small_meta() -> FrameMeta {
+    FrameMeta {
         frame_seq: 0,
         pose_seq: 0,
         pose_t_ns: 0,
@@ -118,7 +116,14 @@ fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel
         integration_s: 0.0,
         line_time_ns: 0,
         flags: FrameFlags::default(),
-    };
+    }
+}
+
+/// A `frames.jsonl` reader skips fields it does not know (a newer hilcam's log still
+/// reads) but refuses an unknown pixel format, naming the file and line.
+#[test]
+fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel_format() {
+    let meta = small_meta();
     let line = |seq: u64| {
         let m = FrameMeta { frame_seq: seq, ..meta };
         serde_json::to_string(&FrameRecord::new(&m, &payload(), frame_file_name(seq, ImageFormat::Png))).unwrap()
@@ -156,22 +161,7 @@ fn mc_noise_object_is_pinned_in_both_lines() {
         r#""above_fraction":0.01000300026172496,"above_shot":12,"mean_ratio":0.25,"rms_ratio":0.375,"#,
         r#""mc_variance_e2_mean":812.5}"#,
     );
-    let meta = FrameMeta {
-        frame_seq: 7,
-        pose_seq: 7,
-        pose_t_ns: 0,
-        pose_arrival_unix_ns: 0,
-        emit_unix_ns: 0,
-        width: 3,
-        height: 2,
-        format: PixelFormat::Mono16,
-        bit_depth: 12,
-        spp: Spp::ONE,
-        depth: 2,
-        integration_s: 0.001,
-        line_time_ns: 0,
-        flags: FrameFlags::default(),
-    };
+    let meta = FrameMeta { frame_seq: 7, pose_seq: 7, ..small_meta() };
     let rec =
         FrameRecord { mc_noise: Some(mc), ..FrameRecord::new(&meta, &payload(), frame_file_name(7, ImageFormat::Png)) };
     let line = serde_json::to_string(&rec).unwrap();
