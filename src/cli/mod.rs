@@ -137,6 +137,14 @@ fn error_chain(e: &anyhow::Error) -> String {
 }
 
 /// `--sensor-k`: a fraction of the camera's temporal noise in (0, 10].
+/// A run's total Monte Carlo noise report (serve and replay print it at the end).
+pub fn mc_noise_total(above: u64, lit: u64, k: f64) -> String {
+    format!(
+        "Monte Carlo noise: {above} of {lit} lit pixels ({:.2} %) above {k} × the camera's temporal noise",
+        100.0 * above as f64 / lit.max(1) as f64
+    )
+}
+
 pub fn parse_sensor_k(s: &str) -> Result<f32, String> {
     let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
     hilcam_core::render::integrator::QualityGoal::checked_k(k)

@@ -154,6 +154,9 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
             f.sensor_time.as_secs_f64() * 1e3,
             f.integration_s.map(|t| format!(", integration {:.3} ms", t * 1e3)).unwrap_or_default()
         );
+        if let Some(mc) = &f.mc_noise {
+            print_mc_noise(mc, &f.render);
+        }
         (hilcam_core::render::film::WriteInfo { preview_scale: None }, f.render)
     } else if let Some(map) = &a.samples_map {
         let view = scene.view(&camera, &pose).with_distortion(scene.sensor.optics.distortion);
@@ -186,6 +189,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         settings.spp,
         // The renderer's own plan says whether spp is an average, and whether adaptive.
         match hilcam_core::render::adaptive::Adaptive::new(settings.spp, settings.adaptive) {
+            _ if settings.quality.is_sensor() => " (sensor-relative budget, average)",
             Some(plan) if !plan.uniform => " (adaptive, average)",
             Some(_) => " (average)",
             None => "",
@@ -207,6 +211,22 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         println!("warning: {} non-finite samples dropped", stats.rays.nonfinite);
     }
     Ok(())
+}
+
+/// The frame's Monte Carlo noise against the camera's (`quality = "sensor"` samples to
+/// keep it below k × the camera's; every DN frame reports it).
+fn print_mc_noise(mc: &hilcam_core::sensor::McNoiseStats, render: &hilcam_core::render::RenderStats) {
+    let spent = render.samples as f64 / render.traced_pixels.max(1) as f64;
+    println!(
+        "Monte Carlo noise: {} of {} lit pixels ({:.2} %) above {} × the camera's temporal noise; \
+         σ_mc/σ_cam mean {:.3}, rms {:.3}; {spent:.2} samples per traced pixel",
+        mc.above_bound,
+        mc.lit_pixels,
+        100.0 * mc.above_fraction,
+        mc.k,
+        mc.mean_ratio,
+        mc.rms_ratio,
+    );
 }
 
 /// Write per-pixel sample counts as an 8-bit heat map (black → red → yellow → white,

@@ -295,6 +295,10 @@ fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -
         },
         cfg.out_dir.join(cfg.shard.log_name()).display()
     );
+    if stats.mc_lit_pixels > 0 {
+        let total = super::mc_noise_total(stats.mc_above_bound, stats.mc_lit_pixels, stats.mc_k);
+        println!("{total} (each frame's `mc_noise` in the log)");
+    }
     if !cfg.truth.is_empty() && stats.rendered > 0 {
         let per_frame = |d: Duration| d.as_secs_f64() / stats.rendered as f64;
         let (frame, truth, write) =

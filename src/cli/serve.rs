@@ -47,6 +47,9 @@ pub fn print_report(r: &ServeReport) {
         s.frames, s.late, s.degraded, s.skipped_busy, r.poses_accepted, r.poses_rejected, s.superseded, r.client_drops
     );
     println!("render time p50 {:.1} ms, p99 {:.1} ms", s.render_p50_ms, s.render_p99_ms);
+    if s.mc_lit_pixels > 0 {
+        println!("{}", super::mc_noise_total(s.mc_above_bound, s.mc_lit_pixels, s.mc_k));
+    }
     if let Some((p50, p95, p99)) = r.latency_ms {
         println!("latency pose arrival → last byte: p50 {p50:.1} ms, p95 {p95:.1} ms, p99 {p99:.1} ms");
     }

@@ -375,3 +375,41 @@ mod bypassing_the_pose_gate {
         assert!(img.data.iter().any(|v| *v > 0.0));
     }
 }
+
+/// `quality = "sensor"` measures the Monte Carlo noise against the camera's: refused for a
+/// camera that has no detector, and for one whose detector has no temporal noise, from
+/// the scene (naming its line), the render flag, and serve's `[render]`.
+#[test]
+fn sensor_quality_without_a_noisy_camera_is_refused() {
+    let f = Fixture::new();
+    f.write("s.toml", &scene_text("quality = \"sensor\"\n"));
+    has_all(&refused(&f.render(&[])), &["s.toml:25:", "render.quality", "[sensor.detector]", "\"fixed\""]);
+    f.write("s.toml", &scene_text(""));
+    has_all(&refused(&f.render(&["--quality", "sensor", "--sensor"])), &["render.quality", "[sensor.detector]"]);
+    let quiet = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nintegration_time_s = 1e-3\n\
+                 [sensor.adc]\nbits = 12\ngain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n\
+                 [sensor.optics]\nf_number = 2.8\n";
+    f.write("s.toml", &scene_text(&format!("quality = \"sensor\"\n{quiet}")));
+    has_all(&refused(&f.render(&[])), &["s.toml:25:", "render.quality", "shot_noise = false", "no read_noise_e"]);
+    // The same camera with read noise is accepted and reports its Monte Carlo noise.
+    let noisy = quiet.replace("qe = 0.5\n", "qe = 0.5\nread_noise_e = 3.0\n");
+    f.write("s.toml", &scene_text(&format!("quality = \"sensor\"\n{noisy}")));
+    let o = Command::new(BIN)
+        .arg("render")
+        .arg(f.path("s.toml"))
+        .args(["--sensor", "--out"])
+        .arg(f.path("out.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("Monte Carlo noise: "),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    // serve's [render] quality over a scene without a detector: refused before serving.
+    f.write("s.toml", &scene_text(""));
+    let cfg = f.write("serve.toml", "scene = \"s.toml\"\n[input]\nkind = \"none\"\n[render]\nquality = \"sensor\"\n");
+    let o = Command::new(BIN).args(["serve", "--config"]).arg(&cfg).env("HILCAM_LOG", "warn").output().unwrap();
+    has_all(&refused(&o), &["render.quality", "s.toml", "[sensor.detector]"]);
+}

@@ -15,6 +15,7 @@ mod closest_packet;
 mod extremes;
 mod fold;
 mod mc_noise;
+mod mc_ptc;
 mod mc_sensor;
 mod mc_variance;
 mod mis;

@@ -333,6 +333,50 @@ async fn a_fractional_budget_reaches_the_frame_headers_and_the_metrics() {
     server.finish().await;
 }
 
+/// `quality = "sensor"` in serve: each frame's Monte Carlo noise report goes to the
+/// recorder's log, and `/metrics` adds them up (pixels compared and above the bound) and
+/// shows the last frame's fraction and RMS ratio.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sensor_quality_frames_report_their_monte_carlo_noise_in_the_log_and_the_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let sensor = "quality = \"sensor\"\nsensor_k = 0.25\n[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\n\
+                  integration_time_s = 2e-3\nshot_noise = true\nread_noise_e = 4.0\n[sensor.adc]\nbits = 16\n\
+                  gain_e_per_dn = 1.0\n[sensor.band]\nmin_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
+    let gov = GovernorConfig { policy: Policy::FixedQuality, budget_ms: Some(10_000.0) };
+    let scene = sphere_scene_with(dir.path(), 32, 8, sensor);
+    let mut cfg = config(scene, InputConfig::default(), TriggerConfig::default(), gov);
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
+    cfg.record = Some(RecordSection { dir: Some(dir.path().join("rec")), session: None, format: ImageFormat::Pfm });
+    let (tx, rx) = mpsc::channel(16);
+    let server = start(cfg, Some(rx)).await;
+    let mut reader = Reader::connect(server.info.stream).await;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    for seq in 1..=3u32 {
+        let p = pose(seq, DVec3::new(0.1 * f64::from(seq), 0.0, 8.0), DVec3::new(0.3, 0.2, -1.0).normalize());
+        tx.send(InputEvent::Pose { pose: p, arrival: Instant::now() }).await.unwrap();
+        reader.next().await;
+    }
+    let text = metrics_text(server.info.metrics.unwrap()).await;
+    let report = server.finish().await;
+    let log = std::fs::read_to_string(dir.path().join("rec/frames.jsonl")).unwrap();
+    let mc: Vec<_> = log
+        .lines()
+        .map(|l| serde_json::from_str::<hilcam_core::sink::FrameRecord>(l).unwrap().mc_noise.expect("mc_noise"))
+        .collect();
+    assert_eq!(mc.len(), 3, "{log}");
+    assert!(mc.iter().all(|m| m.k == 0.25 && m.lit_pixels > 50), "{mc:?}");
+    let (lit, above) = (mc.iter().map(|m| m.lit_pixels).sum::<u64>(), mc.iter().map(|m| m.above_bound).sum::<u64>());
+    assert_eq!(metric(&text, "hilcam_mc_lit_pixels_total"), Some(lit), "{text}");
+    assert_eq!(metric(&text, "hilcam_mc_above_bound_pixels_total"), Some(above), "{text}");
+    let last = mc[2];
+    assert_eq!(metric(&text, "hilcam_frame_mc_above_bound_ppm"), Some((last.above_fraction * 1e6).round() as u64));
+    assert_eq!(metric(&text, "hilcam_frame_mc_rms_ratio_milli"), Some((last.rms_ratio * 1e3).round() as u64));
+    assert_eq!(
+        (report.scheduler.mc_lit_pixels, report.scheduler.mc_above_bound, report.scheduler.mc_k),
+        (lit, above, 0.25)
+    );
+}
+
 /// GET /metrics as text.
 async fn metrics_text(addr: std::net::SocketAddr) -> String {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};

@@ -469,7 +469,6 @@ async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pin
     use hilcam_core::link::send::{MessageWriter, SerialWriter};
     use hilcam_core::pose::{Message, Pose};
     use hilcam_core::serve::config::ServeConfig;
-    use hilcam_core::serve::{Embed, run};
     use serialport::SerialPort;
 
     let ip = Ipv4Addr::new(127, 0, 0, 28);
@@ -483,10 +482,7 @@ async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pin
     );
     let cfg: ServeConfig = toml::from_str(&text).unwrap();
     cfg.validate().unwrap();
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(run(cfg, Embed { ready: Some(ready_tx), ..Default::default() }, stop_rx));
-    tokio::time::timeout(Duration::from_secs(60), ready_rx).await.expect("serve starts").expect("serve ready");
+    let server = crate::serve_common::start(cfg, None).await;
     tokio::time::sleep(Duration::from_millis(200)).await;
 
     let mut writer = SerialWriter::new(master, "test pty");
@@ -521,8 +517,7 @@ async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pin
             "centroid ({cx:.2}, {cy:.2}) vs pinhole ({px:.2}, {py:.2})"
         );
     }
-    let _ = stop_tx.send(());
-    let report = tokio::time::timeout(Duration::from_secs(60), server).await.unwrap().unwrap().unwrap();
+    let report = server.finish().await;
     assert_eq!(report.scheduler.triggers, 2, "one render per software trigger");
     drop(slave);
 }

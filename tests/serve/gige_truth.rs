@@ -11,7 +11,6 @@ use hilcam_core::pose::{Message, Pose};
 use hilcam_core::render::camera::Window;
 use hilcam_core::render::truth::TruthChannels;
 use hilcam_core::serve::config::ServeConfig;
-use hilcam_core::serve::{Embed, run};
 use serialport::SerialPort;
 use std::net::Ipv4Addr;
 use std::sync::Arc;
@@ -37,10 +36,7 @@ async fn aravis_reads_truth_chunks_equal_to_the_pipelines_truth_whole_and_in_an_
     );
     let cfg: ServeConfig = toml::from_str(&text).unwrap();
     cfg.validate().unwrap();
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(run(cfg, Embed { ready: Some(ready_tx), ..Default::default() }, stop_rx));
-    tokio::time::timeout(Duration::from_secs(60), ready_rx).await.expect("serve starts").expect("serve ready");
+    let server = crate::serve_common::start(cfg, None).await;
     tokio::time::sleep(Duration::from_millis(200)).await;
 
     let scene = Arc::new(hilcam_core::scene::load(&scene_path).unwrap());
@@ -93,8 +89,7 @@ async fn aravis_reads_truth_chunks_equal_to_the_pipelines_truth_whole_and_in_an_
         // Pixels (Mono16) + trailers and metadata + footprint chunk + the two channels.
         assert_eq!(payload, 2 * n + (8 + 56 + 8) + (40 + 8) + 2 * (4 * n + 8));
     }
-    let _ = stop_tx.send(());
-    let report = tokio::time::timeout(Duration::from_secs(60), server).await.unwrap().unwrap().unwrap();
+    let report = server.finish().await;
     assert_eq!(report.scheduler.triggers, 2);
     drop(slave);
 }

@@ -5,6 +5,7 @@
 use hilcam_core::frame::{FrameFlags, FrameMeta, PixelFormat};
 use hilcam_core::render::integrator::{SamplerKind, Spp};
 use hilcam_core::render::sampling::Sequence;
+use hilcam_core::sensor::McNoiseStats;
 use hilcam_core::session::{FrameLine, PoseFields, SessionLine, SettingsFields};
 use hilcam_core::sink::recorder::{FrameRecord, ImageFormat, frame_file_name};
 use std::path::Path;
@@ -83,6 +84,7 @@ fn session_frame_line_is_pinned_byte_for_byte() {
         integration_s: Some(0.001),
         payload_crc32: 585_609_882,
         request: Default::default(),
+        mc_noise: None,
     });
     let expected = concat!(
         r#"{"kind":"frame","index":4294967301,"mono_ns":250000000,"source_seq":77,"#,
@@ -97,11 +99,9 @@ fn session_frame_line_is_pinned_byte_for_byte() {
     assert_eq!(SessionLine::decode(expected, Path::new("pin.session.jsonl"), 1).unwrap(), line);
 }
 
-/// A `frames.jsonl` reader skips fields it does not know (a newer hilcam's log still
-/// reads) but refuses an unknown pixel format, naming the file and line.
-#[test]
-fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel_format() {
-    let meta = FrameMeta {
+/// The 3 × 2 Mono16 frame of [`payload`], frame 0, 1 spp, no flags.
+fn small_meta() -> FrameMeta {
+    FrameMeta {
         frame_seq: 0,
         pose_seq: 0,
         pose_t_ns: 0,
@@ -116,7 +116,14 @@ fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel
         integration_s: 0.0,
         line_time_ns: 0,
         flags: FrameFlags::default(),
-    };
+    }
+}
+
+/// A `frames.jsonl` reader skips fields it does not know (a newer hilcam's log still
+/// reads) but refuses an unknown pixel format, naming the file and line.
+#[test]
+fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel_format() {
+    let meta = small_meta();
     let line = |seq: u64| {
         let m = FrameMeta { frame_seq: seq, ..meta };
         serde_json::to_string(&FrameRecord::new(&m, &payload(), frame_file_name(seq, ImageFormat::Png))).unwrap()
@@ -133,4 +140,62 @@ fn frames_jsonl_reader_ignores_new_fields_and_names_the_line_of_an_unknown_pixel
     let expected_start = format!("{}:2: not a frame record: unknown pixel_format \"Mono12\"", log.display());
     assert!(e.starts_with(&expected_start), "{e}");
     assert!(e.contains("expected Mono8, Mono16 or Float32"), "{e}");
+}
+
+/// A DN frame's `mc_noise` object (issue 27), pinned in both files: the same field names
+/// and number spelling in `frames.jsonl` and in the session's `frame` line.
+#[test]
+fn mc_noise_object_is_pinned_in_both_lines() {
+    let mc = McNoiseStats {
+        k: 0.5,
+        lit_pixels: 156_653,
+        above_bound: 1_567,
+        above_fraction: 1_567.0 / 156_653.0,
+        above_shot: 12,
+        mean_ratio: 0.25,
+        rms_ratio: 0.375,
+        mc_variance_e2_mean: 812.5,
+    };
+    let object = concat!(
+        r#""mc_noise":{"k":0.5,"lit_pixels":156653,"above_bound":1567,"#,
+        r#""above_fraction":0.01000300026172496,"above_shot":12,"mean_ratio":0.25,"rms_ratio":0.375,"#,
+        r#""mc_variance_e2_mean":812.5}"#,
+    );
+    let meta = FrameMeta { frame_seq: 7, pose_seq: 7, ..small_meta() };
+    let rec =
+        FrameRecord { mc_noise: Some(mc), ..FrameRecord::new(&meta, &payload(), frame_file_name(7, ImageFormat::Png)) };
+    let line = serde_json::to_string(&rec).unwrap();
+    assert!(line.ends_with(&format!(r#""file":"frame_0000000007.png",{object}}}"#)), "{line}");
+    assert_eq!(serde_json::from_str::<FrameRecord>(&line).unwrap(), rec);
+
+    let frame = FrameLine {
+        index: 7,
+        mono_ns: 0,
+        source_seq: 7,
+        source_mono_ns: 0,
+        poses_received: 1,
+        extrapolated_s: 0.0,
+        pose: PoseFields {
+            seq: 7,
+            t_ns: 0,
+            position: [0.0, 0.0, 10.0],
+            attitude: [0.0, 0.0, 0.0, 1.0],
+            sun_dir: [0.0, 0.0, 1.0],
+            velocity: None,
+            angular_rate: None,
+            camera_to_inertial: None,
+        },
+        settings: SettingsFields::from(&hilcam_core::render::integrator::RenderSettings::default()),
+        flags: 0,
+        late: false,
+        extrapolated: false,
+        degraded: false,
+        integration_s: Some(0.001),
+        payload_crc32: 585_609_882,
+        request: Default::default(),
+        mc_noise: Some(mc),
+    };
+    let encoded = SessionLine::Frame(frame.clone()).encode();
+    assert!(encoded.ends_with(&format!(r#""payload_crc32":585609882,{object}}}"#)), "{encoded}");
+    assert_eq!(SessionLine::decode(&encoded, Path::new("pin.session.jsonl"), 1).unwrap(), SessionLine::Frame(frame));
 }

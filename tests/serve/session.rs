@@ -145,11 +145,22 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
     // the streamed bytes.
     let scene = Arc::new(hilcam_core::scene::load(&cfg.scene).unwrap());
     let camera = scene.camera.scaled(cfg.width, None);
-    let mut pipeline = FramePipeline::new(scene, camera).unwrap();
+    let mut pipeline = FramePipeline::new(scene, camera.clone()).unwrap();
     for (job, f) in session_jobs(&s, true).iter().zip(&streamed) {
         let again = pipeline.frame(&job.pose, &job.settings, job.index).unwrap();
         assert_eq!(again.pixels.to_le_bytes(), f.pixels.to_le_bytes(), "frame {}", job.index);
     }
+    // Each DN frame's Monte Carlo noise report is in its line, the same as the pipeline's
+    // for that frame; the run's summary adds them up.
+    let mut pipeline = FramePipeline::new(Arc::new(hilcam_core::scene::load(&cfg.scene).unwrap()), camera).unwrap();
+    for (job, line) in session_jobs(&s, true).iter().zip(&s.frames) {
+        let mc = line.mc_noise.expect("a DN frame reports its Monte Carlo noise");
+        assert!(mc.lit_pixels > 0 && mc.k == 0.5, "{mc:?}");
+        assert_eq!(pipeline.frame(&job.pose, &job.settings, job.index).unwrap().mc_noise, Some(mc));
+    }
+    let lit: u64 = s.frames.iter().map(|l| l.mc_noise.unwrap().lit_pixels).sum();
+    let above: u64 = s.frames.iter().map(|l| l.mc_noise.unwrap().above_bound).sum();
+    assert_eq!((report.scheduler.mc_lit_pixels, report.scheduler.mc_above_bound), (lit, above));
 
     // The command: re-render into files; every image holds the streamed DN values.
     let out = dir.path().join("rerender");
@@ -164,6 +175,10 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
     assert_eq!(recs.len(), FRAMES);
+    assert!(stdout.contains(&format!("Monte Carlo noise: {above} of {lit} lit pixels")), "{stdout}");
+    for (r, line) in recs.iter().zip(&s.frames) {
+        assert_eq!(r.mc_noise, line.mc_noise, "frame {}: frames.jsonl and the session agree", line.index);
+    }
     for (r, f) in recs.iter().zip(&streamed) {
         assert_eq!(
             (r.meta.frame_seq, r.meta.pose_seq, r.meta.pose_t_ns),

@@ -222,13 +222,9 @@ impl FramePipeline {
         // The camera's noise at this integration time: what `quality = "sensor"` samples
         // against and every DN frame's Monte Carlo noise report measures against.
         let noise = self.sensor.noise_bound(timing.integration_s, f64::from(settings.quality.k));
-        if settings.quality.is_sensor() && noise.is_none() {
-            return Err(SensorError::Invalid {
-                field: "render.quality".into(),
-                message: crate::sensor::check_quality(&settings.quality, self.sensor.config())
-                    .err()
-                    .unwrap_or_default(),
-            });
+        if settings.quality.is_sensor() {
+            crate::sensor::check_quality(&settings.quality, self.sensor.config())
+                .map_err(|message| SensorError::Invalid { field: "render.quality".into(), message })?;
         }
         let (mut view, options) =
             (self.view(pose, &timing), self.options(settings, index).with_noise(noise, noise.is_some()));

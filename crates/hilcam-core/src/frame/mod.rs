@@ -205,7 +205,7 @@ impl Frame {
         let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
         bytes.extend_from_slice(&encode_header(&meta, &payload));
         bytes.extend_from_slice(&payload);
-        EncodedFrame { meta, bytes, roi: None, truth: None }
+        EncodedFrame { meta, bytes, roi: None, truth: None, mc_noise: None }
     }
 }
 
@@ -232,6 +232,10 @@ pub struct EncodedFrame {
     /// The frame's ground truth when `[output] truth` asks for it (also encoded in
     /// `bytes`, after the payload: [`truth_block`]).
     pub truth: Option<std::sync::Arc<crate::render::truth::TruthImage>>,
+    /// How the frame's Monte Carlo noise compares with the camera's (DN frames with a
+    /// detector; [`crate::sensor::McNoiseStats`]). Not on the wire: the recorder's and
+    /// the session's frame lines carry it.
+    pub mc_noise: Option<crate::sensor::McNoiseStats>,
 }
 
 impl EncodedFrame {

@@ -213,7 +213,7 @@ impl Frame {
         bytes.extend_from_slice(&payload);
         bytes.extend_from_slice(&(block.len() as u64).to_le_bytes());
         bytes.extend_from_slice(&block);
-        EncodedFrame { meta, bytes, roi: None, truth: Some(truth) }
+        EncodedFrame { meta, bytes, roi: None, truth: Some(truth), mc_noise: None }
     }
 }
 

@@ -234,7 +234,8 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
             (true, Some(bound)) => Some(SensorPlan { bound: *bound, budget: settings.spp, keys: view.keys }),
             _ => None,
         };
-        // A sensor-quality frame starts as an adaptive one: one pilot sample everywhere.
+        // A sensor-quality frame starts as an adaptive one: a pilot of
+        // `SensorPlan::PILOT` samples everywhere.
         let adaptive = match sensor {
             Some(_) => Some(Adaptive { pilot: SensorPlan::PILOT, spp_milli: settings.spp.milli(), uniform: false }),
             None => Adaptive::new(settings.spp, settings.adaptive),

@@ -7,8 +7,9 @@
 //! c·σₚ/√Nₚ ≤ k·σ_camera,ₚ (c: electrons per unit radiance there,
 //! [`NoiseBound`]), i.e. when Nₚ ≥ c²σₚ² / (k²σ²_camera,ₚ).
 //!
-//! The frame starts as an adaptive frame does (`render::adaptive`): one pilot sample in
-//! every pixel. Each pixel's σₚ² and signal are then estimated from its eight
+//! The frame starts as an adaptive frame does (`render::adaptive`): a pilot in every
+//! pixel, here [`SensorPlan::PILOT`] samples (two, so that every pixel has a variance of
+//! its own; a budget below it still spends the pilot). Each pixel's σₚ² and signal are then estimated from its eight
 //! neighbours' pilots, never its own ([`neighbour_estimate`]): the count a pixel gets is
 //! independent of its own samples, so its mean stays unbiased. Where the counts asked for
 //! exceed the budget (`spp` per sampled pixel on average), every pixel's count is cut to a

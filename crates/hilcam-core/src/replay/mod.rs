@@ -141,7 +141,7 @@ pub struct ReplayConfig {
 }
 
 /// Progress after each frame (rendered or skipped).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ReplayStats {
     /// Frames this run is responsible for.
     pub selected: u64,
@@ -157,6 +157,12 @@ pub struct ReplayStats {
     pub truth_time: std::time::Duration,
     /// Time spent encoding and writing the truth files.
     pub truth_write_time: std::time::Duration,
+    /// Lit pixels of the rendered DN frames compared with the camera's noise, and those
+    /// whose Monte Carlo noise was above the bound (summed `mc_noise` of the frames).
+    pub mc_lit_pixels: u64,
+    pub mc_above_bound: u64,
+    /// The bound's k (the last such frame's: `[render] sensor_k`, default 0.5).
+    pub mc_k: f64,
 }
 
 /// A frame log entry read back, with where it came from.
@@ -440,6 +446,12 @@ pub fn replay_jobs_until(
         meta.emit_unix_ns = unix_ns_now();
         let mut record = FrameRecord::new(&meta, &payload, name.clone());
         record.truth = record_truth;
+        record.mc_noise = f.mc_noise;
+        if let Some(mc) = &f.mc_noise {
+            stats.mc_lit_pixels += mc.lit_pixels;
+            stats.mc_above_bound += mc.above_bound;
+            stats.mc_k = mc.k;
+        }
         let line = serde_json::to_string(&record).expect("FrameRecord serialises");
         if let Err(e) = log.append(&line) {
             // The log must not miss a file that is present: take the image back out.

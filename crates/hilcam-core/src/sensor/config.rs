@@ -491,5 +491,14 @@ pub fn check_quality(quality: &crate::render::integrator::QualityGoal, sensor: &
                     [sensor.detector] and DN output ([sensor.adc]); use \"fixed\" for this camera"
             .into());
     }
+    if let Some(d) = sensor.detector.as_ref().filter(|_| quality.is_sensor())
+        && !d.shot_noise
+        && d.read_noise_e.is_none_or(|r| r <= 0.0)
+    {
+        return Err("\"sensor\" keeps the Monte Carlo noise below the camera's own temporal noise, and this \
+                    [sensor.detector] has none (shot_noise = false, no read_noise_e): every sample would be \
+                    needed; turn on the camera's noise or use \"fixed\""
+            .into());
+    }
     Ok(())
 }

@@ -134,15 +134,8 @@ impl Detector {
     pub fn sample(&self, expected_e: f64, rng: &mut Rng) -> PixelCharge {
         let need_normal = self.read_noise_e > 0.0 || (self.shot_noise && expected_e >= noise::POISSON_EXACT_BELOW);
         let (z_shot, z_read) = if need_normal { noise::normal_pair(rng) } else { (0.0, 0.0) };
-        let mut e = if self.shot_noise { noise::poisson(expected_e, z_shot, rng) } else { expected_e };
-        let mut full = false;
-        if let Some(fw) = self.full_well_e
-            && e >= fw
-        {
-            e = fw;
-            full = true;
-        }
-        PixelCharge { expected_e, collected_e: e, full, read_e: e + self.read_noise_e * z_read }
+        let e = if self.shot_noise { noise::poisson(expected_e, z_shot, rng) } else { expected_e };
+        self.clip_and_read(expected_e, e, z_read)
     }
 
     /// [`Detector::sample`] for a pixel whose expected charge already carries Monte Carlo
@@ -154,14 +147,17 @@ impl Detector {
     pub fn sample_substituted(&self, expected_e: f64, mc_var_e2: f64, rng: &mut Rng) -> PixelCharge {
         let (z_shot, z_read) = noise::normal_pair(rng);
         let sd = (expected_e - mc_var_e2 - 1.0 / 12.0).max(0.0).sqrt();
-        let mut e = super::adc::floor(expected_e + sd * z_shot + 0.5).max(0.0);
-        let mut full = false;
-        if let Some(fw) = self.full_well_e
-            && e >= fw
-        {
-            e = fw;
-            full = true;
-        }
+        let e = super::adc::floor(expected_e + sd * z_shot + 0.5).max(0.0);
+        self.clip_and_read(expected_e, e, z_read)
+    }
+
+    /// The collected charge `e` clipped at the full well, then read with noise `z_read`.
+    #[inline]
+    fn clip_and_read(&self, expected_e: f64, e: f64, z_read: f64) -> PixelCharge {
+        let (e, full) = match self.full_well_e {
+            Some(fw) if e >= fw => (fw, true),
+            _ => (e, false),
+        };
         PixelCharge { expected_e, collected_e: e, full, read_e: e + self.read_noise_e * z_read }
     }
 }

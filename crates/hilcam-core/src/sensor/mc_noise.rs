@@ -29,7 +29,10 @@ use rayon::prelude::*;
 /// σ_mc = √v_e (after optics and PSF, PRNU included) is compared with the camera's
 /// temporal noise σ_cam = √(photo + dark + read²) (photo and dark only with shot noise on),
 /// both in electrons at that pixel.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+///
+/// It is written as the `mc_noise` object of a frame's `frames.jsonl` line and session
+/// `frame` line under these field names.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct McNoiseStats {
     /// The bound's fraction `k` (σ_mc ≤ k·σ_cam meets it).
     pub k: f64,
@@ -37,6 +40,8 @@ pub struct McNoiseStats {
     pub lit_pixels: u64,
     /// Lit pixels with σ_mc > k·σ_cam.
     pub above_bound: u64,
+    /// `above_bound / lit_pixels` (0 without lit pixels).
+    pub above_fraction: f64,
     /// Lit pixels whose Monte Carlo variance exceeds their shot-noise variance (v_e >
     /// photo + dark; with shot noise off, v_e > 0): with `noise = "substitute"` they get
     /// no shot noise and are still noisier than the camera.
@@ -94,6 +99,7 @@ impl McNoiseStats {
             s.mc_variance_e2_mean += r.var_e2;
         }
         if s.lit_pixels > 0 {
+            s.above_fraction = s.above_bound as f64 / s.lit_pixels as f64;
             s.mean_ratio /= s.lit_pixels as f64;
             s.rms_ratio = (s.rms_ratio / s.lit_pixels as f64).sqrt();
             s.mc_variance_e2_mean /= s.lit_pixels as f64;

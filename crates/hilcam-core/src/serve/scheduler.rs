@@ -122,6 +122,12 @@ pub struct SchedulerSummary {
     /// Render time percentiles of the newest [`RenderTimes::WINDOW`] frames.
     pub render_p50_ms: f64,
     pub render_p99_ms: f64,
+    /// Lit pixels of DN frames compared with the camera's noise, and those above the
+    /// bound ([`crate::sensor::McNoiseStats`], summed over frames).
+    pub mc_lit_pixels: u64,
+    pub mc_above_bound: u64,
+    /// The bound's k (the last such frame's: `[render] sensor_k`, default 0.5).
+    pub mc_k: f64,
 }
 
 struct Job {
@@ -172,6 +178,10 @@ pub struct SchedulerMetrics {
     spp_milli: Gauge,
     depth: Gauge,
     rate_millihz: Gauge,
+    mc_lit: Counter,
+    mc_above: Counter,
+    mc_above_ppm: Gauge,
+    mc_rms_milli: Gauge,
 }
 
 impl SchedulerMetrics {
@@ -226,6 +236,26 @@ impl SchedulerMetrics {
                 "Rate the scheduler renders at in rate trigger mode, in mHz (0 in pose / external mode)",
                 &[],
             ),
+            mc_lit: r.counter(
+                "hilcam_mc_lit_pixels_total",
+                "Lit pixels of DN frames whose Monte Carlo noise was compared with the camera's",
+                &[],
+            ),
+            mc_above: r.counter(
+                "hilcam_mc_above_bound_pixels_total",
+                "Lit pixels whose Monte Carlo noise exceeded k times the camera's temporal noise",
+                &[],
+            ),
+            mc_above_ppm: r.gauge(
+                "hilcam_frame_mc_above_bound_ppm",
+                "Lit pixels of the last frame above the Monte Carlo noise bound, parts per million",
+                &[],
+            ),
+            mc_rms_milli: r.gauge(
+                "hilcam_frame_mc_rms_ratio_milli",
+                "RMS ratio of Monte Carlo to camera noise over the last frame's lit pixels, in thousandths",
+                &[],
+            ),
         }
     }
 }
@@ -261,6 +291,7 @@ fn record(tap: Option<&SessionTap>, d: &Done) {
                 integration_s: d.integration_s,
                 payload_crc32: crc,
                 request: j.request,
+                mc_noise: frame.mc_noise,
             });
         }
         Err(e) => tap.send(SessionLine::FrameFailed(FrameFailedLine {
@@ -342,7 +373,7 @@ fn render_job(
             Some(t) => fr.encode_with_truth(t),
             None => fr.encode(),
         };
-        Arc::new(EncodedFrame { roi: job.request.roi, ..encoded })
+        Arc::new(EncodedFrame { roi: job.request.roi, mc_noise: f.mc_noise, ..encoded })
     });
     (encoded.map_err(|e| FrameFailure { reason: "encode", message: e.to_string() }), integration_s, truth_time)
 }
@@ -499,6 +530,15 @@ impl Loop {
                 m.spp.set(i64::from(d.quality.spp.floor()));
                 m.spp_milli.set(i64::from(d.quality.spp.milli()));
                 m.depth.set(i64::from(d.quality.depth));
+                if let Some(mc) = &frame.mc_noise {
+                    m.mc_lit.add(mc.lit_pixels);
+                    m.mc_above.add(mc.above_bound);
+                    m.mc_above_ppm.set((mc.above_fraction * 1e6).round() as i64);
+                    m.mc_rms_milli.set((mc.rms_ratio * 1e3).round() as i64);
+                    s.mc_lit_pixels += mc.lit_pixels;
+                    s.mc_above_bound += mc.above_bound;
+                    s.mc_k = mc.k;
+                }
                 if d.late {
                     s.late += 1;
                     m.late.inc();

@@ -226,6 +226,10 @@ pub struct FrameLine {
     /// ROI); absent when it asked nothing, so the frame is the configured one.
     #[serde(default, skip_serializing_if = "FrameRequest::is_default")]
     pub request: FrameRequest,
+    /// How the frame's Monte Carlo noise compared with the camera's (DN frames with a
+    /// detector); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mc_noise: Option<crate::sensor::McNoiseStats>,
 }
 
 impl FrameLine {
@@ -436,6 +440,7 @@ mod tests {
             integration_s: Some(1.0 / 3.0),
             payload_crc32: 0xdead_beef,
             request: FrameRequest::default(),
+            mc_noise: None,
         }
     }
 

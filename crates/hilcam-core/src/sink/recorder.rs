@@ -102,6 +102,10 @@ pub struct FrameRecord {
     /// Ground truth written beside the image (`hilcam replay --truth`), absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthRecord>,
+    /// How the frame's Monte Carlo noise compared with the camera's (DN frames with a
+    /// detector; [`crate::sensor::McNoiseStats`]), absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mc_noise: Option<crate::sensor::McNoiseStats>,
 }
 
 /// What a frame's log line says of its ground truth ([`crate::render::truth`]).
@@ -146,6 +150,7 @@ impl FrameRecord {
             payload_crc32: crate::frame::CRC32.checksum(payload),
             file,
             truth: None,
+            mc_noise: None,
         }
     }
 }
@@ -358,7 +363,7 @@ fn record_image(
         };
         (reason, RecorderError::Image(e))
     })?;
-    let rec = FrameRecord { truth, ..FrameRecord::new(m, frame.payload(), name) };
+    let rec = FrameRecord { truth, mc_noise: frame.mc_noise, ..FrameRecord::new(m, frame.payload(), name) };
     let line = serde_json::to_string(&rec).expect("FrameRecord serialises");
     log.append(&line).map_err(|source| {
         let reason = if film::is_disk_full(&source) { Reason::DiskFull } else { Reason::Io };
