@@ -136,7 +136,6 @@ fn error_chain(e: &anyhow::Error) -> String {
     out
 }
 
-/// `--sensor-k`: a fraction of the camera's temporal noise in (0, 10].
 /// A run's total Monte Carlo noise report (serve and replay print it at the end).
 pub fn mc_noise_total(above: u64, lit: u64, k: f64) -> String {
     format!(
@@ -145,9 +144,9 @@ pub fn mc_noise_total(above: u64, lit: u64, k: f64) -> String {
     )
 }
 
+/// `--sensor-k`: a fraction of the camera's temporal noise in (0, 10].
 pub fn parse_sensor_k(s: &str) -> Result<f32, String> {
-    let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
-    hilcam_core::render::integrator::QualityGoal::checked_k(k)
+    hilcam_core::render::integrator::QualityGoal::parse_k(s)
 }
 
 #[cfg(test)]

@@ -50,7 +50,7 @@ pub struct TradeArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,2,4", requires = "sensor")]
     pub fixed_spp: Vec<Spp>,
     /// With --sensor: the bounds k of the `quality = "sensor"` rows.
-    #[arg(long, value_delimiter = ',', default_value = "1,0.5,0.25", value_parser = crate::cli::bench_trade_sensor::parse_k, requires = "sensor")]
+    #[arg(long, value_delimiter = ',', default_value = "1,0.5,0.25", value_parser = hilcam_core::render::integrator::QualityGoal::parse_k, requires = "sensor")]
     pub sensor_k: Vec<f32>,
     /// With --sensor: the budget (mean spp per traced pixel) of the `quality = "sensor"` rows.
     #[arg(long, default_value_t = 256, requires = "sensor")]

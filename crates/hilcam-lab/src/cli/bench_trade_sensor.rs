@@ -6,7 +6,7 @@ use crate::bench::trade_sensor::{
 use crate::cli::bench_trade::TradeArgs;
 use anyhow::Context;
 use hilcam_core::pipeline::FramePipeline;
-use hilcam_core::render::integrator::{QualityGoal, Spp};
+use hilcam_core::render::integrator::Spp;
 use hilcam_core::scene::limits::checked_scaled_camera;
 use std::sync::Arc;
 
@@ -17,12 +17,6 @@ const SETTLE_FRAMES: u32 = 40;
 const SETTLE_TOLERANCE: f64 = 0.01;
 /// Default reference spp (every pixel, the scene's depth and sampler).
 const REFERENCE_SPP: u32 = 1024;
-
-/// `--sensor-k`: a bound in (0, 10].
-pub fn parse_k(s: &str) -> Result<f32, String> {
-    let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
-    QualityGoal::checked_k(k)
-}
 
 pub fn run(a: &TradeArgs) -> anyhow::Result<()> {
     if let Some(n) = a.threads {

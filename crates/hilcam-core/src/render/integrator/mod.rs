@@ -94,6 +94,12 @@ impl QualityGoal {
             Err(format!("the Monte Carlo noise bound k must be in (0, 10] (a fraction of the camera's noise), got {k}"))
         }
     }
+
+    /// `k` from text (a `--sensor-k` flag), checked as [`QualityGoal::checked_k`].
+    pub fn parse_k(s: &str) -> Result<f32, String> {
+        let k: f64 = s.trim().parse().map_err(|_| format!("expected a number such as 0.5, got {s:?}"))?;
+        Self::checked_k(k)
+    }
 }
 
 impl Default for QualityGoal {
