@@ -463,11 +463,22 @@ pub(crate) fn dn_sphere_scene(dir: &std::path::Path) -> std::path::PathBuf {
     )
 }
 
+/// A pose `seq` (1 ms apart from t = 5 s) with the target at `p`, lit from the camera's side.
+pub(crate) fn lit_pose(seq: u32, p: glam::DVec3) -> hilcam_core::pose::Pose {
+    hilcam_core::pose::Pose {
+        seq,
+        t_ns: 5_000_000_000 + u64::from(seq) * 1_000_000,
+        position: p,
+        sun_dir: (-p).normalize(),
+        ..hilcam_core::pose::Pose::ahead(10.0)
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pinhole_puts_it() {
     use glam::DVec3;
     use hilcam_core::link::send::{MessageWriter, SerialWriter};
-    use hilcam_core::pose::{Message, Pose};
+    use hilcam_core::pose::Message;
     use hilcam_core::serve::config::ServeConfig;
     use serialport::SerialPort;
 
@@ -486,13 +497,7 @@ async fn serve_renders_the_pose_sent_over_a_pty_and_aravis_sees_it_where_the_pin
     tokio::time::sleep(Duration::from_millis(200)).await;
 
     let mut writer = SerialWriter::new(master, "test pty");
-    let pose = |seq: u32, p: DVec3| Pose {
-        seq,
-        t_ns: 5_000_000_000 + u64::from(seq) * 1_000_000,
-        position: p,
-        sun_dir: (-p).normalize(),
-        ..Pose::ahead(10.0)
-    };
+    let pose = lit_pose;
     for (seq, p) in [(1u32, DVec3::new(0.8, -0.5, 10.0)), (2, DVec3::new(-1.0, 0.6, 12.0))] {
         writer.send(&Message::Pose(pose(seq, p))).unwrap();
         tokio::time::sleep(Duration::from_millis(300)).await;

@@ -7,7 +7,7 @@ use crate::gige::{dn_sphere_scene, python_client};
 use glam::DVec3;
 use hilcam_core::link::send::{MessageWriter, SerialWriter};
 use hilcam_core::pipeline::{FramePipeline, FrameRequest};
-use hilcam_core::pose::{Message, Pose};
+use hilcam_core::pose::Message;
 use hilcam_core::render::camera::Window;
 use hilcam_core::render::truth::TruthChannels;
 use hilcam_core::serve::config::ServeConfig;
@@ -43,13 +43,7 @@ async fn aravis_reads_truth_chunks_equal_to_the_pipelines_truth_whole_and_in_an_
     let pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
     let channels = TruthChannels::parse("depth,mask").unwrap();
     let mut writer = SerialWriter::new(master, "test pty");
-    let pose = |seq: u32, p: DVec3| Pose {
-        seq,
-        t_ns: 5_000_000_000 + u64::from(seq) * 1_000_000,
-        position: p,
-        sun_dir: (-p).normalize(),
-        ..Pose::ahead(10.0)
-    };
+    let pose = crate::gige::lit_pose;
     let roi = Window { x: 30, y: 20, width: 48, height: 40 };
     let cases = [
         (1u32, DVec3::new(0.8, -0.5, 10.0), None, vec![]),
