@@ -68,10 +68,22 @@ pub(super) struct McRow {
 }
 
 impl McRow {
+    /// Count pixel `pixel` of radiance `l` and Monte Carlo variance `v` (radiance², both
+    /// after the optics) at detector `d`; its expected photo and dark charge and its
+    /// variance in e⁻² (PRNU included), for the caller's draw.
+    #[inline]
+    pub fn add_pixel(&mut self, k: f64, d: &Detector, l: f64, v: f64, pixel: u64) -> (f64, f64, f64) {
+        let (photo, dark) = d.expected_parts(l, pixel);
+        let g = d.photo_gain(pixel);
+        let v_e = v * g * g;
+        self.add(k, d.shot_noise, photo, dark, v_e, d.read_noise_e * d.read_noise_e);
+        (photo, dark, v_e)
+    }
+
     /// Count one pixel: expected `photo` and `dark` charge, Monte Carlo variance `v_e`
     /// (e⁻²), read noise `read_e2` (e⁻²).
     #[inline]
-    pub fn add(&mut self, k: f64, shot: bool, photo: f64, dark: f64, v_e: f64, read_e2: f64) {
+    fn add(&mut self, k: f64, shot: bool, photo: f64, dark: f64, v_e: f64, read_e2: f64) {
         if photo < 1.0 {
             return;
         }
@@ -190,7 +202,7 @@ impl Sensor {
             return Err(SensorError::VarianceSize { got: variance.len(), want: img.data.len() });
         }
         let v = self.optics_variance(variance)?;
-        let (w, keys, rn2) = (img.width as usize, self.keys(), d.read_noise_e * d.read_noise_e);
+        let (w, keys) = (img.width as usize, self.keys());
         let rows: Vec<McRow> = rad
             .data
             .par_chunks(w)
@@ -199,10 +211,7 @@ impl Sensor {
             .map(|(row, (l, vr))| {
                 let mut r = McRow::default();
                 for (col, (l, v)) in l.iter().zip(vr).enumerate() {
-                    let pixel = keys.key(row as u32, col as u32);
-                    let (photo, dark) = d.expected_parts(*l as f64, pixel);
-                    let g = d.photo_gain(pixel);
-                    r.add(k, d.shot_noise, photo, dark, *v as f64 * g * g, rn2);
+                    r.add_pixel(k, &d, *l as f64, *v as f64, keys.key(row as u32, col as u32));
                 }
                 r
             })

@@ -365,11 +365,7 @@ impl Sensor {
                             let c = match mc_row {
                                 None => d.sample(d.expected(*l as f64, pixel), &mut rng),
                                 Some(vr) => {
-                                    let (photo, dark) = d.expected_parts(*l as f64, pixel);
-                                    let g = d.photo_gain(pixel);
-                                    let v_e = vr[col] as f64 * g * g;
-                                    let rn2 = d.read_noise_e * d.read_noise_e;
-                                    st.mc.add(k, d.shot_noise, photo, dark, v_e, rn2);
+                                    let (photo, dark, v_e) = st.mc.add_pixel(k, d, *l as f64, vr[col] as f64, pixel);
                                     if substitute && v_e > 0.0 {
                                         d.sample_substituted(photo + dark, v_e, &mut rng)
                                     } else {
