@@ -201,11 +201,18 @@ impl Frame {
     /// `TRUTH` bit is cleared, as no block follows; [`Frame::encode_with_truth`] adds one).
     pub fn encode(&self) -> EncodedFrame {
         let meta = FrameMeta { flags: FrameFlags(self.meta.flags.0 & !FrameFlags::TRUTH), ..self.meta };
+        EncodedFrame { meta, bytes: self.encode_bytes(&meta, &[]), roi: None, truth: None, mc_noise: None }
+    }
+
+    /// The header for `meta`, the payload, then the `after` pieces (a truth block's
+    /// length and bytes, or nothing), in one buffer.
+    fn encode_bytes(&self, meta: &FrameMeta, after: &[&[u8]]) -> Vec<u8> {
         let payload = self.pixels.to_le_bytes();
-        let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
-        bytes.extend_from_slice(&encode_header(&meta, &payload));
+        let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len() + after.iter().map(|a| a.len()).sum::<usize>());
+        bytes.extend_from_slice(&encode_header(meta, &payload));
         bytes.extend_from_slice(&payload);
-        EncodedFrame { meta, bytes, roi: None, truth: None, mc_noise: None }
+        after.iter().for_each(|a| bytes.extend_from_slice(a));
+        bytes
     }
 }
 

@@ -18,7 +18,7 @@
 //! element types 1 = f32, 2 = u32. Data are component planes one after another (all x,
 //! then all y, then all z), each row-major like the payload, little-endian.
 
-use super::{EncodedFrame, Frame, FrameFlags, HEADER_LEN, Malformed, encode_header};
+use super::{EncodedFrame, Frame, FrameFlags, Malformed};
 use crate::render::truth::{Footprint, TruthChannel, TruthChannels, TruthImage};
 use std::sync::Arc;
 
@@ -206,13 +206,8 @@ impl Frame {
     /// write it (recorder) or re-encode it (GigE chunks).
     pub fn encode_with_truth(&self, truth: Arc<TruthImage>) -> EncodedFrame {
         let meta = super::FrameMeta { flags: self.meta.flags.with(FrameFlags::TRUTH), ..self.meta };
-        let payload = self.pixels.to_le_bytes();
         let block = encode_truth_block(&truth);
-        let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len() + 8 + block.len());
-        bytes.extend_from_slice(&encode_header(&meta, &payload));
-        bytes.extend_from_slice(&payload);
-        bytes.extend_from_slice(&(block.len() as u64).to_le_bytes());
-        bytes.extend_from_slice(&block);
+        let bytes = self.encode_bytes(&meta, &[&(block.len() as u64).to_le_bytes(), &block]);
         EncodedFrame { meta, bytes, roi: None, truth: Some(truth), mc_noise: None }
     }
 }
