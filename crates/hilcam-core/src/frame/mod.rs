@@ -480,10 +480,7 @@ pub fn decode_frame_with_truth(buf: &[u8]) -> Result<(Frame, Option<truth_block:
     check_payload(&header, payload)?;
     let truth = match header.truth_block {
         false => None,
-        true => Some(
-            truth_block::decode_truth_block(w, h, &buf[end as usize + 8..total as usize])
-                .map_err(|e| Malformed::TruthBlock { seq: header.meta.frame_seq, message: e.to_string() })?,
-        ),
+        true => Some(truth_block::decode_frame_truth(&header.meta, &buf[end as usize + 8..total as usize])?),
     };
     let pixels = pixels_from_le_bytes(header.meta.format, header.meta.bit_depth, payload);
     let frame = Frame { meta: header.meta, pixels };

@@ -191,6 +191,13 @@ pub fn decode_truth_block(width: u32, height: u32, b: &[u8]) -> Result<WireTruth
     Ok(WireTruth { image, footprint })
 }
 
+/// [`decode_truth_block`] for the frame `meta` describes, its failure named by frame as a
+/// stream error (what a receiver counts).
+pub fn decode_frame_truth(meta: &super::FrameMeta, b: &[u8]) -> Result<WireTruth, Malformed> {
+    decode_truth_block(meta.width, meta.height, b)
+        .map_err(|e| Malformed::TruthBlock { seq: meta.frame_seq, message: e.to_string() })
+}
+
 /// Check a `truth_len` read off the stream before anything is allocated for it.
 pub fn check_truth_len(width: u32, height: u32, truth_len: u64) -> Result<(), Malformed> {
     let limit = max_truth_len(width, height);

@@ -4,7 +4,7 @@
 //! over [`receive`]; the demo runs it in-process.
 
 use super::recorder::{ImageFormat, frame_file_name, write_frame_image};
-use crate::frame::truth_block::{WireTruth, check_truth_len, decode_truth_block};
+use crate::frame::truth_block::{WireTruth, check_truth_len, decode_frame_truth};
 use crate::frame::{
     DecodeError, FrameHeader, HEADER_LEN, Malformed, check_payload, decode_header, pixels_from_le_bytes, unix_ns_now,
 };
@@ -136,8 +136,7 @@ async fn read_truth(
     if !matches!(read_full(rd, block).await, Ok(true)) && !block.is_empty() {
         return Err(RecvFail::Truncated);
     }
-    Ok(decode_truth_block(h.meta.width, h.meta.height, block)
-        .map_err(|e| Malformed::TruthBlock { seq: h.meta.frame_seq, message: e.to_string() }))
+    Ok(decode_frame_truth(&h.meta, block))
 }
 
 /// Receive frames from a hilcam stream at `addr` until `opts.count` frames or the
