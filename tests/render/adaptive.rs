@@ -86,6 +86,7 @@ fn every_pixel_is_the_mean_of_its_own_first_samples_and_the_budget_is_kept() {
             roulette: true,
             adaptive,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed: 5,
         };
         let mut buffers = FrameBuffers::<()>::default();
@@ -147,6 +148,7 @@ fn a_plate_under_a_uniform_sky_averages_to_rho_times_the_sky() {
             roulette: false,
             adaptive: true,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed,
         };
         let mut s =
@@ -187,6 +189,7 @@ fn adaptive_and_uniform_means_agree_with_inter_reflections() {
             roulette: false,
             adaptive,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed,
         };
         let s = scene(mesh.clone(), vec![lambert("paint", 0.9)], cam.clone(), pose, settings);

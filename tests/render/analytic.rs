@@ -306,6 +306,7 @@ fn sobol_and_independent_sequences_agree_in_the_mean_and_sobol_converges_faster(
             roulette: true,
             adaptive: false,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed: 21,
         };
         let mut s =

@@ -75,6 +75,7 @@ fn check_unbiased(bsdf: Bsdf, spp: u32) {
             roulette: false,
             adaptive: false,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed: 7,
         };
         let (img, _) = case.render(&s);
@@ -109,6 +110,7 @@ fn cosine_is_exact_for_lambert_under_uniform_sky() {
             roulette: false,
             adaptive: false,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed: 3,
         };
         mean_se(&interior(&case, &case.render(&s).0))

@@ -80,6 +80,7 @@ fn rasterised_primary_hits_give_the_same_bytes_as_tracing() {
         // otherwise move its neighbours' adaptive counts too.
         adaptive: false,
         quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+        method: Default::default(),
         seed: 5,
     };
     let base = scene.pose;

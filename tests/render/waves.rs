@@ -71,6 +71,7 @@ fn waves_give_the_same_bytes_as_tracing_sample_by_sample() {
             roulette,
             adaptive: false,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: Default::default(),
             seed: 11,
         };
         let (img, stats) = render(&scene, &scene.view(&cam, &scene.pose), &RenderOptions::new(settings, 7));

@@ -75,6 +75,7 @@ fn session_frame_line_is_pinned_byte_for_byte() {
             roulette: false,
             adaptive: true,
             quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+            method: hilcam_core::render::integrator::Method::Path,
             seed: u64::MAX,
         },
         flags: FrameFlags::LATE | FrameFlags::EXTRAPOLATED | FrameFlags::DEGRADED,

@@ -28,6 +28,7 @@ const SETTINGS: RenderSettings = RenderSettings {
     roulette: true,
     adaptive: true,
     quality: hilcam_core::render::integrator::QualityGoal::FIXED,
+    method: hilcam_core::render::integrator::Method::Path,
     seed: 7,
 };
 

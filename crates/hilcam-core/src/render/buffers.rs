@@ -43,6 +43,8 @@ pub struct FrameBuffers<L = ()> {
     pub(super) silhouette: SilhouetteBuffers,
     pub(super) sobol: Workers<SobolStream>,
     pub(super) independent: Workers<Rng>,
+    /// The hybrid method's triangle set-up (`hybrid`).
+    pub(super) hybrid: crate::render::hybrid::HybridBuffers,
 }
 
 impl<L> Default for FrameBuffers<L> {
@@ -62,6 +64,7 @@ impl<L> Default for FrameBuffers<L> {
             silhouette: SilhouetteBuffers::default(),
             sobol: Workers::default(),
             independent: Workers::default(),
+            hybrid: Default::default(),
         }
     }
 }

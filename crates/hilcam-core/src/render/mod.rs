@@ -13,7 +13,7 @@
 use crate::render::camera::{PixelRect, View};
 use crate::render::cull::Silhouette;
 use crate::render::film::RadianceImage;
-use crate::render::integrator::{PathContext, RayCounts, RayLog, RenderSettings};
+use crate::render::integrator::{Method, PathContext, RayCounts, RayLog, RenderSettings};
 use crate::render::noise_bound::NoiseBound;
 use crate::render::sampling::{PerSample, Rng, Sequence, SobolStream, mix64};
 use crate::render::sensor_plan::SensorPlan;
@@ -31,6 +31,7 @@ pub mod camera;
 pub mod cull;
 pub mod film;
 pub mod geometry;
+pub mod hybrid;
 pub mod integrator;
 pub mod noise_bound;
 pub mod planet;
@@ -163,6 +164,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         size: _,
         sobol,
         independent,
+        hybrid,
     } = buffers;
     let rect = if target.accel.is_empty() { None } else { view.pixel_rect() };
     // Pixels not sampled are exact (background, or a planet whose own sampling noise is
@@ -176,7 +178,23 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let mut traced = 0u64;
     let mut samples = 0u64;
     let mut primary_rasterised = false;
-    if let Some(rect) = rect {
+    // The hybrid method where it applies (an instant view, no planet): no bands, no
+    // per-pixel variance (its frames carry no Monte Carlo report yet).
+    let hybrid_frame = match (rect, settings.method) {
+        (Some(rect), Method::Hybrid) => {
+            crate::render::hybrid::render(img, hybrid, target, view, rect, settings, *frame)
+        }
+        _ => None,
+    };
+    if let Some(h) = &hybrid_frame {
+        *variance_valid = false;
+        *written_rows = rect.map_or(0..0, |r| r.row0 as usize..r.row1 as usize);
+        *bands_used = 0;
+        rays = h.rays;
+        traced = h.covered_pixels;
+        samples = h.covered_pixels * crate::render::hybrid::pattern::SAMPLES as u64;
+    }
+    if let Some(rect) = rect.filter(|_| hybrid_frame.is_none()) {
         let ctx = PathContext::new(target, view.sun, settings);
         // The silhouette spans and the rasteriser hold for one camera position: a moving
         // view skips only the pixels no leaf box reaches at any instant of its exposure

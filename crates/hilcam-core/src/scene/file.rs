@@ -50,7 +50,7 @@ use crate::pose::Pose;
 use crate::render::bsdf::BsdfSpec;
 use crate::render::camera::CameraModel;
 use crate::render::geometry::{BvhLayout, TriMesh};
-use crate::render::integrator::{QualityGoal, QualityMode, RenderSettings, SamplerKind, Spp};
+use crate::render::integrator::{Method, QualityGoal, QualityMode, RenderSettings, SamplerKind, Spp};
 use crate::render::sampling::Sequence;
 use crate::render::stars::catalogue::Selection;
 use crate::render::stars::{StarField, band_zero_point_w_m2};
@@ -256,6 +256,9 @@ struct RenderSection {
     quality: Spanned<QualityMode>,
     #[serde(default = "default_sensor_k")]
     sensor_k: Spanned<f64>,
+    /// `"path"` (path tracing) or `"hybrid"` (rasterised coverage + the sun per fragment).
+    #[serde(default)]
+    method: Method,
     #[serde(default)]
     seed: u64,
     /// Any of the four names; a lab layout in a build without it is refused below.
@@ -294,6 +297,7 @@ impl Default for RenderSection {
             adaptive: true,
             quality: default_quality(),
             sensor_k: default_sensor_k(),
+            method: Method::default(),
             seed: 0,
             bvh: default_bvh(),
         }
@@ -489,6 +493,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             k: QualityGoal::checked_k(*r.sensor_k.get_ref())
                 .map_err(|m| field(r.sensor_k.span(), "render.sensor_k", m))?,
         },
+        method: r.method,
         seed: r.seed,
     };
     if let Err(m) = crate::sensor::check_quality(&render.quality, &sensor) {

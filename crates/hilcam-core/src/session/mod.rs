@@ -13,7 +13,7 @@ pub mod writer;
 
 use crate::pipeline::FrameRequest;
 use crate::pose::Pose;
-use crate::render::integrator::{QualityGoal, RenderSettings, SamplerKind};
+use crate::render::integrator::{Method, QualityGoal, RenderSettings, SamplerKind};
 use crate::render::sampling::Sequence;
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
@@ -103,7 +103,14 @@ pub struct SettingsFields {
     /// before sensor-relative quality read as what they were.
     #[serde(default, skip_serializing_if = "is_default_quality")]
     pub quality: QualityGoal,
+    /// Absent (and not written) for `method = "path"`: older sessions read as what they were.
+    #[serde(default, skip_serializing_if = "is_default_method")]
+    pub method: Method,
     pub seed: u64,
+}
+
+fn is_default_method(m: &Method) -> bool {
+    *m == Method::default()
 }
 
 fn is_default_quality(q: &QualityGoal) -> bool {
@@ -120,6 +127,7 @@ impl From<&RenderSettings> for SettingsFields {
             roulette: s.roulette,
             adaptive: s.adaptive,
             quality: s.quality,
+            method: s.method,
             seed: s.seed,
         }
     }
@@ -135,6 +143,7 @@ impl SettingsFields {
             roulette: self.roulette,
             adaptive: self.adaptive,
             quality: self.quality,
+            method: self.method,
             seed: self.seed,
         }
     }

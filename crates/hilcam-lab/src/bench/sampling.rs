@@ -160,6 +160,7 @@ pub fn reference(case: &PlaneCase, sampler: SamplerKind, half_spp: u32, depth: u
         roulette: false,
         adaptive: false,
         quality: Default::default(),
+        method: Default::default(),
         seed,
     };
     let (a, ta) = case.render(&s(1_000_001));
@@ -228,6 +229,7 @@ pub fn sweep(
                 roulette: false,
                 adaptive: false,
                 quality: Default::default(),
+                method: Default::default(),
                 seed,
             })
             .0
@@ -243,6 +245,7 @@ pub fn sweep(
                 roulette: false,
                 adaptive: false,
                 quality: Default::default(),
+                method: Default::default(),
                 seed,
             };
             let (img, time_s) = case.render(&settings);
@@ -405,6 +408,7 @@ mod tests {
             roulette: false,
             adaptive: false,
             quality: Default::default(),
+            method: Default::default(),
             seed: 5,
         };
         let (img, _) = case.render(&s);

@@ -32,6 +32,10 @@ pub enum BenchKind {
     /// What each optional effect (motion blur, rolling shutter, stars, planet) costs: the
     /// shipped satellite with and without it, frames through render + sensor, in turn.
     Effects(EffectsBenchArgs),
+    /// Sensor-equivalent frames judged independently: per row, many seeds of one pose
+    /// through render + sensor, the share of lit pixels whose noise (and whose RMS error
+    /// against a converged reference) exceeds half the camera's own, with the frame rate.
+    Quality(crate::cli::bench_quality::QualityArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -164,6 +168,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         BenchKind::Trade(t) => crate::cli::bench_trade::run(t),
         BenchKind::Serve(s) => serve_bench(s),
         BenchKind::Effects(e) => effects(e),
+        BenchKind::Quality(q) => crate::cli::bench_quality::run(q),
     }
 }
 

@@ -14,7 +14,7 @@ use crate::render::geometry::Ray;
 use glam::{DMat3, DVec3, Vec3};
 
 /// Pixels `[col0, col1) × [row0, row1)` whose area can see the target's bounds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelRect {
     pub col0: u32,
     pub col1: u32,

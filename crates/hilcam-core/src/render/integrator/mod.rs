@@ -51,7 +51,22 @@ pub struct RenderSettings {
     /// Whether samples are spent until each pixel is as good as the camera
     /// (`render::sensor_plan`), and the fraction `k` of the camera's noise that means.
     pub quality: QualityGoal,
+    /// How a frame's pixel areas and light are integrated.
+    pub method: Method,
     pub seed: u64,
+}
+
+/// How a frame is rendered.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Monte Carlo path tracing: `spp` random positions per pixel, each a whole path.
+    #[default]
+    Path,
+    /// Sub-pixel coverage by rasterisation, the sun's light per surface fragment, indirect
+    /// light by path tracing from one coverage sample per pixel (`render::hybrid`); an
+    /// instant view without a planet (else the frame is path-traced).
+    Hybrid,
 }
 
 /// What a frame's samples aim at: a fixed budget, or the camera's own noise.
@@ -118,6 +133,7 @@ impl Default for RenderSettings {
             roulette: true,
             adaptive: true,
             quality: QualityGoal::default(),
+            method: Method::Path,
             seed: 0,
         }
     }
@@ -282,7 +298,7 @@ impl<'a> PathContext<'a> {
     /// Offset that moves a hit point off its surface: scaled to the coordinates' magnitude
     /// (f32 intersection error grows with it) and to the target's size.
     #[inline]
-    fn offset(&self, p: Vec3) -> f32 {
+    pub(in crate::render) fn offset(&self, p: Vec3) -> f32 {
         2e-5 * (p.abs().max_element() + self.scene.bounds.radius as f32 * 0.1)
     }
 

@@ -1,0 +1,279 @@
+//! One tile's coverage: every sample of its pixels finds its nearest triangle (edge
+//! functions and a depth plane per triangle, [`super::setup`]), then each pixel's samples
+//! are resolved into fragments — one per triangle that a sample of the pixel sees, with
+//! how many samples see it and where they are on average.
+
+use super::pattern::{self, SAMPLES};
+use super::setup::{Setup, TILE, TriSetup};
+
+/// No triangle: the sample sees the background.
+pub const NONE: u32 = u32::MAX;
+
+/// A tile's per-sample buffers (kept from tile to tile).
+pub struct TileBuffers {
+    /// Sample offsets in each pixel (tile-local pixel `p` = `row · TILE + col`).
+    pub sx: Vec<[f32; SAMPLES]>,
+    pub sy: Vec<[f32; SAMPLES]>,
+    /// Nearest depth key so far (larger is nearer) and its triangle (index into the setup).
+    depth: Vec<[f32; SAMPLES]>,
+    pub id: Vec<[u32; SAMPLES]>,
+    /// Each pixel's ideal image point of its corner and the ideal offsets of a unit step
+    /// in x and in y (an affine map of the pixel, exact for a pinhole).
+    map: Vec<[f64; 6]>,
+    /// Whether a triangle's box reached the pixel (its samples were set up).
+    pub touched: Vec<bool>,
+}
+
+impl Default for TileBuffers {
+    fn default() -> Self {
+        let n = (TILE * TILE) as usize;
+        TileBuffers {
+            sx: vec![[0.0; SAMPLES]; n],
+            sy: vec![[0.0; SAMPLES]; n],
+            depth: vec![[0.0; SAMPLES]; n],
+            id: vec![[NONE; SAMPLES]; n],
+            map: vec![[0.0; 6]; n],
+            touched: vec![false; n],
+        }
+    }
+}
+
+/// A triangle's share of one pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment {
+    /// Index into the setup's triangles.
+    pub setup: u32,
+    /// Samples of the pixel that see it.
+    pub count: u32,
+    /// Mean sample offset in the pixel (x, y).
+    pub mean: [f32; 2],
+}
+
+/// The tile at tile coordinates (`tx`, `ty`): its pixels (image coordinates, inclusive
+/// start, exclusive end).
+pub fn tile_pixels(setup: &Setup, tx: u32, ty: u32) -> ([u32; 2], [u32; 2]) {
+    let r = setup.rect;
+    let (c0, r0) = (r.col0 + tx * TILE, r.row0 + ty * TILE);
+    ([c0, (c0 + TILE).min(r.col1)], [r0, (r0 + TILE).min(r.row1)])
+}
+
+/// The triangles binned to tile (`tx`, `ty`).
+pub fn tile_list(setup: &Setup, tx: u32, ty: u32) -> &[u32] {
+    let t = (ty * setup.tiles_x + tx) as usize;
+    &setup.tile_tris[setup.tile_start[t] as usize..setup.tile_start[t + 1] as usize]
+}
+
+/// Rasterise tile (`tx`, `ty`): fill `buf` with each sample's nearest triangle (pixels
+/// no triangle's box reaches are left untouched: `buf.touched`). Pixel keys come from
+/// `key(row, col)`; the depth key is `(w − w_ref)·scale` (larger is nearer), which keeps
+/// f32 depth resolution relative to the target's size, not its range.
+#[allow(clippy::too_many_arguments)]
+pub fn rasterise(
+    setup: &Setup,
+    tx: u32,
+    ty: u32,
+    seed: u64,
+    frame: u64,
+    key: &dyn Fn(u32, u32) -> u64,
+    depth_key: (f64, f64),
+    buf: &mut TileBuffers,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::render::geometry::shadow_packet::avx2() {
+        // SAFETY: the CPU has AVX2 (checked at run time). No FMA: the same IEEE
+        // operations, so the same bits, as the baseline path.
+        unsafe { rasterise_avx2(setup, tx, ty, seed, frame, key, depth_key, buf) };
+        return;
+    }
+    rasterise_body(setup, tx, ty, seed, frame, key, depth_key, buf);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn rasterise_avx2(
+    setup: &Setup,
+    tx: u32,
+    ty: u32,
+    seed: u64,
+    frame: u64,
+    key: &dyn Fn(u32, u32) -> u64,
+    depth_key: (f64, f64),
+    buf: &mut TileBuffers,
+) {
+    rasterise_body(setup, tx, ty, seed, frame, key, depth_key, buf);
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn rasterise_body(
+    setup: &Setup,
+    tx: u32,
+    ty: u32,
+    seed: u64,
+    frame: u64,
+    key: &dyn Fn(u32, u32) -> u64,
+    (w_ref, scale): (f64, f64),
+    buf: &mut TileBuffers,
+) {
+    let ([c0, c1], [r0, r1]) = tile_pixels(setup, tx, ty);
+    // The tile's four ideal corners; each pixel's affine map by bilinear interpolation.
+    let stride = (setup.tiles_x + 1) as usize;
+    let corner = |i: u32, j: u32| setup.corners[(ty + j) as usize * stride + (tx + i) as usize];
+    let (p00, p10, p01, p11) = (corner(0, 0), corner(1, 0), corner(0, 1), corner(1, 1));
+    let at = |u: f64, v: f64| -> [f64; 2] {
+        let (a, b) = (u / f64::from(TILE), v / f64::from(TILE));
+        std::array::from_fn(|k| (1.0 - b) * ((1.0 - a) * p00[k] + a * p10[k]) + b * ((1.0 - a) * p01[k] + a * p11[k]))
+    };
+    buf.touched.iter_mut().for_each(|t| *t = false);
+    for &i in tile_list(setup, tx, ty) {
+        let s = &setup.tris[i as usize];
+        let (y0, y1) = (s.bbox[1].max(r0), s.bbox[3].min(r1 - 1));
+        for row in y0..=y1 {
+            let Some((a, b)) = s.row_span(row) else { continue };
+            let (x0, x1) = (a.max(c0), b.min(c1 - 1));
+            for col in x0..=x1 {
+                let p = ((row - r0) * TILE + (col - c0)) as usize;
+                if !buf.touched[p] {
+                    buf.touched[p] = true;
+                    let (u, v) = (f64::from(col - c0), f64::from(row - r0));
+                    let (o, ex, ey) = (at(u, v), at(u + 1.0, v), at(u, v + 1.0));
+                    buf.map[p] = [o[0], o[1], ex[0] - o[0], ex[1] - o[1], ey[0] - o[0], ey[1] - o[1]];
+                    pattern::fill(seed, frame, key(row, col), &mut buf.sx[p], &mut buf.sy[p]);
+                    buf.depth[p] = [f32::NEG_INFINITY; SAMPLES];
+                    buf.id[p] = [NONE; SAMPLES];
+                }
+                pixel(s, i, &buf.map[p], (w_ref, scale), &buf.sx[p], &buf.sy[p], &mut buf.depth[p], &mut buf.id[p]);
+            }
+        }
+    }
+}
+
+/// The samples of one pixel against one triangle.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn pixel(
+    s: &TriSetup,
+    id: u32,
+    m: &[f64; 6],
+    (w_ref, scale): (f64, f64),
+    sx: &[f32; SAMPLES],
+    sy: &[f32; SAMPLES],
+    depth: &mut [f32; SAMPLES],
+    ids: &mut [u32; SAMPLES],
+) {
+    // Each edge as e + α·sx + β·sy over the pixel; the same numbers for both triangles
+    // of a shared edge (canonical edge, same pixel map).
+    let mut e = [[0.0f32; 3]; 3];
+    let mut pos = [false; 3];
+    let mut all_inside = true;
+    for (k, ed) in s.edges.iter().enumerate() {
+        e[k] = [ed.at(m[0], m[1]) as f32, (ed.a * m[2] + ed.b * m[3]) as f32, (ed.a * m[4] + ed.b * m[5]) as f32];
+        pos[k] = ed.k_pos;
+        // The pixel's square against this edge, with a margin above the rounding of the
+        // sample loop's evaluation (so the shortcuts never decide a sample it would not).
+        let [c, a, b] = e[k];
+        let corners = [c, c + a, c + b, c + a + b];
+        let margin = 1e-5 * (c.abs() + a.abs() + b.abs());
+        let sign = if ed.k_pos { 1.0 } else { -1.0 };
+        if corners.iter().all(|&v| sign * v < -margin) {
+            return; // wholly outside
+        }
+        all_inside &= corners.iter().all(|&v| sign * v > margin);
+    }
+    let wd = [
+        ((s.w_at(m[0], m[1]) - w_ref) * scale) as f32,
+        ((s.w_dx * m[2] + s.w_dy * m[3]) * scale) as f32,
+        ((s.w_dx * m[4] + s.w_dy * m[5]) * scale) as f32,
+    ];
+    if all_inside {
+        depth_only(wd, id, sx, sy, depth, ids);
+    } else {
+        samples(&e, pos, wd, id, sx, sy, depth, ids);
+    }
+}
+
+/// Keep `w` and `id` where `hit`, branch-free (the loops below vectorise).
+#[inline(always)]
+fn keep(hit: bool, w: f32, id: u32, depth: &mut f32, ids: &mut u32) {
+    let m = 0u32.wrapping_sub(u32::from(hit));
+    *depth = f32::from_bits((w.to_bits() & m) | (depth.to_bits() & !m));
+    *ids = (id & m) | (*ids & !m);
+}
+
+/// The inner loop over a pixel's samples.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn samples(
+    e: &[[f32; 3]; 3],
+    pos: [bool; 3],
+    wd: [f32; 3],
+    id: u32,
+    sx: &[f32; SAMPLES],
+    sy: &[f32; SAMPLES],
+    depth: &mut [f32; SAMPLES],
+    ids: &mut [u32; SAMPLES],
+) {
+    // An inside test per edge: k·E > 0, ties to the edge's positive side (`v ≥ 0` for
+    // k > 0, `v < 0` for k < 0).
+    let inside = |k: usize, x: f32, y: f32| {
+        let v = e[k][0] + e[k][1] * x + e[k][2] * y;
+        (v >= 0.0) == pos[k]
+    };
+    for j in 0..SAMPLES {
+        let (x, y) = (sx[j], sy[j]);
+        let w = wd[0] + wd[1] * x + wd[2] * y;
+        let hit = inside(0, x, y) & inside(1, x, y) & inside(2, x, y) & (w > depth[j]);
+        keep(hit, w, id, &mut depth[j], &mut ids[j]);
+    }
+}
+
+/// [`samples`] for a pixel wholly inside the triangle: the depth test alone.
+#[inline(always)]
+fn depth_only(
+    wd: [f32; 3],
+    id: u32,
+    sx: &[f32; SAMPLES],
+    sy: &[f32; SAMPLES],
+    depth: &mut [f32; SAMPLES],
+    ids: &mut [u32; SAMPLES],
+) {
+    for j in 0..SAMPLES {
+        let w = wd[0] + wd[1] * sx[j] + wd[2] * sy[j];
+        keep(w > depth[j], w, id, &mut depth[j], &mut ids[j]);
+    }
+}
+
+/// Resolve one pixel's samples into fragments (in order of first appearance), appended
+/// to `out`; returns how many samples see the background.
+#[inline(never)]
+pub fn resolve(ids: &[u32; SAMPLES], sx: &[f32; SAMPLES], sy: &[f32; SAMPLES], out: &mut Vec<Fragment>) -> u32 {
+    let start = out.len();
+    let id0 = ids[0];
+    if id0 != NONE && ids.iter().all(|&i| i == id0) {
+        let mean = |v: &[f32; SAMPLES]| v.iter().sum::<f32>() / SAMPLES as f32;
+        out.push(Fragment { setup: id0, count: SAMPLES as u32, mean: [mean(sx), mean(sy)] });
+        return 0;
+    }
+    let mut background = 0;
+    for j in 0..SAMPLES {
+        let id = ids[j];
+        if id == NONE {
+            background += 1;
+            continue;
+        }
+        match out[start..].iter_mut().find(|f| f.setup == id) {
+            Some(f) => {
+                f.count += 1;
+                f.mean[0] += sx[j];
+                f.mean[1] += sy[j];
+            }
+            None => out.push(Fragment { setup: id, count: 1, mean: [sx[j], sy[j]] }),
+        }
+    }
+    for f in &mut out[start..] {
+        let n = f.count as f32;
+        f.mean = [f.mean[0] / n, f.mean[1] / n];
+    }
+    background
+}

@@ -1,0 +1,227 @@
+//! `hilcam bench quality`: the independent judge of sensor-equivalent frames
+//! (`bench::quality`), row by row, with the frame rate of each.
+
+use crate::bench::quality::{Conversion, K, Reference, Row, RowResult, measure_row, reference, to_csv};
+use crate::bench::trade_sensor::settle;
+use anyhow::Context;
+use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::render::integrator::{Method, QualityGoal, QualityMode, RenderSettings, Spp};
+use hilcam_core::scene::limits::checked_scaled_camera;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+#[derive(clap::Args, Debug)]
+pub struct QualityArgs {
+    /// Scene file (default: the shipped satellite at its 1024² navigation camera).
+    #[arg(long, default_value = "scenes/satellite.toml")]
+    pub scene: PathBuf,
+    /// Render at this many columns (same field of view; default: the camera's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Frames (seeds) per row, same pose and frame index (≥ 16 for the count).
+    #[arg(long, default_value_t = 16)]
+    pub seeds: u32,
+    /// Rows: `fixed:SPP` (the scene's sampling at SPP), `sensor:K:BUDGET`
+    /// (`quality = "sensor"`), `hybrid` (the scene's settings, `method = "hybrid"`),
+    /// `scene` (the scene's own settings).
+    #[arg(long, value_delimiter = ',', default_value = "fixed:1,fixed:4,sensor:0.5:256,scene")]
+    pub rows: Vec<String>,
+    /// Samples per pixel of each reference chunk (not adaptive).
+    #[arg(long, default_value_t = 256)]
+    pub reference_spp: u32,
+    /// Independent reference chunks (the reference has chunks × spp samples per pixel;
+    /// its own variance comes from the chunks' spread).
+    #[arg(long, default_value_t = 16)]
+    pub reference_chunks: u32,
+    /// Where references are kept between runs (keyed by scene, camera, pose and settings).
+    #[arg(long, default_value = "target/bench-quality")]
+    pub cache: PathBuf,
+    /// Output prefix: writes PREFIX.csv.
+    #[arg(long, default_value = "quality")]
+    pub out: PathBuf,
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// A row from its `--rows` spelling.
+fn parse_row(spec: &str, base: &RenderSettings) -> anyhow::Result<Row> {
+    let parts: Vec<&str> = spec.split(':').collect();
+    let settings = match parts.as_slice() {
+        ["scene"] => *base,
+        ["hybrid"] => RenderSettings { method: Method::Hybrid, ..*base },
+        ["fixed", spp] => RenderSettings {
+            spp: spp.parse::<Spp>().map_err(|e| anyhow::anyhow!("row {spec:?}: {e}"))?,
+            quality: QualityGoal { mode: QualityMode::Fixed, ..base.quality },
+            ..*base
+        },
+        ["sensor", k, budget] => RenderSettings {
+            spp: budget.parse::<Spp>().map_err(|e| anyhow::anyhow!("row {spec:?}: {e}"))?,
+            quality: QualityGoal {
+                mode: QualityMode::Sensor,
+                k: QualityGoal::parse_k(k).map_err(|e| anyhow::anyhow!("row {spec:?}: {e}"))?,
+            },
+            ..*base
+        },
+        _ => anyhow::bail!("row {spec:?}: expected fixed:SPP, sensor:K:BUDGET, hybrid or scene"),
+    };
+    Ok(Row { label: spec.to_string(), settings })
+}
+
+pub fn run(a: QualityArgs) -> anyhow::Result<()> {
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
+    }
+    let scene = hilcam_core::scene::load(&a.scene)?;
+    let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;
+    let (pose, base) = (scene.pose, scene.render);
+    let rows = a.rows.iter().map(|r| parse_row(r, &base)).collect::<anyhow::Result<Vec<_>>>()?;
+    let key = reference_key(&scene, &camera, &a);
+    let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
+    println!(
+        "{}: {}x{}, depth {}; {} seeds per row; {} threads",
+        a.scene.display(),
+        camera.width,
+        camera.height,
+        base.depth,
+        a.seeds,
+        rayon::current_num_threads()
+    );
+    let settled = settle(&mut pipeline, &pose, &base, 40, 0.01)?;
+    let t = settled.integration_s;
+    println!(
+        "auto-exposure {} after {} frames: integration {:.4} ms, held for every frame",
+        if settled.converged { "settled" } else { "NOT settled" },
+        settled.frames,
+        t * 1e3
+    );
+    let conv = Conversion::of(&pipeline, t)
+        .context("the judge needs a camera with a detector and DN output (its noise is the yardstick)")?;
+    let reference = cached_reference(&a, key, || {
+        let total = a.reference_chunks.max(2);
+        eprintln!("reference: {total} chunks of {} spp …", a.reference_spp);
+        reference(&pipeline, &pose, &base, a.reference_spp, total, &conv, |c| eprintln!("  chunk {} of {total}", c + 1))
+            .map_err(anyhow::Error::from)
+    })?;
+    println!("reference: {} spp per pixel (not adaptive), its own variance from its chunks", reference.spp);
+    println!(
+        "bound: σ ≤ {K} × √(signal + dark + read² + gain²/12); floor {:.1} e⁻², quantisation {:.1} e⁻²",
+        conv.floor_e2, conv.quant_e2
+    );
+    print_header();
+    let mut results = Vec::new();
+    for row in rows {
+        let r = measure_row(&mut pipeline, &pose, &row.settings, a.seeds, 0, t, &reference, &conv, |_| {})?;
+        print_row(&row, &r);
+        results.push((row, r));
+    }
+    let csv = a.out.with_extension("csv");
+    std::fs::write(&csv, to_csv(&results)).with_context(|| csv.display().to_string())?;
+    println!("wrote {}", csv.display());
+    Ok(())
+}
+
+/// A key of everything the reference depends on: geometry, materials, camera, pose,
+/// settings and the reference's size.
+fn reference_key(
+    scene: &hilcam_core::scene::Scene,
+    camera: &hilcam_core::render::camera::CameraModel,
+    a: &QualityArgs,
+) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for p in &scene.target.mesh.positions {
+        p.to_array().map(f32::to_bits).hash(&mut h);
+    }
+    scene.target.mesh.indices.hash(&mut h);
+    scene.target.mesh.material.hash(&mut h);
+    format!(
+        "{:?}|{:?}|{:?}|{:?}|{:?}",
+        scene.target.materials.iter().map(|m| (&m.name, m.bsdf)).collect::<Vec<_>>(),
+        camera,
+        scene.sensor,
+        scene.pose,
+        scene.render
+    )
+    .hash(&mut h);
+    (a.reference_spp, a.reference_chunks, scene.target.sun_irradiance.to_bits(), scene.target.background.to_bits())
+        .hash(&mut h);
+    h.finish()
+}
+
+/// The reference from the cache directory, or made by `make` and stored there.
+fn cached_reference(
+    a: &QualityArgs,
+    key: u64,
+    make: impl FnOnce() -> anyhow::Result<Reference>,
+) -> anyhow::Result<Reference> {
+    let path = a.cache.join(format!("reference-{key:016x}.bin"));
+    if let Some(r) = read_reference(&path) {
+        println!("reference: reused {}", path.display());
+        return Ok(r);
+    }
+    let r = make()?;
+    std::fs::create_dir_all(&a.cache).with_context(|| a.cache.display().to_string())?;
+    write_reference(&path, &r).with_context(|| path.display().to_string())?;
+    Ok(r)
+}
+
+fn write_reference(path: &Path, r: &Reference) -> std::io::Result<()> {
+    let mut b = Vec::with_capacity(24 + r.mean_e.len() * 16);
+    b.extend_from_slice(&r.width.to_le_bytes());
+    b.extend_from_slice(&r.height.to_le_bytes());
+    b.extend_from_slice(&r.spp.to_le_bytes());
+    for v in r.mean_e.iter().chain(&r.mean_var_e2) {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, b)
+}
+
+fn read_reference(path: &Path) -> Option<Reference> {
+    let b = std::fs::read(path).ok()?;
+    let u32_at = |o: usize| Some(u32::from_le_bytes(b.get(o..o + 4)?.try_into().ok()?));
+    let (width, height) = (u32_at(0)?, u32_at(4)?);
+    let spp = u64::from_le_bytes(b.get(8..16)?.try_into().ok()?);
+    let n = width as usize * height as usize;
+    if b.len() != 16 + n * 16 {
+        return None;
+    }
+    let f = |i: usize| f64::from_le_bytes(b[16 + i * 8..24 + i * 8].try_into().expect("8 bytes"));
+    Some(Reference { width, height, spp, mean_e: (0..n).map(f).collect(), mean_var_e2: (n..2 * n).map(f).collect() })
+}
+
+fn print_header() {
+    println!(
+        "{:<18} {:>7} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>15}",
+        "row",
+        "spp",
+        "render ms",
+        "sensor ms",
+        "frame ms",
+        "fps",
+        "noise %",
+        "error %",
+        "own %",
+        "rms σ/σc",
+        "bias %",
+        "centroid px"
+    );
+}
+
+fn print_row(row: &Row, r: &RowResult) {
+    let j = &r.judgement;
+    println!(
+        "{:<18} {:>7.2} {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>8.2} {:>8.2} {:>8} {:>8.2} {:>9.3} {:>15}",
+        row.label,
+        r.spp,
+        r.render_s * 1e3,
+        r.sensor_s * 1e3,
+        r.frame_s() * 1e3,
+        1.0 / r.frame_s(),
+        j.noise_share() * 100.0,
+        j.error_share() * 100.0,
+        r.own_share.map_or("-".into(), |v| format!("{:.2}", v * 100.0)),
+        j.rms_error_ratio,
+        j.mean_bias * 100.0,
+        format!("{:.4} ± {:.4}", j.centroid_shift(), j.centroid_se_px)
+    );
+}
