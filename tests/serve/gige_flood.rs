@@ -143,7 +143,7 @@ impl Rng {
         let n = (self.next() % 600) as usize;
         let mut d: Vec<u8> = (0..n).map(|_| self.next() as u8).collect();
         // Half of them look like commands: the key byte and a plausible code.
-        if n >= 8 && self.next() % 2 == 0 {
+        if n >= 8 && self.next().is_multiple_of(2) {
             d[0] = gvcp::KEY;
             let codes =
                 [code::READREG_CMD, code::WRITEREG_CMD, code::READMEM_CMD, code::WRITEMEM_CMD, code::PACKETRESEND_CMD];
@@ -165,11 +165,11 @@ fn receive_blocks(
     while !stop.load(Ordering::Acquire) {
         if let Ok(n) = rx.recv(&mut buf)
             && let Some(h) = gvsp::parse_header(&buf[..n])
+            && h.content == gvsp::CONTENT_TRAILER
+            && h.status == gvsp::STATUS_SUCCESS
         {
-            if h.content == gvsp::CONTENT_TRAILER && h.status == gvsp::STATUS_SUCCESS {
-                arrivals.lock().unwrap().push(Instant::now());
-                last_block.store(u64::from(h.block_id), Ordering::Release);
-            }
+            arrivals.lock().unwrap().push(Instant::now());
+            last_block.store(u64::from(h.block_id), Ordering::Release);
         }
     }
 }

@@ -50,7 +50,7 @@ async fn aravis_reads_exposure_time_as_the_sensor_integrates_it() {
     // Auto-exposure on (the camera starts in it); the sensor integrated 26 µs.
     device.publish(&frame(26e-6));
     let read = |kv: &'static [&'static str]| run("arv-tool-0.8", control(ip, kv));
-    let (ok, out) = read(&["ExposureAuto", "ExposureTime", "ExposureMode"]).await;
+    let (ok, out) = read(&["ExposureAuto", "ExposureTime", "ExposureMode=Timed", "ExposureMode"]).await;
     assert!(ok && out.contains("ExposureAuto = Continuous") && out.contains("ExposureMode = Timed"), "{out}");
     assert!(out.contains("ExposureTime = 26"), "auto: what the sensor integrates, not the configured 1000 µs\n{out}");
     let (ok, out) = read(&["ExposureAuto=Off", "ExposureTime"]).await;
@@ -84,6 +84,7 @@ async fn aravis_reads_and_writes_the_sfnc_features_and_chunks() {
         "Height=100",
         "OffsetY=40",
         "DeviceUserID=Kamera äöü",
+        "ChunkModeActive=true",
         "ChunkSelector=Timestamp",
         "ChunkEnable=false",
         "--sfnc",
