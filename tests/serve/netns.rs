@@ -12,8 +12,7 @@ const INSIDE: &str = "HILCAM_TEST_NETNS";
 /// its output, asserts it passed and returns false (the caller returns).
 pub(crate) fn enter(test: &str) -> bool {
     if std::env::var_os(INSIDE).is_some() {
-        let up = Command::new("ip").args(["link", "set", "lo", "up"]).status();
-        assert!(up.is_ok_and(|s| s.success()), "`ip link set lo up` in the test's network namespace failed");
+        loopback_up().expect("bringing lo up in the test's network namespace");
         return true;
     }
     let exe = std::env::current_exe().unwrap();
@@ -31,4 +30,26 @@ pub(crate) fn enter(test: &str) -> bool {
         "{test} failed in its network namespace (unshare -n needs root: CAP_SYS_ADMIN):\n{text}"
     );
     false
+}
+
+/// `ip link set lo up` without iproute2: SIOCSIFFLAGS with IFF_UP on `lo`.
+fn loopback_up() -> std::io::Result<()> {
+    // SAFETY: a plain socket and two ioctls on a zeroed ifreq naming "lo"; the fd is closed.
+    unsafe {
+        let fd = libc::socket(libc::AF_INET, libc::SOCK_DGRAM, 0);
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        let mut ifr: libc::ifreq = std::mem::zeroed();
+        ifr.ifr_name[0] = b'l' as libc::c_char;
+        ifr.ifr_name[1] = b'o' as libc::c_char;
+        let mut r = libc::ioctl(fd, libc::SIOCGIFFLAGS, &mut ifr);
+        if r == 0 {
+            ifr.ifr_ifru.ifru_flags |= libc::IFF_UP as libc::c_short;
+            r = libc::ioctl(fd, libc::SIOCSIFFLAGS, &ifr);
+        }
+        let err = std::io::Error::last_os_error();
+        libc::close(fd);
+        if r == 0 { Ok(()) } else { Err(err) }
+    }
 }
