@@ -51,6 +51,32 @@ mod tests {
         sent
     }
 
+    /// The schedule before issue 37: the due time of the next frame, stored with the
+    /// period in force when the last frame went out.
+    fn old_admit(next_due: &mut Option<Instant>, now: Instant, rate_hz: f32) -> bool {
+        let period = Duration::from_secs_f64(1.0 / f64::from(rate_hz));
+        let d = next_due.unwrap_or(now);
+        if now + period / 4 < d {
+            return false;
+        }
+        *next_due = Some(d.max(now.checked_sub(period).unwrap_or(now)) + period);
+        true
+    }
+
+    #[test]
+    fn the_old_schedule_dropped_the_first_frame_after_a_rate_increase() {
+        let (mut due, t0) = (None, Instant::now());
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        assert!([0, 500, 1000].iter().all(|&ms| old_admit(&mut due, at(ms), 2.0)));
+        // 2 → 4 Hz: the renderer's next frame comes 250 ms later, and meets a due time
+        // 500 ms after the last one.
+        assert!(!old_admit(&mut due, at(1250), 4.0), "the drop seen once after 2 → 4 Hz");
+        assert!(old_admit(&mut due, at(1500), 4.0));
+        let mut g = RateGate::default();
+        assert!([0, 500, 1000].iter().all(|&ms| g.admit(at(ms), 2.0)));
+        assert!(g.admit(at(1250), 4.0) && g.admit(at(1500), 4.0), "kept now");
+    }
+
     #[test]
     fn a_rate_increase_drops_no_frame() {
         let (mut g, mut t) = (RateGate::default(), Instant::now());
