@@ -1,13 +1,14 @@
 //! The GigE Vision device: the thin I/O shell around the pure codecs. One tokio task
-//! serves the GVCP socket (commands → [`Control`] → acknowledges, heartbeat expiry);
-//! one std thread owns the GVSP socket (converts frames to the client's ROI and
-//! format, packetises, paces packets by the negotiated delay, keeps a bounded ring of
-//! recent blocks and answers resend requests from it).
+//! serves the GVCP sockets (the control socket and the two broadcast-discovery ones:
+//! commands → [`Control`] → acknowledges, heartbeat expiry); one std thread owns the
+//! GVSP socket (`stream.rs`: ROI and format, packets paced by the negotiated delay, a
+//! bounded ring of recent blocks for resends).
 //!
 //! Frames come in through [`GigeDevice::publish`] (the `Sink` interface: never
 //! blocks); what a client sets comes out through [`GigeDevice::settings`] (a `watch`
 //! of [`CameraSettings`]) and the software-trigger hook, for the renderer to follow.
-//! Everything refused or dropped is counted (`hilcam_gige_*`) and logged.
+//! Everything refused or dropped is counted (`hilcam_gige_*`) and logged at a bounded
+//! rate (`log_limit.rs`).
 
 pub use super::config::GigeConfig;
 use super::control::{Control, Rejection};
