@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Creates (once) a venv with pyserial and python-can for the interoperability
-# tests and examples, and kubernetes-validate for scripts/k8s/validate.sh; prints the
+# tests and examples, kubernetes-validate for scripts/k8s/validate.sh and genicam (the
+# GenICam reference GenApi, which loads the GigE camera's XML in tests/serve/gige_xml.rs); prints the
 # interpreter's path on stdout.
 # Venv: $HILCAM_VENV (default ~/.cache/hilcam/venv). Installs python3-venv via
 # apt-get when the venv module is missing and we are root.
 set -euo pipefail
 venv=${HILCAM_VENV:-$HOME/.cache/hilcam/venv}
 py=$venv/bin/python
-pkgs=(pyserial python-can kubernetes-validate)
-imports='import serial, can, kubernetes_validate'
+pkgs=(pyserial python-can kubernetes-validate genicam)
+imports="import serial, can, kubernetes_validate, genicam.genapi"
 if [ -x "$py" ] && "$py" -c "$imports" 2>/dev/null; then
   echo "$py"; exit 0
 fi

@@ -5,3 +5,5 @@
 pub mod pose;
 #[path = "../../crates/hilcam-core/src/sink/gige/gvcp.rs"]
 pub mod gvcp;
+#[path = "../../crates/hilcam-core/src/sink/gige/gvsp.rs"]
+pub mod gvsp;

@@ -1,12 +1,14 @@
 """A real GigE Vision client for tests/serve/gige.rs: Aravis through its GObject bindings.
 
-Usage: aravis_client.py ADDRESS FRAMES [Feature=value ...] [--trigger] [--roi-centroid]
+Usage: aravis_client.py ADDRESS FRAMES [Feature=value ...] [--trigger] [--roi-centroid] [--sfnc]
 Opens the camera at ADDRESS, writes the features, acquires FRAMES buffers (with
 --trigger: TriggerMode=On, checks that nothing arrives untriggered, then one
 TriggerSoftware per frame) and prints one JSON object: per buffer its status,
 geometry, pixel format, leader timestamp, hilcam's metadata chunk, its truth chunks
 (footprint; length and CRC-32 of each channel) and the centroid of the pixels above
-half the frame's maximum.
+half the frame's maximum. With --sfnc also the SFNC features (WidthMax, DeviceUserID,
+TLParamsLocked, ChunkSelector / ChunkEnable …) and, per buffer, ChunkTimestamp,
+ChunkFrameID and ChunkExposureTime through Aravis' chunk parser.
 """
 import json
 import struct
@@ -80,8 +82,10 @@ def main():
     for s in sets:
         name, value = s.split("=", 1)
         node = dev.get_feature(name)
-        if isinstance(node, Aravis.GcEnumeration):
+        if isinstance(node, (Aravis.GcEnumeration, Aravis.GcString)):
             dev.set_string_feature_value(name, value)
+        elif isinstance(node, Aravis.GcBoolean):
+            dev.set_boolean_feature_value(name, value in ("true", "1"))
         elif isinstance(node, Aravis.GcFloatNode):
             dev.set_float_feature_value(name, float(value))
         else:
@@ -99,6 +103,20 @@ def main():
         "PayloadSize": dev.get_integer_feature_value("PayloadSize"),
         "TickFrequency": dev.get_integer_feature_value("GevTimestampTickFrequency"),
     }, "buffers": []}
+    if "--sfnc" in sys.argv:
+        sfnc = {}
+        for name in ["WidthMax", "HeightMax", "TLParamsLocked", "GevSCPD"]:
+            sfnc[name] = dev.get_integer_feature_value(name)
+        for name in ["DeviceUserID", "DeviceFirmwareVersion", "ExposureMode", "ChunkSelector"]:
+            sfnc[name] = dev.get_string_feature_value(name)
+        sfnc["ChunkModeActive"] = dev.get_boolean_feature_value("ChunkModeActive")
+        enabled = {}
+        for sel in ["Timestamp", "ExposureTime", "FrameID", "HilcamMetadata"]:
+            dev.set_string_feature_value("ChunkSelector", sel)
+            enabled[sel] = dev.get_boolean_feature_value("ChunkEnable")
+        sfnc["ChunkEnable"] = enabled
+        out["sfnc"] = sfnc
+    parser = cam.create_chunk_parser() if "--sfnc" in sys.argv else None
     payload = cam.get_payload()
     stream = cam.create_stream(None, None)
     for _ in range(4):
@@ -123,6 +141,16 @@ def main():
             fmt = buf.get_image_pixel_format()
             bpp = 1 if fmt == 0x01080001 else 2
             rec.update({"width": w, "height": h, "pixel_format": fmt, "meta": meta(buf), "truth": truth(buf)})
+            if parser is not None:
+                chunks = {}
+                for name, get in [("ChunkTimestamp", parser.get_integer_value),
+                                  ("ChunkFrameID", parser.get_integer_value),
+                                  ("ChunkExposureTime", parser.get_float_value)]:
+                    try:
+                        chunks[name] = get(buf, name)
+                    except Exception:  # noqa: BLE001 - a disabled chunk is absent
+                        chunks[name] = None
+                rec["chunks"] = chunks
             c, mx = centroid(buf.get_data(), w, h, bpp)
             rec.update({"centroid": c, "max": mx})
         out["buffers"].append(rec)

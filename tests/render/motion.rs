@@ -170,6 +170,27 @@ fn a_spinning_target_is_the_average_of_its_instants() {
     assert!(err < 0.02, "mean absolute difference {err} of the total");
 }
 
+/// Issue 37: a line time the frame's u32 `line_time_ns` cannot hold (≥ 4.295 s, or
+/// below 1 ns) was reported saturated (or as a global shutter's 0) in frames.jsonl: it
+/// is refused, naming the key; the largest it can hold is reported exactly.
+#[test]
+fn a_line_time_the_frame_cannot_report_is_refused() {
+    use hilcam_core::sensor::config::LINE_TIME_US_MAX;
+    for v in ["4294968.0", "1e9", "0.0001"] {
+        let s = dn_sensor(&format!("exposure = \"rolling\"\nline_time_us = {v}"));
+        let e = s.validate(&cam()).expect_err(v).to_string();
+        assert!(e.contains("sensor.detector.line_time_us") && e.contains("u32"), "{e}");
+    }
+    let s = dn_sensor(&format!("exposure = \"rolling\"\nline_time_us = {LINE_TIME_US_MAX}"));
+    s.validate(&cam()).expect("the largest reportable line time");
+    let (mut plate_scene, pose, settings) = plate(DVec3::ZERO, 1);
+    plate_scene.sensor = s;
+    let mut pipeline = hilcam_core::pipeline::FramePipeline::new(std::sync::Arc::new(plate_scene), cam()).unwrap();
+    let f = pipeline.frame(&pose, &settings, 1).unwrap();
+    let meta = hilcam_core::frame::FrameMeta::rendered(1, &pose, &f, Default::default());
+    assert_eq!(meta.line_time_ns, u32::MAX, "4294.967295 s, exactly");
+}
+
 /// A 12-bit DN camera over the plate; `exposure` is the detector's TOML tail.
 fn dn_sensor(exposure: &str) -> hilcam_core::sensor::SensorConfig {
     toml::from_str(&format!(

@@ -239,6 +239,18 @@ fn scene_file_stars_need_an_inertial_attitude_and_read_the_catalogue() {
     assert!(e.contains("stars.catalogue") && e.contains("none.csv"), "{e}");
 }
 
+/// Issue 37: a finite zero point whose product with the brightest star and the pixel's
+/// solid angle is not a finite f32 radiance rendered +inf pixels with exit 0.
+#[test]
+fn a_zero_point_that_makes_an_infinite_pixel_is_refused_by_line_and_key() {
+    let q = "camera_to_inertial = [1.0, 0.0, 0.0, 0.0]";
+    let stars = |z: &str| format!("[stars]\ncatalogue = \"stars/bsc5.csv\"\nmax_vmag = 2.0\nzero_point_w_m2 = {z}");
+    let e = parse_scene(q, &stars("1e300")).err().expect("refused");
+    assert!(e.contains(":14: stars.zero_point_w_m2: zero point 1e300") && e.contains("not finite"), "{e}");
+    assert!(e.contains("HR 2491"), "names the brightest star (Sirius): {e}");
+    assert!(parse_scene(q, &stars("1e3")).is_ok(), "a large but finite product is fine");
+}
+
 #[test]
 fn a_window_of_the_sensor_gets_the_full_frames_stars_there() {
     use hilcam_core::render::camera::Window;

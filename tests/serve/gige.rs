@@ -135,6 +135,16 @@ impl Rig {
     pub(crate) fn counter(&self, name: &str, labels: &[(&str, &str)]) -> u64 {
         self.registry.counter(name, "", labels).get()
     }
+
+    /// Stop the frame source, then the device: how long the device's shutdown took.
+    pub(crate) async fn shutdown(self) -> Duration {
+        let device = self.device.clone();
+        drop(self);
+        let device = Arc::try_unwrap(device).ok().expect("only the test holds the device");
+        let t = Instant::now();
+        device.shutdown().await;
+        t.elapsed()
+    }
 }
 
 impl Drop for Rig {

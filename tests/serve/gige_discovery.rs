@@ -96,7 +96,7 @@ async fn unusable_discovery_and_pending_settings_are_refused_by_name() {
     let e =
         refused(GigeConfig { address: ip, discovery_address: Some(Ipv4Addr::UNSPECIFIED), ..GigeConfig::default() })
             .await;
-    assert!(e.contains("discovery_address 0.0.0.0") && e.contains("127.255.255.255"), "{e}");
+    assert!(e.contains("output.gige.discovery_address: 0.0.0.0") && e.contains("127.255.255.255"), "{e}");
     let e = refused(GigeConfig { address: ip, pending_timeout_ms: 70_000, ..GigeConfig::default() }).await;
-    assert!(e.contains("pending_timeout_ms 70000") && e.contains("10..=65535"), "{e}");
+    assert!(e.contains("output.gige.pending_timeout_ms: 70000") && e.contains("10..=65535"), "{e}");
 }

@@ -80,8 +80,9 @@ async fn aravis_reads_truth_chunks_equal_to_the_pipelines_truth_whole_and_in_an_
         assert_eq!(t["mask"]["crc32"].as_u64(), Some(crc32(want.mask.iter().map(|m| m.to_le_bytes()))), "mask");
         assert!(t.get("normal").is_none(), "normal not configured: {v}");
         let payload = v["features"]["PayloadSize"].as_u64().unwrap();
-        // Pixels (Mono16) + trailers and metadata + footprint chunk + the two channels.
-        assert_eq!(payload, 2 * n + (8 + 56 + 8) + (40 + 8) + 2 * (4 * n + 8));
+        // Pixels (Mono16) + trailers, metadata and the SFNC chunks + footprint chunk + the two channels.
+        let chunks = hilcam_core::sink::gige::chunk::CHUNK_OVERHEAD as u64;
+        assert_eq!(payload, 2 * n + chunks + (40 + 8) + 2 * (4 * n + 8));
     }
     let report = server.finish().await;
     assert_eq!(report.scheduler.triggers, 2);

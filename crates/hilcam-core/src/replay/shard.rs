@@ -50,6 +50,20 @@ impl Shard {
                     .map_err(|_| ReplayError::Env { var, msg: format!("`{v}` is not a non-negative integer") }),
             }
         };
+        // Both schedulers' indices set (a Slurm job launched from a pod, a copied
+        // environment): each names a shard, and picking one silently would render the
+        // wrong frames if they differ.
+        if let (Some(slurm), Some(k8s)) = (num("SLURM_ARRAY_TASK_ID", false)?, num("JOB_COMPLETION_INDEX", false)?)
+            && slurm != k8s
+        {
+            return Err(ReplayError::Env {
+                var: "SLURM_ARRAY_TASK_ID",
+                msg: format!(
+                    "is {slurm} but JOB_COMPLETION_INDEX (Kubernetes) is {k8s}: two schedulers name different \
+                     shards; unset the one that does not launch this process (or pass --shard K/N)"
+                ),
+            });
+        }
         if let Some(id) = num("SLURM_ARRAY_TASK_ID", false)? {
             if let Some(count) = num(SHARD_COUNT_VAR, false)? {
                 if id >= count {
@@ -216,6 +230,16 @@ mod tests {
         );
         let e = err(&[slurm_array("1", "1", "1", "1"), vec![("HILCAM_SHARD_COUNT", "x")]].concat());
         assert_eq!(e, "environment variable HILCAM_SHARD_COUNT: `x` is not a non-negative integer");
+    }
+
+    /// Issue 37: disagreeing Slurm and Kubernetes indices were resolved silently (Slurm won).
+    #[test]
+    fn disagreeing_slurm_and_kubernetes_indices_are_refused_naming_both() {
+        let both = |k8s: &'static str| [slurm_array("2", "0", "3", "4"), vec![("JOB_COMPLETION_INDEX", k8s)]].concat();
+        let e = err(&both("3"));
+        assert!(e.starts_with("environment variable SLURM_ARRAY_TASK_ID: is 2 but JOB_COMPLETION_INDEX"), "{e}");
+        assert!(e.contains("(Kubernetes) is 3"), "{e}");
+        assert_eq!(Shard::from_env(env(&both("2"))).unwrap(), shard(2, 4), "agreeing indices are one shard");
     }
 
     #[test]

@@ -509,7 +509,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     let layout = r.bvh.get_ref().check().map_err(|m| field(r.bvh.span(), "render.bvh", m))?;
     let stars = match &file.stars {
         None => None,
-        Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor)?),
+        Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor, camera.focal_px())?),
     };
     let planet = match &file.planet {
         None => None,
@@ -560,6 +560,7 @@ fn stars_from(
     s: &Spanned<StarsSection>,
     pose: &Pose,
     sensor: &SensorConfig,
+    focal_px: f64,
 ) -> Result<StarField, SceneError> {
     let field = |span: std::ops::Range<usize>, f: &str, message: String| SceneError::Field {
         path: path.to_path_buf(),
@@ -594,7 +595,26 @@ fn stars_from(
     let sel =
         Selection { min_vmag: st.min_vmag, max_vmag: st.max_vmag, zero_point_w_m2, default_camera_to_inertial: q };
     let file = dir.join(st.catalogue.get_ref());
-    StarField::load(&file, &sel).map_err(|e| field(st.catalogue.span(), "stars.catalogue", e.to_string()))
+    let stars =
+        StarField::load(&file, &sel).map_err(|e| field(st.catalogue.span(), "stars.catalogue", e.to_string()))?;
+    // Finite inputs can still make infinite pixels: the brightest star's radiance
+    // E / Ω_pixel = E · focal_px² must be an f32 (the radiance image's type).
+    if let Some(b) = stars.stars.iter().min_by(|a, b| a.vmag.total_cmp(&b.vmag)) {
+        let radiance = b.irradiance_w_m2 * focal_px * focal_px;
+        if !(radiance as f32).is_finite() {
+            let span = st.zero_point_w_m2.as_ref().map_or(st.catalogue.span(), |z| z.span());
+            let m = format!(
+                "zero point {zero_point_w_m2:e} W/m² makes star HR {} (V = {}) {radiance:e} W·m⁻²·sr⁻¹ on its pixel \
+                 (irradiance {:e} W/m² × focal² {:e} px²), beyond an f32 radiance: not finite",
+                b.hr,
+                b.vmag,
+                b.irradiance_w_m2,
+                focal_px * focal_px
+            );
+            return Err(field(span, "stars.zero_point_w_m2", m));
+        }
+    }
+    Ok(stars)
 }
 
 type FieldErr = (std::ops::Range<usize>, String, String);

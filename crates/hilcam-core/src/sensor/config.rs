@@ -245,6 +245,10 @@ fn invalid(field: &str, message: impl Into<String>) -> SensorError {
     SensorError::Invalid { field: field.to_string(), message: message.into() }
 }
 
+/// The rolling line times a frame can report (`line_time_ns`, a u32 of ns), µs.
+pub const LINE_TIME_US_MIN: f64 = 0.001;
+pub const LINE_TIME_US_MAX: f64 = u32::MAX as f64 / 1000.0;
+
 fn positive(field: &str, v: f64) -> Result<(), SensorError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
@@ -440,7 +444,20 @@ impl SensorConfig {
             (super::ExposureMode::Rolling, None) => {
                 return Err(invalid("sensor.detector.line_time_us", "a rolling exposure needs its line time (µs)"));
             }
-            (super::ExposureMode::Rolling, Some(v)) => positive("sensor.detector.line_time_us", v)?,
+            (super::ExposureMode::Rolling, Some(v)) => {
+                positive("sensor.detector.line_time_us", v)?;
+                // Frames carry it as a u32 of ns (header bytes 80..84, frames.jsonl): a
+                // value it cannot hold would be reported saturated or as 0 (global).
+                if !(LINE_TIME_US_MIN..=LINE_TIME_US_MAX).contains(&v) {
+                    return Err(invalid(
+                        "sensor.detector.line_time_us",
+                        format!(
+                            "{v} µs: frames report it in whole ns as a u32 (line_time_ns), so it must be \
+                             {LINE_TIME_US_MIN}..={LINE_TIME_US_MAX} µs"
+                        ),
+                    ));
+                }
+            }
             (_, Some(_)) => {
                 return Err(invalid(
                     "sensor.detector.line_time_us",

@@ -70,6 +70,12 @@ use serde::Deserialize;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
+/// Bounds of the stream's sizes (docs/serve-config.md): frames queued per client, clients.
+/// Every size in this file has one (`[live]`: `live::QUEUE_DEPTH_MAX`, …;
+/// `[output.gige]`: `GigeConfig::validate`), refused at start naming the key.
+pub const STREAM_QUEUE_DEPTH_MAX: usize = 64;
+pub const STREAM_MAX_CLIENTS_MAX: usize = 1024;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("{path}: {source}")]
@@ -400,8 +406,16 @@ impl ServeConfig {
         if self.render.depth == Some(0) {
             return Err(("render.depth", "must be at least 1".into()));
         }
-        if self.stream.queue_depth == 0 {
-            return Err(("stream.queue_depth", "must be at least 1".into()));
+        let q = self.stream.queue_depth;
+        if !(1..=STREAM_QUEUE_DEPTH_MAX).contains(&q) {
+            return Err(("stream.queue_depth", format!("must be 1..={STREAM_QUEUE_DEPTH_MAX}, got {q}")));
+        }
+        let c = self.stream.max_clients;
+        if !(1..=STREAM_MAX_CLIENTS_MAX).contains(&c) {
+            return Err(("stream.max_clients", format!("must be 1..={STREAM_MAX_CLIENTS_MAX}, got {c}")));
+        }
+        if let Some(g) = &self.output.gige {
+            g.validate()?;
         }
         let e = self.stream.evict_after_s;
         if !(e.is_finite() && (0.0..=86_400.0).contains(&e)) {
@@ -494,6 +508,26 @@ mod tests {
         assert!(e.contains("unknown field `can_base`"), "{e}");
         let e = parse("kind = \"none\"\ndevice = \"/dev/ttyUSB0\"\n").unwrap_err();
         assert!(e.contains("device"), "{e}");
+    }
+
+    #[test]
+    fn every_size_has_an_upper_bound_refused_by_its_key() {
+        let on = "kind = \"none\"\n[metrics]\nlisten = \"127.0.0.1:0\"\n";
+        for (section, key, expect) in [
+            ("stream", "queue_depth = 1000000000000", "stream.queue_depth: must be 1..=64, got 1000000000000"),
+            ("stream", "max_clients = 100000", "stream.max_clients: must be 1..=1024, got 100000"),
+            (
+                "live",
+                "enabled = true\nqueue_depth = 1000000000000",
+                "live.queue_depth: must be 1..=64, got 1000000000000",
+            ),
+            ("live", "enabled = true\nmax_viewers = 100000", "live.max_viewers: must be 1..=256, got 100000"),
+            ("output.gige", "resend_ring = 1000000000", "output.gige.resend_ring: 1000000000: must be 1..=64 blocks"),
+            ("output.gige", "packet_size = 65536", "output.gige.packet_size: 65536: must be 576..=9000 in steps of 4"),
+        ] {
+            assert_eq!(parse(&format!("{on}[{section}]\n{key}\n")).unwrap_err(), expect);
+        }
+        assert!(parse(&format!("{on}[output.gige]\nresend_ring = 64\n[stream]\nqueue_depth = 64\n")).is_ok());
     }
 
     #[test]

@@ -29,6 +29,10 @@ use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
+/// Bounds of `[live]`'s sizes (docs/serve-config.md): previews queued per viewer, viewers.
+pub const QUEUE_DEPTH_MAX: usize = 64;
+pub const MAX_VIEWERS_MAX: usize = 256;
+
 /// `[live]` in the serve config.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -100,11 +104,11 @@ impl LiveConfig {
         if !(1..=100).contains(&self.jpeg_quality) {
             return Err(("live.jpeg_quality", format!("must be 1..=100, got {}", self.jpeg_quality)));
         }
-        if self.queue_depth == 0 {
-            return Err(("live.queue_depth", "must be at least 1".into()));
+        if !(1..=QUEUE_DEPTH_MAX).contains(&self.queue_depth) {
+            return Err(("live.queue_depth", format!("must be 1..={QUEUE_DEPTH_MAX}, got {}", self.queue_depth)));
         }
-        if self.max_viewers == 0 {
-            return Err(("live.max_viewers", "must be at least 1".into()));
+        if !(1..=MAX_VIEWERS_MAX).contains(&self.max_viewers) {
+            return Err(("live.max_viewers", format!("must be 1..={MAX_VIEWERS_MAX}, got {}", self.max_viewers)));
         }
         let e = self.evict_after_s;
         if !(e.is_finite() && (0.0..=86_400.0).contains(&e)) {

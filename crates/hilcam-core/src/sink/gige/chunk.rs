@@ -17,6 +17,12 @@
 //! (samples per pixel × 1000), `depth` u16 @44, `bit_depth` u8 @46 (the ADC's),
 //! reserved u8 @47, `integration_ns` u64 @48.
 //!
+//! Then the SFNC chunks, 8 bytes each, big-endian: ChunkTimestamp ([`TIMESTAMP_CHUNK_ID`],
+//! u64 ticks, the leader's timestamp), ChunkExposureTime ([`EXPOSURE_CHUNK_ID`], f64 µs,
+//! what the frame integrated), ChunkFrameID ([`FRAME_ID_CHUNK_ID`], u64, the GVSP block
+//! id). A client switches each chunk but the image with ChunkSelector / ChunkEnable
+//! ([`ChunkKind`]); all are on at start.
+//!
 //! With `[output] truth` each block also carries the frame's ground truth, after the
 //! metadata: a footprint chunk ([`FOOTPRINT_CHUNK_ID`], [`FOOTPRINT_LEN`] bytes,
 //! big-endian like the metadata: `target_pixels` u64 @0, centroid x, y f64 @8 and @16
@@ -37,8 +43,94 @@ pub const IMAGE_CHUNK_ID: u32 = 0x4843_0001;
 pub const META_CHUNK_ID: u32 = 0x4843_0002;
 /// Bytes of metadata.
 pub const META_LEN: usize = 56;
-/// Bytes the chunks add to the pixels: two trailers and the metadata.
-pub const CHUNK_OVERHEAD: usize = 8 + META_LEN + 8;
+/// Chunk ids of the SFNC chunks ("HC" 0x0020..0x0022), 8 bytes of data each.
+pub const TIMESTAMP_CHUNK_ID: u32 = 0x4843_0020;
+pub const EXPOSURE_CHUNK_ID: u32 = 0x4843_0021;
+pub const FRAME_ID_CHUNK_ID: u32 = 0x4843_0022;
+const SFNC_CHUNK_LEN: usize = 8 + 8;
+/// Bytes the chunks add to the pixels with every chunk enabled but truth: the image
+/// trailer, the metadata and the three SFNC chunks.
+pub const CHUNK_OVERHEAD: usize = 8 + META_LEN + 8 + 3 * SFNC_CHUNK_LEN;
+
+/// The chunks a client switches with ChunkSelector / ChunkEnable (the image chunk is
+/// always sent). The value is the ChunkSelector register's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChunkKind {
+    Timestamp = 0,
+    ExposureTime = 1,
+    FrameId = 2,
+    HilcamMetadata = 3,
+    HilcamTruth = 4,
+}
+
+impl ChunkKind {
+    pub const ALL: [ChunkKind; 5] = [
+        ChunkKind::Timestamp,
+        ChunkKind::ExposureTime,
+        ChunkKind::FrameId,
+        ChunkKind::HilcamMetadata,
+        ChunkKind::HilcamTruth,
+    ];
+
+    pub fn from_u32(v: u32) -> Option<ChunkKind> {
+        ChunkKind::ALL.get(v as usize).copied()
+    }
+
+    /// The ChunkSelector entry's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ChunkKind::Timestamp => "Timestamp",
+            ChunkKind::ExposureTime => "ExposureTime",
+            ChunkKind::FrameId => "FrameID",
+            ChunkKind::HilcamMetadata => "HilcamMetadata",
+            ChunkKind::HilcamTruth => "HilcamTruth",
+        }
+    }
+}
+
+/// Which [`ChunkKind`]s are enabled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChunkSet(u8);
+
+impl ChunkSet {
+    pub const ALL: ChunkSet = ChunkSet(0x1F);
+
+    pub fn contains(self, k: ChunkKind) -> bool {
+        self.0 & (1 << k as u8) != 0
+    }
+
+    pub fn with(self, k: ChunkKind, on: bool) -> ChunkSet {
+        if on { ChunkSet(self.0 | (1 << k as u8)) } else { ChunkSet(self.0 & !(1 << k as u8)) }
+    }
+}
+
+/// The SFNC chunks' values for one block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SfncValues {
+    /// Leader timestamp, ticks.
+    pub timestamp: u64,
+    /// What the frame integrated, µs.
+    pub exposure_us: f64,
+    /// The GVSP block id.
+    pub frame_id: u64,
+}
+
+/// Bytes the chunks of `set` add to a `width`×`height` image (truth only with channels).
+pub fn chunks_len(set: ChunkSet, truth: TruthChannels, width: u32, height: u32) -> u64 {
+    let mut n = 8u64;
+    if set.contains(ChunkKind::HilcamMetadata) {
+        n += (META_LEN + 8) as u64;
+    }
+    for k in [ChunkKind::Timestamp, ChunkKind::ExposureTime, ChunkKind::FrameId] {
+        if set.contains(k) {
+            n += SFNC_CHUNK_LEN as u64;
+        }
+    }
+    if set.contains(ChunkKind::HilcamTruth) {
+        n += truth_chunks_len(truth, width, height);
+    }
+    n
+}
 
 /// Chunk id of the truth footprint ("HC" 0x0010).
 pub const FOOTPRINT_CHUNK_ID: u32 = 0x4843_0010;
@@ -118,6 +210,12 @@ fn push_chunk(block: &mut Vec<u8>, id: u32, data: impl FnOnce(&mut Vec<u8>)) {
     block.extend_from_slice(&len.to_be_bytes());
 }
 
+/// An integration time (s, f32 as frames carry it) in whole ns: what the chunks and
+/// ExposureTime report (0.001 s is 1 000 000 ns, not the f32's 1 000 000.05).
+pub fn integration_ns(integration_s: f32) -> u64 {
+    (f64::from(integration_s) * 1e9).round().max(0.0) as u64
+}
+
 /// The metadata chunk's data.
 pub fn encode_meta(m: &FrameMeta) -> [u8; META_LEN] {
     let mut b = [0u8; META_LEN];
@@ -130,19 +228,28 @@ pub fn encode_meta(m: &FrameMeta) -> [u8; META_LEN] {
     b[40..44].copy_from_slice(&m.spp.milli().to_be_bytes());
     b[44..46].copy_from_slice(&m.depth.to_be_bytes());
     b[46] = m.bit_depth;
-    let integration_ns = (f64::from(m.integration_s) * 1e9).round().max(0.0) as u64;
-    b[48..56].copy_from_slice(&integration_ns.to_be_bytes());
+    b[48..56].copy_from_slice(&integration_ns(m.integration_s).to_be_bytes());
     b
 }
 
-/// Append the chunk trailers and metadata to `image` (the block's pixels).
-pub fn append_chunks(image: &mut Vec<u8>, meta: &FrameMeta) {
+/// Append the image trailer, then the metadata and SFNC chunks `set` enables, to
+/// `image` (the block's pixels). Truth is appended by [`append_truth_chunks`].
+pub fn append_chunks(image: &mut Vec<u8>, meta: &FrameMeta, set: ChunkSet, sfnc: &SfncValues) {
     let image_len = image.len() as u32;
     image.extend_from_slice(&IMAGE_CHUNK_ID.to_be_bytes());
     image.extend_from_slice(&image_len.to_be_bytes());
-    image.extend_from_slice(&encode_meta(meta));
-    image.extend_from_slice(&META_CHUNK_ID.to_be_bytes());
-    image.extend_from_slice(&(META_LEN as u32).to_be_bytes());
+    if set.contains(ChunkKind::HilcamMetadata) {
+        push_chunk(image, META_CHUNK_ID, |b| b.extend_from_slice(&encode_meta(meta)));
+    }
+    if set.contains(ChunkKind::Timestamp) {
+        push_chunk(image, TIMESTAMP_CHUNK_ID, |b| b.extend_from_slice(&sfnc.timestamp.to_be_bytes()));
+    }
+    if set.contains(ChunkKind::ExposureTime) {
+        push_chunk(image, EXPOSURE_CHUNK_ID, |b| b.extend_from_slice(&sfnc.exposure_us.to_be_bytes()));
+    }
+    if set.contains(ChunkKind::FrameId) {
+        push_chunk(image, FRAME_ID_CHUNK_ID, |b| b.extend_from_slice(&sfnc.frame_id.to_be_bytes()));
+    }
 }
 
 /// Find chunk `id` in a block, walking back from the end (the client side; tests).
@@ -185,8 +292,21 @@ mod tests {
             flags: FrameFlags(FrameFlags::EXTRAPOLATED),
         };
         let mut block = vec![1, 2, 3, 4];
-        append_chunks(&mut block, &meta);
+        let sfnc = SfncValues { timestamp: 123_456_789, exposure_us: 1000.0, frame_id: 9 };
+        append_chunks(&mut block, &meta, ChunkSet::ALL, &sfnc);
         assert_eq!(block.len(), 4 + CHUNK_OVERHEAD);
+        assert_eq!(chunks_len(ChunkSet::ALL, TruthChannels::NONE, 2, 1), CHUNK_OVERHEAD as u64);
+        let be = |id| u64::from_be_bytes(find_chunk(&block, id).unwrap().try_into().unwrap());
+        assert_eq!((be(TIMESTAMP_CHUNK_ID), be(FRAME_ID_CHUNK_ID)), (123_456_789, 9));
+        assert_eq!(f64::from_bits(be(EXPOSURE_CHUNK_ID)), 1000.0);
+        // Without the metadata and the timestamp: the rest is still found, the length follows.
+        let set = ChunkSet::ALL.with(ChunkKind::HilcamMetadata, false).with(ChunkKind::Timestamp, false);
+        let mut small = vec![1, 2, 3, 4];
+        append_chunks(&mut small, &meta, set, &sfnc);
+        assert_eq!(small.len() as u64, 4 + chunks_len(set, TruthChannels::NONE, 2, 1));
+        assert_eq!(find_chunk(&small, META_CHUNK_ID), None);
+        assert_eq!(find_chunk(&small, IMAGE_CHUNK_ID).unwrap(), &[1, 2, 3, 4]);
+        assert!(find_chunk(&small, FRAME_ID_CHUNK_ID).is_some());
         assert_eq!(find_chunk(&block, IMAGE_CHUNK_ID).unwrap(), &[1, 2, 3, 4]);
         let m = find_chunk(&block, META_CHUNK_ID).unwrap();
         assert_eq!(u32::from_be_bytes(m[8..12].try_into().unwrap()), 42);

@@ -3,7 +3,7 @@
 //! description. Pure text generation; the device serves it from memory at
 //! [`registers::XML_BASE`](super::registers::XML_BASE).
 
-use super::chunk::META_CHUNK_ID;
+use super::chunk::{self, ChunkKind, META_CHUNK_ID};
 use super::registers::{self as reg, CameraDescription, DeviceIdentity};
 use std::fmt::Write;
 
@@ -37,13 +37,27 @@ fn int_reg(x: &mut String, name: &str, address: u32, len: u32, access: Access, p
 
 /// An Integer feature over its own register, with a range.
 fn integer(x: &mut String, name: &str, address: u32, access: Access, min: u64, max: u64, inc: u64) {
+    integer_with(x, name, address, access, "", &format!("<Min>{min}</Min><Max>{max}</Max><Inc>{inc}</Inc>"));
+}
+
+/// An Integer over its own register; `locked`: a `<pIsLocked>` node (or ""), `range`:
+/// its Min/pMin, Max/pMax, Inc elements.
+fn integer_with(x: &mut String, name: &str, address: u32, access: Access, locked: &str, range: &str) {
     let _ = writeln!(
         x,
-        "<Integer Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue>\
-         <Min>{min}</Min><Max>{max}</Max><Inc>{inc}</Inc></Integer>"
+        "<Integer Name=\"{name}\" NameSpace=\"Standard\">{}<pValue>{name}Reg</pValue>{range}</Integer>",
+        is_locked(locked)
     );
     int_reg(x, &format!("{name}Reg"), address, 4, access, "Device");
 }
+
+/// `<pIsLocked>` of a feature that TLParamsLocked freezes.
+fn is_locked(node: &str) -> String {
+    if node.is_empty() { String::new() } else { format!("<pIsLocked>{node}</pIsLocked>") }
+}
+
+/// Features TLParamsLocked makes read-only (the device refuses their writes too).
+const LOCKED_BY: &str = "TLParamsLocked";
 
 fn float(x: &mut String, name: &str, address: u32, min: f32, max: f32, unit: &str) {
     let _ = write!(
@@ -57,11 +71,21 @@ fn float(x: &mut String, name: &str, address: u32, min: f32, max: f32, unit: &st
 }
 
 fn enumeration(x: &mut String, name: &str, address: u32, entries: &[(&str, u32)]) {
-    let _ = write!(x, "<Enumeration Name=\"{name}\" NameSpace=\"Standard\">");
+    enumeration_with(x, name, address, "", "", entries);
+}
+
+/// An Enumeration with optional `<pIsLocked>` and `<pSelected>` nodes.
+fn enumeration_with(x: &mut String, name: &str, address: u32, locked: &str, selected: &str, entries: &[(&str, u32)]) {
+    // Element order is the GenApi schema's: pIsLocked, the entries, pValue, pSelected.
+    let _ = write!(x, "<Enumeration Name=\"{name}\" NameSpace=\"Standard\">{}", is_locked(locked));
     for (entry, value) in entries {
         let _ = write!(x, "<EnumEntry Name=\"{entry}\"><Value>{value}</Value></EnumEntry>");
     }
-    let _ = writeln!(x, "<pValue>{name}Reg</pValue></Enumeration>");
+    let _ = write!(x, "<pValue>{name}Reg</pValue>");
+    if !selected.is_empty() {
+        let _ = write!(x, "<pSelected>{selected}</pSelected>");
+    }
+    let _ = writeln!(x, "</Enumeration>");
     int_reg(x, &format!("{name}Reg"), address, 4, Access::Rw, "Device");
 }
 
@@ -74,12 +98,41 @@ fn command(x: &mut String, name: &str, address: u32, value: u32) {
     int_reg(x, &format!("{name}Reg"), address, 4, Access::Wo, "Device");
 }
 
-fn string_reg(x: &mut String, name: &str, address: u32, len: u32) {
+fn string_reg(x: &mut String, name: &str, address: u32, len: u32, access: Access) {
     let _ = writeln!(
         x,
         "<StringReg Name=\"{name}\" NameSpace=\"Standard\"><Address>{address:#x}</Address>\
-         <Length>{len}</Length><AccessMode>RO</AccessMode><pPort>Device</pPort></StringReg>"
+         <Length>{len}</Length><AccessMode>{}</AccessMode><pPort>Device</pPort><Cachable>NoCache</Cachable></StringReg>",
+        access.as_str()
     );
+}
+
+/// A Boolean (0 / 1) over its own register.
+fn boolean(x: &mut String, name: &str, address: u32, locked: &str) {
+    let _ = writeln!(
+        x,
+        "<Boolean Name=\"{name}\" NameSpace=\"Standard\">{}<pValue>{name}Reg</pValue>\
+         <OnValue>1</OnValue><OffValue>0</OffValue></Boolean>",
+        is_locked(locked)
+    );
+    int_reg(x, &format!("{name}Reg"), address, 4, Access::Rw, "Device");
+}
+
+/// An SFNC chunk feature: 8 bytes at the start of chunk `id`'s data.
+fn chunk_feature(x: &mut String, name: &str, id: u32, float: bool) {
+    let port = format!("{name}Port");
+    let _ = writeln!(x, "<Port Name=\"{port}\"><ChunkID>{id:08X}</ChunkID></Port>");
+    if float {
+        let _ = writeln!(
+            x,
+            "<Float Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue><Unit>us</Unit></Float>\
+             <FloatReg Name=\"{name}Reg\"><Address>0x0</Address><Length>8</Length><AccessMode>RO</AccessMode>\
+             <pPort>{port}</pPort><Cachable>NoCache</Cachable><Endianess>BigEndian</Endianess></FloatReg>"
+        );
+    } else {
+        let _ = writeln!(x, "<Integer Name=\"{name}\" NameSpace=\"Standard\"><pValue>{name}Reg</pValue></Integer>");
+        int_reg(x, &format!("{name}Reg"), 0, 8, Access::Ro, &port);
+    }
 }
 
 fn category(x: &mut String, name: &str, features: &[&str]) {
@@ -122,11 +175,32 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         "Root",
         &["DeviceControl", "ImageFormatControl", "AcquisitionControl", "TransportLayerControl", "ChunkDataControl"],
     );
-    category(&mut x, "DeviceControl", &["DeviceVendorName", "DeviceModelName", "DeviceVersion", "DeviceSerialNumber"]);
+    category(
+        &mut x,
+        "DeviceControl",
+        &[
+            "DeviceVendorName",
+            "DeviceModelName",
+            "DeviceVersion",
+            "DeviceFirmwareVersion",
+            "DeviceSerialNumber",
+            "DeviceUserID",
+        ],
+    );
     category(
         &mut x,
         "ImageFormatControl",
-        &["SensorWidth", "SensorHeight", "Width", "Height", "OffsetX", "OffsetY", "PixelFormat"],
+        &[
+            "SensorWidth",
+            "SensorHeight",
+            "WidthMax",
+            "HeightMax",
+            "Width",
+            "Height",
+            "OffsetX",
+            "OffsetY",
+            "PixelFormat",
+        ],
     );
     category(
         &mut x,
@@ -140,6 +214,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
             "TriggerMode",
             "TriggerSource",
             "TriggerSoftware",
+            "ExposureMode",
             "ExposureTime",
             "ExposureAuto",
         ],
@@ -157,26 +232,50 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
             "GevHeartbeatTimeout",
             "GevGVCPPendingAck",
             "GevGVCPPendingTimeout",
+            "TLParamsLocked",
         ],
     );
-    let mut chunk_features = vec!["ChunkModeActive"];
+    let mut chunk_features =
+        vec!["ChunkModeActive", "ChunkSelector", "ChunkEnable", "ChunkTimestamp", "ChunkExposureTime", "ChunkFrameID"];
     chunk_features.extend(CHUNK_FIELDS.iter().map(|f| f.0));
     category(&mut x, "ChunkDataControl", &chunk_features);
 
-    string_reg(&mut x, "DeviceVendorName", reg::MANUFACTURER_NAME, 32);
-    string_reg(&mut x, "DeviceModelName", reg::MODEL_NAME, 32);
-    string_reg(&mut x, "DeviceVersion", reg::DEVICE_VERSION, 32);
-    string_reg(&mut x, "DeviceSerialNumber", reg::SERIAL_NUMBER, 16);
+    string_reg(&mut x, "DeviceVendorName", reg::MANUFACTURER_NAME, 32, Access::Ro);
+    string_reg(&mut x, "DeviceModelName", reg::MODEL_NAME, 32, Access::Ro);
+    string_reg(&mut x, "DeviceVersion", reg::DEVICE_VERSION, 32, Access::Ro);
+    string_reg(&mut x, "DeviceFirmwareVersion", reg::FIRMWARE_VERSION, reg::FIRMWARE_VERSION_LEN, Access::Ro);
+    string_reg(&mut x, "DeviceSerialNumber", reg::SERIAL_NUMBER, 16, Access::Ro);
+    string_reg(&mut x, "DeviceUserID", reg::USER_NAME, reg::USER_NAME_LEN, Access::Rw);
 
     let (sw, sh) = (u64::from(cam.sensor_width), u64::from(cam.sensor_height));
     integer(&mut x, "SensorWidth", reg::SENSOR_WIDTH, Access::Ro, sw, sw, 1);
     integer(&mut x, "SensorHeight", reg::SENSOR_HEIGHT, Access::Ro, sh, sh, 1);
-    integer(&mut x, "Width", reg::WIDTH, Access::Rw, 1, sw, 1);
-    integer(&mut x, "Height", reg::HEIGHT, Access::Rw, 1, sh, 1);
-    integer(&mut x, "OffsetX", reg::OFFSET_X, Access::Rw, 0, sw - 1, 1);
-    integer(&mut x, "OffsetY", reg::OFFSET_Y, Access::Rw, 0, sh - 1, 1);
+    integer(&mut x, "WidthMax", reg::WIDTH_MAX, Access::Ro, 1, sw, 1);
+    integer(&mut x, "HeightMax", reg::HEIGHT_MAX, Access::Ro, 1, sh, 1);
+    // The ranges follow the region: Width ≤ SensorWidth − OffsetX (WidthMax),
+    // OffsetX ≤ SensorWidth − Width.
+    integer_with(&mut x, "Width", reg::WIDTH, Access::Rw, LOCKED_BY, "<Min>1</Min><pMax>WidthMax</pMax><Inc>1</Inc>");
+    integer_with(
+        &mut x,
+        "Height",
+        reg::HEIGHT,
+        Access::Rw,
+        LOCKED_BY,
+        "<Min>1</Min><pMax>HeightMax</pMax><Inc>1</Inc>",
+    );
+    for (offset, address, sensor, size) in
+        [("OffsetX", reg::OFFSET_X, "SensorWidth", "Width"), ("OffsetY", reg::OFFSET_Y, "SensorHeight", "Height")]
+    {
+        let range = format!("<Min>0</Min><pMax>{offset}Max</pMax><Inc>1</Inc>");
+        integer_with(&mut x, offset, address, Access::Rw, LOCKED_BY, &range);
+        let _ = writeln!(
+            x,
+            "<IntSwissKnife Name=\"{offset}Max\"><pVariable Name=\"S\">{sensor}</pVariable>\
+             <pVariable Name=\"W\">{size}</pVariable><Formula>S-W</Formula></IntSwissKnife>"
+        );
+    }
     let formats: Vec<(&str, u32)> = cam.pixel_formats().iter().map(|f| (f.name(), f.pfnc())).collect();
-    enumeration(&mut x, "PixelFormat", reg::PIXEL_FORMAT, &formats);
+    enumeration_with(&mut x, "PixelFormat", reg::PIXEL_FORMAT, LOCKED_BY, "", &formats);
     integer(&mut x, "PayloadSize", reg::PAYLOAD_SIZE, Access::Ro, 0, u64::from(u32::MAX), 1);
 
     enumeration(&mut x, "AcquisitionMode", reg::ACQUISITION_MODE, &[("Continuous", 0), ("SingleFrame", 1)]);
@@ -187,6 +286,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
     enumeration(&mut x, "TriggerMode", reg::TRIGGER_MODE, &[("Off", 0), ("On", 1)]);
     enumeration(&mut x, "TriggerSource", reg::TRIGGER_SOURCE, &[("Software", 0)]);
     command(&mut x, "TriggerSoftware", reg::TRIGGER_SOFTWARE, 1);
+    enumeration(&mut x, "ExposureMode", reg::EXPOSURE_MODE, &[("Timed", 1)]);
     float(&mut x, "ExposureTime", reg::EXPOSURE_TIME, cam.exposure_min_us, cam.exposure_max_us, "us");
     enumeration(&mut x, "ExposureAuto", reg::EXPOSURE_AUTO, &[("Off", 0), ("Continuous", 2)]);
 
@@ -203,8 +303,8 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
     int_reg(&mut x, "GevTimestampValueReg", reg::TIMESTAMP_VALUE_HIGH, 8, Access::Ro, "Device");
     let _ = writeln!(
         x,
-        "<Integer Name=\"GevSCPSPacketSize\" NameSpace=\"Standard\"><pValue>GevSCPSPacketSizeReg</pValue>\
-         <Min>{}</Min><Max>{}</Max><Inc>{}</Inc></Integer>\n\
+        "<Integer Name=\"GevSCPSPacketSize\" NameSpace=\"Standard\"><pIsLocked>{LOCKED_BY}</pIsLocked>\
+         <pValue>GevSCPSPacketSizeReg</pValue><Min>{}</Min><Max>{}</Max><Inc>{}</Inc></Integer>\n\
          <MaskedIntReg Name=\"GevSCPSPacketSizeReg\"><Address>{:#x}</Address><Length>4</Length>\
          <AccessMode>RW</AccessMode><pPort>Device</pPort><Cachable>NoCache</Cachable>\
          <LSB>31</LSB><MSB>16</MSB><Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></MaskedIntReg>",
@@ -213,7 +313,8 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         reg::PACKET_SIZE_INC,
         reg::SCPS0
     );
-    integer(&mut x, "GevSCPD", reg::SCPD0, Access::Rw, 0, u64::from(u32::MAX), 1);
+    integer(&mut x, "GevSCPD", reg::SCPD0, Access::Rw, 0, u64::from(reg::SCPD_MAX_TICKS), 1);
+    integer(&mut x, "TLParamsLocked", reg::TL_PARAMS_LOCKED, Access::Rw, 0, 1, 1);
     integer(
         &mut x,
         "GevHeartbeatTimeout",
@@ -236,12 +337,16 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
     );
     integer(&mut x, "GevGVCPPendingTimeout", reg::PENDING_TIMEOUT, Access::Ro, 0, u64::from(u32::MAX), 1);
 
-    let _ = writeln!(
-        x,
-        "<Boolean Name=\"ChunkModeActive\" NameSpace=\"Standard\"><pValue>ChunkModeActiveReg</pValue>\
-         <OnValue>1</OnValue><OffValue>0</OffValue></Boolean>"
-    );
-    int_reg(&mut x, "ChunkModeActiveReg", reg::CHUNK_MODE_ACTIVE, 4, Access::Rw, "Device");
+    boolean(&mut x, "ChunkModeActive", reg::CHUNK_MODE_ACTIVE, LOCKED_BY);
+    // ChunkEnable acts on the chunk ChunkSelector selects (the device keeps the selector).
+    let kinds: Vec<ChunkKind> =
+        ChunkKind::ALL.into_iter().filter(|k| *k != ChunkKind::HilcamTruth || !cam.truth.is_empty()).collect();
+    let entries: Vec<(&str, u32)> = kinds.iter().map(|k| (k.name(), *k as u32)).collect();
+    enumeration_with(&mut x, "ChunkSelector", reg::CHUNK_SELECTOR, "", "ChunkEnable", &entries);
+    boolean(&mut x, "ChunkEnable", reg::CHUNK_ENABLE, LOCKED_BY);
+    chunk_feature(&mut x, "ChunkTimestamp", chunk::TIMESTAMP_CHUNK_ID, false);
+    chunk_feature(&mut x, "ChunkExposureTime", chunk::EXPOSURE_CHUNK_ID, true);
+    chunk_feature(&mut x, "ChunkFrameID", chunk::FRAME_ID_CHUNK_ID, false);
     let _ = writeln!(x, "<Port Name=\"HilcamChunkPort\"><ChunkID>{META_CHUNK_ID:08X}</ChunkID></Port>");
     for (name, offset, len) in CHUNK_FIELDS {
         let _ = writeln!(

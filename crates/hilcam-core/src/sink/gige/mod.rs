@@ -13,7 +13,13 @@
 //! - [`gvsp`]: leader / payload / trailer packets.
 //! - [`zip`]: the XML as a stored zip.
 //! - [`describe`]: the camera description from hilcam's camera and sensor config.
-//! - [`device`]: sockets, the stream thread, the resend ring.
+//! - [`config`]: `[output.gige]` and the bounds of its sizes.
+//! - [`device`]: the sockets, the control loop, the device's public face.
+//! - [`stream`]: the stream thread, its pacing and the resend ring; [`stream_jobs`]
+//!   its bounded work queue.
+//! - [`rate_gate`]: which frames AcquisitionFrameRate lets through.
+//! - [`metrics`]: the `hilcam_gige_*` counters; [`log_limit`]: one warning per reason
+//!   per interval.
 //! - [`triggers`]: software triggers into the serve loop's inputs.
 //! - [`request`]: the client's ExposureTime and ROI as what each frame renders, its
 //!   AcquisitionFrameRate as the rate frames are rendered at.
@@ -22,6 +28,7 @@
 //! Reference: `docs/gige.md`.
 
 pub mod chunk;
+pub mod config;
 pub mod control;
 pub mod describe;
 pub mod device;
@@ -29,10 +36,15 @@ pub mod discovery;
 pub mod genicam;
 pub mod gvcp;
 pub mod gvsp;
+pub mod log_limit;
+mod metrics;
 pub mod pending;
 pub mod pixel;
+pub mod rate_gate;
 pub mod registers;
 pub mod request;
+pub mod stream;
+pub mod stream_jobs;
 pub mod triggers;
 pub mod zip;
 

@@ -6,6 +6,7 @@
 //! All registers are 32-bit big-endian words at 4-byte-aligned addresses. The table of
 //! addresses is in `docs/gige.md`; the XML (`genicam.rs`) names the same constants.
 
+use super::chunk::{ChunkKind, ChunkSet};
 use super::gvcp::Status;
 use super::pixel::GevPixelFormat;
 use crate::render::camera::Window;
@@ -88,7 +89,22 @@ pub const EXPOSURE_AUTO: u32 = FEATURES + 0x40;
 pub const FRAME_RATE: u32 = FEATURES + 0x44;
 pub const CHUNK_MODE_ACTIVE: u32 = FEATURES + 0x48;
 pub const ACQUISITION_STATUS: u32 = FEATURES + 0x4C;
-pub const FEATURES_END: u32 = FEATURES + 0x50;
+/// SensorWidth − OffsetX: the widest Width the offsets leave (SFNC WidthMax).
+pub const WIDTH_MAX: u32 = FEATURES + 0x50;
+pub const HEIGHT_MAX: u32 = FEATURES + 0x54;
+/// ExposureMode: Timed (1) is the only mode.
+pub const EXPOSURE_MODE: u32 = FEATURES + 0x58;
+/// TLParamsLocked: 1 locks the stream-shaping features (see [`Registers::shape_locked`]).
+pub const TL_PARAMS_LOCKED: u32 = FEATURES + 0x5C;
+/// ChunkSelector (a [`ChunkKind`]) and ChunkEnable of the selected chunk.
+pub const CHUNK_SELECTOR: u32 = FEATURES + 0x60;
+pub const CHUNK_ENABLE: u32 = FEATURES + 0x64;
+/// DeviceFirmwareVersion: a string of [`FIRMWARE_VERSION_LEN`] bytes.
+pub const FIRMWARE_VERSION: u32 = FEATURES + 0x100;
+pub const FIRMWARE_VERSION_LEN: u32 = 32;
+pub const FEATURES_END: u32 = FIRMWARE_VERSION + FIRMWARE_VERSION_LEN;
+/// DeviceUserID (bootstrap 0x00E8): 16 bytes, NUL-terminated, so 15 of text.
+pub const USER_NAME_LEN: u32 = 16;
 
 /// GVCP capability bits this device implements (register 0x0934).
 pub mod capability {
@@ -120,12 +136,18 @@ pub const SCPS_BIG_ENDIAN: u32 = 1 << 29;
 pub const PACKET_SIZE_MIN: u32 = 576;
 pub const PACKET_SIZE_MAX: u32 = 9000;
 pub const PACKET_SIZE_INC: u32 = 4;
+/// Largest inter-packet delay (SCPD, ticks = ns): 1 ms. A larger one (0xFFFFFFFF is
+/// 4.3 s per packet) would stall the stream for minutes per block.
+pub const SCPD_MAX_TICKS: u32 = 1_000_000;
 /// Heartbeat timeouts accepted (ms).
 pub const HEARTBEAT_MIN_MS: u32 = 500;
 pub const HEARTBEAT_MAX_MS: u32 = 600_000;
 /// Pending timeouts a device may be configured with (ms; PENDING_ACK carries 16 bits).
 pub const PENDING_TIMEOUT_MIN_MS: u32 = 10;
 pub const PENDING_TIMEOUT_MAX_MS: u32 = 65_535;
+/// With the heartbeat disabled, a controller silent this long (ms) is still released:
+/// a vanished client cannot hold the camera for ever.
+pub const HEARTBEAT_DISABLED_RELEASE_MS: u32 = 60_000;
 /// Frame rates accepted (Hz).
 pub const FRAME_RATE_MIN: f32 = 0.01;
 pub const FRAME_RATE_MAX: f32 = 1000.0;
@@ -200,6 +222,8 @@ pub struct CameraSettings {
     pub trigger_on: bool,
     pub frame_rate_hz: f32,
     pub chunk_mode: bool,
+    /// The chunks sent in chunk mode (ChunkSelector / ChunkEnable).
+    pub chunks: ChunkSet,
     /// The truth channels each block carries in chunk mode (the device's, fixed).
     pub truth: crate::render::truth::TruthChannels,
 }
@@ -218,6 +242,7 @@ impl CameraSettings {
             trigger_on: false,
             frame_rate_hz: cam.frame_rate_hz,
             chunk_mode: true,
+            chunks: ChunkSet::ALL,
             truth: cam.truth,
         }
     }
@@ -232,11 +257,9 @@ impl CameraSettings {
         u64::from(self.width) * u64::from(self.height) * self.pixel_format.bytes_per_pixel() as u64
     }
 
-    /// Bytes of one block (pixels, plus the chunks when chunk mode is on: metadata, and
-    /// truth when configured).
+    /// Bytes of one block (pixels, plus the enabled chunks when chunk mode is on).
     pub fn payload_size(&self) -> u64 {
-        let chunks =
-            super::chunk::CHUNK_OVERHEAD as u64 + super::chunk::truth_chunks_len(self.truth, self.width, self.height);
+        let chunks = super::chunk::chunks_len(self.chunks, self.truth, self.width, self.height);
         self.image_bytes() + if self.chunk_mode { chunks } else { 0 }
     }
 }
@@ -273,6 +296,8 @@ pub enum Effect {
     /// Width / Height / OffsetX / OffsetY changed: the renderer renders the new region
     /// from its next frame (a slow write, like the exposure).
     Roi,
+    /// AcquisitionFrameRate changed (the device's frame-rate gate re-times).
+    FrameRate,
     /// The stream channel changed (destination, packet size, delay).
     Stream,
 }
@@ -293,6 +318,16 @@ pub struct Registers {
     pub latched_timestamp: u64,
     /// Capability register value.
     pub capability: u32,
+    /// DeviceUserID as written (bytes; read back UTF-8 safe, see [`Registers::user_id`]).
+    user_id: [u8; USER_NAME_LEN as usize],
+    /// TLParamsLocked.
+    pub tl_params_locked: bool,
+    pub chunk_selector: ChunkKind,
+    /// What the newest published frame integrated (µs): ExposureTime under auto-exposure.
+    pub integrated_us: Option<f32>,
+    /// SCDA may be a broadcast or multicast address (`[output.gige] allow_broadcast_stream`).
+    pub allow_broadcast_stream: bool,
+    firmware: String,
     xml_url: String,
     xml: Vec<u8>,
 }
@@ -319,6 +354,18 @@ impl Registers {
         })?;
         let xml_url = format!("Local:{xml_file_name};{XML_BASE:x};{:x}", xml.len());
         let settings = CameraSettings::initial(&camera);
+        let mut user_id = [0u8; USER_NAME_LEN as usize];
+        let name = identity.user_name.as_bytes();
+        if name.len() >= user_id.len() {
+            return Err(format!(
+                "[output.gige] user_name {:?}: {} bytes, DeviceUserID holds {} (UTF-8)",
+                identity.user_name,
+                name.len(),
+                USER_NAME_LEN - 1
+            ));
+        }
+        user_id[..name.len()].copy_from_slice(name);
+        let firmware = format!("hilcam {}", identity.version);
         Ok(Registers {
             identity,
             camera,
@@ -344,6 +391,12 @@ impl Registers {
                 | capability::PENDING_ACK
                 | capability::HEARTBEAT_DISABLE
                 | capability::SERIAL_NUMBER,
+            user_id,
+            tl_params_locked: false,
+            chunk_selector: ChunkKind::Timestamp,
+            integrated_us: None,
+            allow_broadcast_stream: false,
+            firmware,
             xml_url,
             xml,
         })
@@ -361,6 +414,46 @@ impl Registers {
         self.gvcp_config & GVCP_CONFIG_PENDING_ACK_ENABLE != 0
     }
 
+    /// DeviceUserID as text: the bytes up to the first NUL, cut back to the last whole
+    /// UTF-8 character (a client that wrote more than the field holds, or a partial
+    /// multi-byte character, never leaves half a character to read).
+    pub fn user_id(&self) -> &str {
+        let end =
+            self.user_id.iter().position(|&b| b == 0).unwrap_or(self.user_id.len()).min(USER_NAME_LEN as usize - 1);
+        let bytes = &self.user_id[..end];
+        match std::str::from_utf8(bytes) {
+            Ok(s) => s,
+            Err(e) => std::str::from_utf8(&bytes[..e.valid_up_to()]).expect("valid prefix"),
+        }
+    }
+
+    /// Whether the stream-shaping features (ROI, PixelFormat, chunks, packet size) are
+    /// locked: while acquiring (ROI, format, chunks) or while TLParamsLocked is set (all).
+    pub fn shape_locked(&self) -> bool {
+        self.acquiring || self.tl_params_locked
+    }
+
+    /// The register written at `addr` belongs to stream channel 0 (only the controller
+    /// writes it: see `control.rs`).
+    pub fn is_stream_channel(addr: u32) -> bool {
+        matches!(addr, SCP0 | SCPS0 | SCPD0 | SCDA0 | SCCFG0)
+    }
+
+    /// ExposureTime as read: the manual time, or under auto-exposure what the newest
+    /// frame integrated (the configured time until one is published).
+    pub fn exposure_time_us(&self) -> f32 {
+        let s = &self.settings;
+        if s.exposure_auto { self.integrated_us.unwrap_or(s.exposure_us) } else { s.exposure_us }
+    }
+
+    /// Whether SCDA may be `ip`: a unicast address, or anything with
+    /// `allow_broadcast_stream` (0.0.0.0 closes the channel).
+    fn destination_allowed(&self, ip: Ipv4Addr) -> bool {
+        let mask = self.read_u32(CURRENT_SUBNET).unwrap_or(0);
+        let directed = u32::from(self.identity.ip) | !mask;
+        let group = ip.is_multicast() || ip.is_broadcast() || u32::from(ip) == directed;
+        !group || self.allow_broadcast_stream
+    }
     /// One 32-bit register.
     pub fn read_u32(&self, addr: u32) -> Result<u32, Status> {
         if !addr.is_multiple_of(4) {
@@ -397,6 +490,14 @@ impl Registers {
             CCP => self.ccp,
             SCP0 => u32::from(self.stream.host_port),
             SCPS0 => self.stream.packet_size | if self.stream.do_not_fragment { SCPS_DO_NOT_FRAGMENT } else { 0 },
+            a if (USER_NAME..USER_NAME + USER_NAME_LEN).contains(&a) => {
+                let text = self.user_id().as_bytes();
+                let mut w = [0u8; 4];
+                for (k, b) in w.iter_mut().enumerate() {
+                    *b = text.get((a - USER_NAME) as usize + k).copied().unwrap_or(0);
+                }
+                u32::from_be_bytes(w)
+            }
             SCPD0 => self.stream.packet_delay_ticks,
             SCDA0 => u32::from(self.stream.destination),
             SCSP0 => u32::from(self.stream.source_port),
@@ -423,11 +524,28 @@ impl Registers {
             ACQUISITION_START | ACQUISITION_STOP | TRIGGER_SOFTWARE => 0,
             TRIGGER_SELECTOR | TRIGGER_SOURCE => 0,
             TRIGGER_MODE => u32::from(s.trigger_on),
-            EXPOSURE_TIME => s.exposure_us.to_bits(),
+            EXPOSURE_TIME => self.exposure_time_us().to_bits(),
             EXPOSURE_AUTO => u32::from(s.exposure_auto) * 2, // Off = 0, Continuous = 2
             FRAME_RATE => s.frame_rate_hz.to_bits(),
             CHUNK_MODE_ACTIVE => u32::from(s.chunk_mode),
             ACQUISITION_STATUS => u32::from(self.acquiring),
+            WIDTH_MAX => self.camera.sensor_width - s.offset_x,
+            HEIGHT_MAX => self.camera.sensor_height - s.offset_y,
+            EXPOSURE_MODE => 1,
+            TL_PARAMS_LOCKED => u32::from(self.tl_params_locked),
+            CHUNK_SELECTOR => self.chunk_selector as u32,
+            CHUNK_ENABLE => u32::from(s.chunks.contains(self.chunk_selector)),
+            a if (FIRMWARE_VERSION..FEATURES_END).contains(&a) => {
+                let mut w = [0u8; 4];
+                for (k, b) in w.iter_mut().enumerate() {
+                    let i = (a - FIRMWARE_VERSION) as usize + k;
+                    // NUL-terminated: the last byte stays 0.
+                    if i + 1 < FIRMWARE_VERSION_LEN as usize {
+                        *b = self.firmware.as_bytes().get(i).copied().unwrap_or(0);
+                    }
+                }
+                u32::from_be_bytes(w)
+            }
             _ => return Err(Status::InvalidAddress),
         };
         Ok(v)
@@ -458,7 +576,6 @@ impl Registers {
             .or_else(|| field(DEVICE_VERSION, 32, &id.version))
             .or_else(|| field(MANUFACTURER_INFO, 48, &id.info))
             .or_else(|| field(SERIAL_NUMBER, 16, &id.serial))
-            .or_else(|| field(USER_NAME, 16, &id.user_name))
             .or_else(|| field(XML_URL_0, XML_URL_LEN, &self.xml_url))
             .unwrap_or(0)
     }
@@ -482,7 +599,7 @@ impl Registers {
         if !addr.is_multiple_of(4) {
             return Err(Status::BadAlignment);
         }
-        let locked = self.acquiring;
+        let locked = self.shape_locked();
         let cam = self.camera.clone();
         let s = &mut self.settings;
         let effect = match addr {
@@ -508,6 +625,7 @@ impl Registers {
                 self.stream.host_port = (v & 0xFFFF) as u16;
                 Effect::Stream
             }
+            SCPS0 if self.tl_params_locked => return Err(Status::WriteProtect),
             SCPS0 => {
                 if v & SCPS_BIG_ENDIAN != 0 {
                     return Err(Status::InvalidParameter);
@@ -519,12 +637,23 @@ impl Registers {
                 Effect::Stream
             }
             SCPD0 => {
+                if v > SCPD_MAX_TICKS {
+                    return Err(Status::InvalidParameter);
+                }
                 self.stream.packet_delay_ticks = v;
                 Effect::Stream
             }
             SCDA0 => {
+                if !self.destination_allowed(Ipv4Addr::from(v)) {
+                    return Err(Status::InvalidParameter);
+                }
                 self.stream.destination = Ipv4Addr::from(v);
                 Effect::Stream
+            }
+            a if (USER_NAME..USER_NAME + USER_NAME_LEN).contains(&a) => {
+                let i = (a - USER_NAME) as usize;
+                self.user_id[i..i + 4].copy_from_slice(&v.to_be_bytes());
+                Effect::None
             }
             SCCFG0 => {
                 // Multipart and the other extended stream modes are not offered.
@@ -535,7 +664,7 @@ impl Registers {
                 Effect::Stream
             }
             MCP | MCDA => Effect::None, // no message channel: accepted and ignored
-            WIDTH | HEIGHT | OFFSET_X | OFFSET_Y | PIXEL_FORMAT | CHUNK_MODE_ACTIVE if locked => {
+            WIDTH | HEIGHT | OFFSET_X | OFFSET_Y | PIXEL_FORMAT | CHUNK_MODE_ACTIVE | CHUNK_ENABLE if locked => {
                 return Err(Status::WriteProtect);
             }
             WIDTH => {
@@ -635,12 +764,45 @@ impl Registers {
                 Effect::Exposure
             }
             EXPOSURE_AUTO => {
-                s.exposure_auto = match v {
+                let auto = match v {
                     0 => false,
                     2 => true,
                     _ => return Err(Status::InvalidParameter),
                 };
+                // Auto → Off keeps integrating what the auto-exposure had chosen (SFNC).
+                if s.exposure_auto && !auto {
+                    let t = self.integrated_us.unwrap_or(s.exposure_us);
+                    s.exposure_us = t.clamp(cam.exposure_min_us, cam.exposure_max_us);
+                }
+                s.exposure_auto = auto;
                 Effect::Exposure
+            }
+            EXPOSURE_MODE => {
+                if v != 1 {
+                    return Err(Status::InvalidParameter);
+                }
+                Effect::None
+            }
+            TL_PARAMS_LOCKED => {
+                self.tl_params_locked = match v {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(Status::InvalidParameter),
+                };
+                Effect::None
+            }
+            CHUNK_SELECTOR => {
+                self.chunk_selector = ChunkKind::from_u32(v).ok_or(Status::InvalidParameter)?;
+                Effect::None
+            }
+            CHUNK_ENABLE => {
+                let on = match v {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(Status::InvalidParameter),
+                };
+                s.chunks = s.chunks.with(self.chunk_selector, on);
+                Effect::Settings
             }
             FRAME_RATE => {
                 let hz = f32::from_bits(v);
@@ -648,7 +810,7 @@ impl Registers {
                     return Err(Status::InvalidParameter);
                 }
                 s.frame_rate_hz = hz;
-                Effect::Settings
+                Effect::FrameRate
             }
             a if self.read_u32(a).is_ok() => return Err(Status::WriteProtect),
             _ => return Err(Status::InvalidAddress),
@@ -755,13 +917,127 @@ pub(crate) mod tests {
     #[test]
     fn the_frame_rate_is_bounded_by_the_cameras_maximum() {
         let mut r = registers();
-        assert_eq!(r.write_u32(FRAME_RATE, 500.0f32.to_bits()), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(FRAME_RATE, 500.0f32.to_bits()), Ok(Effect::FrameRate));
         let cam = CameraDescription { frame_rate_max_hz: 20.0, ..camera() };
         r.camera = cam;
-        assert_eq!(r.write_u32(FRAME_RATE, 20.0f32.to_bits()), Ok(Effect::Settings));
+        assert_eq!(r.write_u32(FRAME_RATE, 20.0f32.to_bits()), Ok(Effect::FrameRate));
         assert_eq!(r.write_u32(FRAME_RATE, 20.5f32.to_bits()), Err(Status::InvalidParameter));
         assert_eq!(r.write_u32(FRAME_RATE, 0.001f32.to_bits()), Err(Status::InvalidParameter));
         assert_eq!(r.settings.frame_rate_hz, 20.0, "a refused write keeps the rate");
+    }
+
+    /// Issue 37, defect 1: SCPD 0xFFFFFFFF (4.3 s per packet) froze the stream.
+    #[test]
+    fn the_packet_delay_is_bounded() {
+        let mut r = registers();
+        assert_eq!(r.write_u32(SCPD0, u32::MAX), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(SCPD0, SCPD_MAX_TICKS + 1), Err(Status::InvalidParameter));
+        assert_eq!(r.read_u32(SCPD0), Ok(0), "a refused delay is not stored");
+        assert_eq!(r.write_u32(SCPD0, SCPD_MAX_TICKS), Ok(Effect::Stream));
+    }
+
+    /// Issue 37, defect 7: SCDA accepted broadcast and multicast destinations.
+    #[test]
+    fn the_stream_goes_to_one_host_unless_allowed() {
+        let mut r = registers();
+        for group in [Ipv4Addr::BROADCAST, Ipv4Addr::new(127, 255, 255, 255), Ipv4Addr::new(239, 1, 2, 3)] {
+            assert_eq!(r.write_u32(SCDA0, u32::from(group)), Err(Status::InvalidParameter), "{group}");
+        }
+        assert_eq!(r.write_u32(SCDA0, u32::from(Ipv4Addr::new(127, 0, 0, 9))), Ok(Effect::Stream));
+        assert_eq!(r.write_u32(SCDA0, 0), Ok(Effect::Stream), "0.0.0.0 closes the channel");
+        r.allow_broadcast_stream = true;
+        assert_eq!(r.write_u32(SCDA0, u32::from(Ipv4Addr::new(239, 1, 2, 3))), Ok(Effect::Stream));
+    }
+
+    /// Issue 37, defect 6: a multi-byte DeviceUserID was cut mid-character.
+    #[test]
+    fn device_user_id_is_read_back_whole_characters_only() {
+        let mut r = registers();
+        let read = |r: &Registers| {
+            let b = r.read_block(USER_NAME, USER_NAME_LEN).unwrap();
+            let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
+            String::from_utf8(b[..end].to_vec()).expect("valid UTF-8")
+        };
+        let mut write = |text: &[u8]| {
+            let mut field = [0u8; USER_NAME_LEN as usize];
+            field[..text.len()].copy_from_slice(text);
+            for (k, w) in field.chunks_exact(4).enumerate() {
+                r.write_u32(USER_NAME + 4 * k as u32, u32::from_be_bytes(w.try_into().unwrap())).unwrap();
+            }
+            read(&r)
+        };
+        assert_eq!(write("Kamera äöü".as_bytes()), "Kamera äöü");
+        // 16 bytes of two-byte characters, no room for the NUL: 7 whole characters.
+        assert_eq!(write("ÄÖÜßäöüé".as_bytes()), "ÄÖÜßäöü");
+        // A client that cut a 3-byte character itself: the partial bytes are not shown.
+        let cut = &"ab€".as_bytes()[..4];
+        assert_eq!(write(cut), "ab");
+        assert_eq!(r.user_id(), "ab");
+        // The bootstrap block a DISCOVERY_ACK carries shows the same.
+        assert_eq!(&r.read_block(0, DISCOVERY_LEN).unwrap()[USER_NAME as usize..][..3], b"ab\0");
+    }
+
+    #[test]
+    fn width_max_and_the_width_range_follow_the_offsets() {
+        let mut r = registers();
+        assert_eq!((r.read_u32(WIDTH_MAX), r.read_u32(HEIGHT_MAX)), (Ok(64), Ok(48)));
+        assert_eq!(r.write_u32(WIDTH, 40), Ok(Effect::Roi));
+        assert_eq!(r.write_u32(OFFSET_X, 24), Ok(Effect::Roi));
+        assert_eq!(r.read_u32(WIDTH_MAX), Ok(40));
+        assert_eq!(r.write_u32(WIDTH, 41), Err(Status::InvalidParameter), "beyond WidthMax");
+        assert_eq!(r.write_u32(OFFSET_Y, 8), Err(Status::InvalidParameter), "Height 48 leaves no room");
+        assert_eq!(r.write_u32(HEIGHT, 40), Ok(Effect::Roi));
+        assert_eq!(r.write_u32(OFFSET_Y, 8), Ok(Effect::Roi));
+        assert_eq!(r.read_u32(HEIGHT_MAX), Ok(40));
+        assert_eq!(r.write_u32(WIDTH_MAX, 64), Err(Status::WriteProtect));
+    }
+
+    /// Issue 37: ExposureTime read 50 µs while auto-exposure integrated 26 µs, and kept
+    /// the last manual value after ExposureAuto went back to Continuous.
+    #[test]
+    fn exposure_time_reads_what_the_sensor_integrates() {
+        let mut r = registers();
+        let read = |r: &Registers| f32::from_bits(r.read_u32(EXPOSURE_TIME).unwrap());
+        assert!(r.settings.exposure_auto);
+        assert_eq!(read(&r), 1000.0, "no frame yet: the configured time");
+        r.integrated_us = Some(26.0);
+        assert_eq!(read(&r), 26.0, "auto: what the newest frame integrated");
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 50.0f32.to_bits()), Ok(Effect::Exposure));
+        assert_eq!(read(&r), 50.0, "manual");
+        assert_eq!(r.write_u32(EXPOSURE_AUTO, 2), Ok(Effect::Exposure));
+        r.integrated_us = Some(31.0);
+        assert_eq!(read(&r), 31.0, "back to Continuous: the auto-exposure's time, not the last manual one");
+        assert_eq!(r.write_u32(EXPOSURE_AUTO, 0), Ok(Effect::Exposure));
+        assert_eq!(read(&r), 31.0, "auto → Off keeps integrating what it had chosen");
+        assert!(!r.settings.exposure_auto);
+        assert_eq!((r.read_u32(EXPOSURE_MODE), r.write_u32(EXPOSURE_MODE, 1)), (Ok(1), Ok(Effect::None)));
+        assert_eq!(r.write_u32(EXPOSURE_MODE, 2), Err(Status::InvalidParameter), "Timed only");
+    }
+
+    #[test]
+    fn tl_params_locked_freezes_the_stream_shape_and_chunks_switch_one_by_one() {
+        let mut r = registers();
+        let full = r.read_u32(PAYLOAD_SIZE).unwrap();
+        assert_eq!(r.write_u32(CHUNK_SELECTOR, ChunkKind::FrameId as u32), Ok(Effect::None));
+        assert_eq!(r.read_u32(CHUNK_ENABLE), Ok(1));
+        assert_eq!(r.write_u32(CHUNK_ENABLE, 0), Ok(Effect::Settings));
+        assert_eq!(r.read_u32(CHUNK_ENABLE), Ok(0));
+        assert_eq!(r.read_u32(PAYLOAD_SIZE).unwrap(), full - 16, "the FrameID chunk's 16 bytes");
+        assert_eq!(r.write_u32(CHUNK_SELECTOR, 9), Err(Status::InvalidParameter));
+        assert_eq!(r.write_u32(TL_PARAMS_LOCKED, 1), Ok(Effect::None));
+        for (a, v) in [(WIDTH, 16), (PIXEL_FORMAT, GevPixelFormat::Mono8.pfnc()), (CHUNK_ENABLE, 1), (SCPS0, 1000)] {
+            assert_eq!(r.write_u32(a, v), Err(Status::WriteProtect), "{a:#x}");
+        }
+        assert_eq!(r.write_u32(EXPOSURE_TIME, 20.0f32.to_bits()), Ok(Effect::Exposure), "not a stream shape");
+        assert_eq!(r.write_u32(TL_PARAMS_LOCKED, 0), Ok(Effect::None));
+        assert_eq!(r.write_u32(WIDTH, 16), Ok(Effect::Roi));
+    }
+
+    #[test]
+    fn firmware_version_is_a_terminated_string() {
+        let r = registers();
+        let b = r.read_block(FIRMWARE_VERSION, FIRMWARE_VERSION_LEN).unwrap();
+        assert_eq!(&b[..13], b"hilcam 0.1.0\0");
     }
 
     #[test]
