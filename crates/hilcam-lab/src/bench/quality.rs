@@ -6,7 +6,8 @@
 //! through the whole pipeline (render + sensor, what `serve` sends, timed), and takes each
 //! frame's radiance through the sensor's linear chain (τ cos⁴, PSF, photo-electrons per
 //! unit radiance at the held integration time; PRNU left out: it scales signal and error
-//! alike). Per lit pixel (reference ≥ 1 e⁻):
+//! alike), clipped at the full well as the camera clips it. Per lit pixel (reference ≥ 1
+//! e⁻):
 //!
 //! - σ²_seed: the unbiased variance over the seeds — the noise a board sees from frame to
 //!   frame;
@@ -35,6 +36,9 @@ pub const K: f64 = 0.5;
 pub struct Conversion {
     /// Photo-electrons per unit radiance after the optics, at the held integration time.
     pub e_per_radiance: f64,
+    /// The well's capacity, e⁻: a pixel's charge is clipped there, as the camera's is (a
+    /// glint far above it is the same white whatever its Monte Carlo error).
+    pub full_well_e: f64,
     /// Dark charge (with shot noise) + read noise², e⁻².
     pub floor_e2: f64,
     /// Quantisation noise, e⁻² (gain²/12).
@@ -48,8 +52,10 @@ impl Conversion {
         let s = pipeline.sensor();
         let bound = s.noise_bound(t_s, K)?;
         let gain = s.config().adc.as_ref().map_or(0.0, |a| a.gain_e_per_dn);
+        let full_well_e = s.config().detector.as_ref().and_then(|d| d.full_well_e).unwrap_or(f64::INFINITY);
         Some(Conversion {
             e_per_radiance: bound.e_per_radiance,
+            full_well_e,
             floor_e2: bound.floor_e2,
             quant_e2: gain * gain / 12.0,
         })
@@ -179,6 +185,25 @@ impl Judgement {
     }
 }
 
+/// A map of each lit pixel's RMS error as a fraction of `k`·σ_cam: 8-bit, 128 at the
+/// bound, 255 at twice it or more, 0 where unlit (to see where a row's error is).
+pub fn error_map(sums: &SeedSums, reference: &Reference, conv: &Conversion, k: f64) -> Vec<u8> {
+    let n = f64::from(sums.n.max(1));
+    (0..reference.mean_e.len())
+        .map(|i| {
+            let r = reference.mean_e[i];
+            if r < 1.0 {
+                return 0;
+            }
+            let var = sums.variance(i);
+            let d = sums.mean(i) - r;
+            let mse = var + (d * d - var / n - reference.mean_var_e2[i]).max(0.0);
+            let ratio = (mse / (k * k * conv.camera_e2(r))).sqrt();
+            (ratio * 128.0).round().clamp(1.0, 255.0) as u8
+        })
+        .collect()
+}
+
 /// Judge `sums` (a row's frames, photo-charge) against `reference` at bound `k`.
 pub fn judge(sums: &SeedSums, reference: &Reference, conv: &Conversion, k: f64) -> Judgement {
     let w = reference.width as usize;
@@ -222,13 +247,14 @@ pub fn judge(sums: &SeedSums, reference: &Reference, conv: &Conversion, k: f64) 
     j
 }
 
-/// The photo-charge image of a radiance image through `pipeline`'s optics.
+/// The photo-charge image of a radiance image through `pipeline`'s optics, clipped at the
+/// full well.
 ///
 /// # Errors
 /// The sensor's (a size mismatch).
 pub fn photo_charge(pipeline: &FramePipeline, img: &RadianceImage, conv: &Conversion) -> Result<Vec<f64>, SensorError> {
     let rad = pipeline.sensor().optics(img)?;
-    Ok(rad.data.iter().map(|v| f64::from(*v) * conv.e_per_radiance).collect())
+    Ok(rad.data.iter().map(|v| (f64::from(*v) * conv.e_per_radiance).min(conv.full_well_e)).collect())
 }
 
 /// A row of the table: how its frames are rendered.
@@ -249,6 +275,12 @@ pub struct RowResult {
     pub spp: f64,
     /// Mean share of lit pixels above k in the frames' own reports (None without one).
     pub own_share: Option<f64>,
+}
+
+/// A row's frames measured, with its error map ([`error_map`]).
+pub struct Measured {
+    pub result: RowResult,
+    pub map: Vec<u8>,
 }
 
 impl RowResult {
@@ -273,7 +305,7 @@ pub fn measure_row(
     reference: &Reference,
     conv: &Conversion,
     mut progress: impl FnMut(u32),
-) -> Result<RowResult, SensorError> {
+) -> Result<Measured, SensorError> {
     let request = FrameRequest { integration_s: Some(t_s), roi: None };
     let mut sums = SeedSums::default();
     let (mut render, mut sensor, mut spp, mut own) = (Vec::new(), Vec::new(), 0.0, Vec::new());
@@ -291,13 +323,14 @@ pub fn measure_row(
         progress(s);
     }
     let n = f64::from(sums.n);
-    Ok(RowResult {
+    let result = RowResult {
         judgement: judge(&sums, reference, conv, K),
         render_s: median(render),
         sensor_s: median(sensor),
         spp: spp / n,
         own_share: (!own.is_empty()).then(|| own.iter().sum::<f64>() / own.len() as f64),
-    })
+    };
+    Ok(Measured { result, map: error_map(&sums, reference, conv, K) })
 }
 
 /// The share of lit pixels above [`K`] in the last frame's own report (recounted at K
@@ -377,7 +410,7 @@ mod tests {
     use super::*;
 
     fn conv() -> Conversion {
-        Conversion { e_per_radiance: 1.0, floor_e2: 100.0, quant_e2: 0.0 }
+        Conversion { e_per_radiance: 1.0, full_well_e: f64::INFINITY, floor_e2: 100.0, quant_e2: 0.0 }
     }
 
     #[test]

@@ -37,7 +37,8 @@ pub struct QualityArgs {
     /// Where references are kept between runs (keyed by scene, camera, pose and settings).
     #[arg(long, default_value = "target/bench-quality")]
     pub cache: PathBuf,
-    /// Output prefix: writes PREFIX.csv.
+    /// Output prefix: writes PREFIX.csv, and PREFIX_<row>.png: each lit pixel's RMS error
+    /// over the bound (grey 128 at the bound, white at twice it or more).
     #[arg(long, default_value = "quality")]
     pub out: PathBuf,
     #[arg(long)]
@@ -111,9 +112,16 @@ pub fn run(a: QualityArgs) -> anyhow::Result<()> {
     print_header();
     let mut results = Vec::new();
     for row in rows {
-        let r = measure_row(&mut pipeline, &pose, &row.settings, a.seeds, 0, t, &reference, &conv, |_| {})?;
-        print_row(&row, &r);
-        results.push((row, r));
+        let m = measure_row(&mut pipeline, &pose, &row.settings, a.seeds, 0, t, &reference, &conv, |_| {})?;
+        print_row(&row, &m.result);
+        let name: String =
+            row.label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '.' { c } else { '_' }).collect();
+        let png = PathBuf::from(format!("{}_{name}.png", a.out.display()));
+        image::GrayImage::from_raw(camera.width, camera.height, m.map)
+            .context("error map size")?
+            .save(&png)
+            .with_context(|| png.display().to_string())?;
+        results.push((row, m.result));
     }
     let csv = a.out.with_extension("csv");
     std::fs::write(&csv, to_csv(&results)).with_context(|| csv.display().to_string())?;
@@ -154,7 +162,7 @@ fn cached_reference(
     key: u64,
     make: impl FnOnce() -> anyhow::Result<Reference>,
 ) -> anyhow::Result<Reference> {
-    let path = a.cache.join(format!("reference-{key:016x}.bin"));
+    let path = a.cache.join(format!("reference-clipped-{key:016x}.bin"));
     if let Some(r) = read_reference(&path) {
         println!("reference: reused {}", path.display());
         return Ok(r);

@@ -517,10 +517,21 @@ impl ExposureInstants {
 
 /// The f32 ray from `origin` along `d`, or `None` unless both fit an f32 and the direction
 /// normalises.
+///
+/// The direction is normalised in f32 (the rays' bytes depend on it); a direction whose
+/// f32 square overflows or underflows (a pixel coordinate far off the sensor) is scaled
+/// by its largest component first, so every ray returned has a unit direction.
 #[inline(always)]
 fn finite_ray(origin: DVec3, d: DVec3) -> Option<Ray> {
-    let ray = Ray { origin: origin.as_vec3(), dir: d.as_vec3().normalize(), tmax: f32::INFINITY };
-    (ray.origin.is_finite() && ray.dir.is_finite()).then_some(ray)
+    let d32 = d.as_vec3();
+    let l2 = d32.length_squared();
+    let dir = if l2.is_finite() && l2 > f32::MIN_POSITIVE {
+        d32.normalize()
+    } else {
+        (d / d.abs().max_element()).as_vec3().normalize()
+    };
+    let ray = Ray { origin: origin.as_vec3(), dir, tmax: f32::INFINITY };
+    (ray.origin.is_finite() && ray.dir.is_finite() && ray.dir.length_squared() > 0.5).then_some(ray)
 }
 
 /// `v` as a unit vector, scaled by its largest component first when its square would

@@ -14,9 +14,12 @@
 //! Applies to an instant view (no motion over the exposure) with every vertex in front of
 //! the camera and no planet; otherwise [`render`] returns None and the caller path-traces.
 
+pub mod area;
+pub mod cells;
 pub mod pattern;
 pub mod setup;
 mod shade;
+pub mod shadow;
 pub mod tile;
 
 use crate::render::camera::{PixelRect, View};
@@ -31,6 +34,8 @@ use tile::{Fragment, TileBuffers};
 #[derive(Default)]
 pub struct HybridBuffers {
     setup: Setup,
+    /// The cells' sun classes, kept while the sun's direction in the body frame stays.
+    shadows: shadow::ShadowMemo,
 }
 
 /// What a hybrid frame did.
@@ -42,6 +47,10 @@ pub struct HybridStats {
     pub fragments: u64,
     /// Pixels of the rectangle where a triangle was found.
     pub covered_pixels: u64,
+    /// Shadow rays spent classifying cells for a new sun direction (0 when held).
+    pub classify_rays: u64,
+    /// Covered pixels whose shares are exact areas (`tile::exact_shares`).
+    pub exact_pixels: u64,
 }
 
 /// Render `rect` of `view` into `img` (whose other pixels the caller has set). None when
@@ -58,18 +67,20 @@ pub fn render(
     if view.motion.is_some() || target.planet.is_some() {
         return None;
     }
-    let setup = &mut buffers.setup;
+    let HybridBuffers { setup, shadows } = buffers;
     if !setup.build(target, view, rect) {
         return None;
     }
     let setup = &*setup;
     let ctx = PathContext::new(target, view.sun, settings);
+    let classify_rays = shadows.update(&ctx);
     let rest_settings = RenderSettings { depth: settings.depth.saturating_sub(1).max(1), ..*settings };
     let rest = PathContext::new(target, view.sun, &rest_settings);
     let shader = shade::Shader {
         view,
         ctx: &ctx,
         rest: (settings.depth > 1 && ctx.indirect).then_some(&rest),
+        memo: shadows,
         seed: settings.seed,
         frame,
     };
@@ -104,11 +115,30 @@ pub fn render(
                             if frags.is_empty() {
                                 continue; // the caller's background stays
                             }
+                            let exact = tile::ExactInput {
+                                setup,
+                                inside: &buf.inside[p],
+                                map: &buf.map[p],
+                                ids: &buf.id[p],
+                                sx: &buf.sx[p],
+                                sy: &buf.sy[p],
+                            };
+                            let background = match tile::exact_shares(&exact, frags) {
+                                Some(b) => {
+                                    st.exact_pixels += 1;
+                                    b
+                                }
+                                None => background as f32 / pattern::SAMPLES as f32,
+                            };
                             st.covered_pixels += 1;
                             st.fragments += frags.len() as u64;
-                            let first = buf.id[p][0];
-                            let first = (first != tile::NONE).then_some((first, [buf.sx[p][0], buf.sy[p][0]]));
-                            let v = shade::pixel(&shader, &tri_of, frags, background, row, col, first, &mut st.rays);
+                            let px = shade::PixelSamples {
+                                ids: &buf.id[p],
+                                sx: &buf.sx[p],
+                                sy: &buf.sy[p],
+                                map: &buf.map[p],
+                            };
+                            let v = shade::pixel(&shader, &tri_of, &px, frags, background, (row, col), &mut st.rays);
                             band[(row - rect.row0 - ty as u32 * TILE) as usize * w + col as usize] = v;
                         }
                     }
@@ -120,7 +150,8 @@ pub fn render(
             a.rays.add(&b.rays);
             a.fragments += b.fragments;
             a.covered_pixels += b.covered_pixels;
+            a.exact_pixels += b.exact_pixels;
             a
         });
-    Some(HybridStats { triangles: setup.tris.len() as u64, ..stats })
+    Some(HybridStats { triangles: setup.tris.len() as u64, classify_rays, ..stats })
 }

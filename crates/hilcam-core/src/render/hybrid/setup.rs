@@ -52,6 +52,8 @@ pub struct TriSetup {
     /// its edges may bow away from the straight lines between them (pixels).
     pub px: [[f32; 2]; 3],
     pub bow: f32,
+    /// Its vertices on the ideal image plane.
+    pub ideal: [[f64; 2]; 3],
 }
 
 impl TriSetup {
@@ -162,7 +164,8 @@ impl Setup {
         let (dx2, dy2, dw2) = (v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]);
         let w_dx = (dw1 * dy2 - dw2 * dy1) / area2;
         let w_dy = (dx1 * dw2 - dx2 * dw1) / area2;
-        let mut s = TriSetup { tri, edges, w0: 0.0, w_dx, w_dy, bbox, px, bow };
+        let ideal = v.map(|p| [p[0], p[1]]);
+        let mut s = TriSetup { tri, edges, w0: 0.0, w_dx, w_dy, bbox, px, bow, ideal };
         let (xr, yr) = (edges[0].x_r, edges[0].y_r);
         s.w0 = v[0][2] + w_dx * (xr - v[0][0]) + w_dy * (yr - v[0][1]);
         Some(s)

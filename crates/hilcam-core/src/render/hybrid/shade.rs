@@ -1,14 +1,19 @@
 //! A pixel's radiance from its fragments: the sun's light on each fragment evaluated
 //! once (flat facets under a parallel sun: the BRDF term is constant over a fragment but
-//! for the view direction, whose change across a pixel enters only at second order), and
-//! the indirect light of one path from one of the pixel's coverage samples.
+//! for the view direction, whose change across a pixel enters only at second order), its
+//! visibility from the cell's class ([`super::shadow`]) or, over a partly shadowed cell,
+//! sample by sample; and the indirect light of one path from one coverage sample.
 
+use super::cells::barycentric;
 use super::pattern::SAMPLES;
-use super::tile::Fragment;
+use super::shadow::{Class, ShadowMemo};
+use super::tile::{Fragment, NONE};
 use crate::render::camera::View;
+use crate::render::geometry::shadow_packet::PACKET;
 use crate::render::geometry::{Hit, Ray};
 use crate::render::integrator::{PathContext, RayCounts};
 use crate::render::sampling::{Rng, ShadingBasis};
+use glam::{DVec3, Vec3};
 
 /// The frame's constants for shading.
 pub struct Shader<'a> {
@@ -16,101 +21,178 @@ pub struct Shader<'a> {
     pub ctx: &'a PathContext<'a>,
     /// The paths' continuation after their first surface (depth − 1), when depth > 1.
     pub rest: Option<&'a PathContext<'a>>,
+    pub memo: &'a ShadowMemo,
     pub seed: u64,
     pub frame: u64,
 }
 
-/// A surface point seen through pixel coordinate (`x`, `y`) on triangle `tri`.
+/// A surface point seen by the camera.
 pub struct Surface {
-    pub ray: Ray,
-    pub hit: Hit,
+    /// Render frame.
+    pub p: Vec3,
+    /// Unit direction from the camera to `p`.
+    pub dir: Vec3,
+    pub tri: u32,
+}
+
+/// One pixel's coverage: its samples' triangles (setup indices) and offsets, and its
+/// affine map to the ideal image plane ([`super::tile::TileBuffers`]).
+pub struct PixelSamples<'a> {
+    pub ids: &'a [u32; SAMPLES],
+    pub sx: &'a [f32; SAMPLES],
+    pub sy: &'a [f32; SAMPLES],
+    pub map: &'a [f64; 6],
+}
+
+impl PixelSamples<'_> {
+    /// The ideal image point of offset (`x`, `y`) in the pixel.
+    #[inline]
+    fn ideal(&self, x: f32, y: f32) -> [f64; 2] {
+        let m = self.map;
+        let (x, y) = (f64::from(x), f64::from(y));
+        [m[0] + m[2] * x + m[4] * y, m[1] + m[3] * x + m[5] * y]
+    }
 }
 
 impl Shader<'_> {
-    /// The point of triangle `tri` that the camera ray through pixel coordinate (`x`, `y`)
-    /// meets (on the triangle's plane: the coverage test already said it is inside).
+    /// The point of triangle `tri`'s plane that the camera sees at ideal image point `i`
+    /// (in f64 from the camera centre: exact at any range).
     #[inline]
-    pub fn surface(&self, tri: u32, x: f64, y: f64) -> Option<Surface> {
-        let target = self.ctx.scene;
-        let ray = self.view.primary_ray(x, y)?;
-        let n = target.normals[tri as usize];
-        let v0 = target.mesh.positions[target.mesh.indices[tri as usize][0] as usize];
-        let denom = n.dot(ray.dir);
-        let t = n.dot(v0 - ray.origin) / denom;
-        if !(t.is_finite() && t > 0.0) {
-            return None;
-        }
-        let hit = Hit { tri, t, normal: n, material: target.mesh.material[tri as usize] };
-        Some(Surface { ray, hit })
+    pub fn surface(&self, tri: u32, i: [f64; 2]) -> Option<Surface> {
+        let (target, view) = (self.ctx.scene, self.view);
+        let d = view.cam_to_render
+            * DVec3::new((i[0] - view.pp[0]) * view.inv_focal_px, (i[1] - view.pp[1]) * view.inv_focal_px, 1.0);
+        let n = target.normals[tri as usize].as_dvec3();
+        let v0 = target.mesh.positions[target.mesh.indices[tri as usize][0] as usize].as_dvec3();
+        let t = n.dot(v0 - view.origin) / n.dot(d);
+        let p = view.origin + d * t;
+        (t.is_finite() && t > 0.0).then(|| Surface { p: p.as_vec3(), dir: d.normalize().as_vec3(), tri })
     }
 
-    /// The sun's light leaving `s` toward the camera (one shadow ray).
+    /// The normal of `s` facing the camera, and whether the sun is on that side.
     #[inline]
-    pub fn direct(&self, s: &Surface, counts: &mut RayCounts) -> f32 {
-        let ctx = self.ctx;
-        let wo = -s.ray.dir;
-        let mut n = s.hit.normal;
-        if n.dot(wo) < 0.0 {
+    fn facing(&self, s: &Surface) -> (Vec3, bool) {
+        let mut n = self.ctx.scene.normals[s.tri as usize];
+        if n.dot(s.dir) > 0.0 {
             n = -n;
         }
-        if n.dot(ctx.sun) <= 0.0 {
+        (n, n.dot(self.ctx.sun) > 0.0)
+    }
+
+    /// `f_r·cosθ·E` of the sun at `s` (no shadowing), 0 when the sun is behind it.
+    #[inline]
+    fn sun_term(&self, s: &Surface) -> f32 {
+        let (n, lit_side) = self.facing(s);
+        if !lit_side {
             return 0.0;
         }
-        let bsdf = &ctx.scene.materials[s.hit.material as usize].bsdf;
+        let target = self.ctx.scene;
+        let bsdf = &target.materials[target.mesh.material[s.tri as usize] as usize].bsdf;
         let basis = ShadingBasis::from_normal(n);
-        let f_cos = bsdf.eval_cos(basis.to_local(wo), basis.to_local(ctx.sun));
-        if f_cos <= 0.0 {
+        bsdf.eval_cos(basis.to_local(-s.dir), basis.to_local(self.ctx.sun)).max(0.0) * target.sun_irradiance
+    }
+
+    /// The class of the cell holding `s`.
+    #[inline]
+    fn class(&self, s: &Surface) -> Class {
+        let mesh = &self.ctx.scene.mesh;
+        let v = mesh.indices[s.tri as usize].map(|i| mesh.positions[i as usize]);
+        let (u, w) = barycentric(s.p, v);
+        self.memo.class(self.memo.cells.cell_of(s.tri, u, w))
+    }
+
+    /// The share of `setup`'s coverage samples in `px` that see the sun, one shadow ray
+    /// each (packets of eight); the fragment's mean point `mean` when none of its samples
+    /// yields a surface point.
+    fn lit_share(&self, px: &PixelSamples, setup: u32, tri: u32, mean: &Surface, counts: &mut RayCounts) -> f32 {
+        let mut rays = [Ray { origin: Vec3::ZERO, dir: self.ctx.sun, tmax: f32::INFINITY }; PACKET];
+        let (mut n_rays, mut tested, mut lit) = (0usize, 0u32, 0u32);
+        let flush = |rays: &[Ray], tested: &mut u32, lit: &mut u32| {
+            let blocked = self.ctx.occluded_packet(rays);
+            *tested += rays.len() as u32;
+            *lit += rays.len() as u32 - blocked.count_ones();
+        };
+        let (n, _) = self.facing(mean);
+        for k in (0..SAMPLES).filter(|&k| px.ids[k] == setup) {
+            let Some(s) = self.surface(tri, px.ideal(px.sx[k], px.sy[k])) else { continue };
+            rays[n_rays].origin = s.p + n * self.ctx.offset(s.p);
+            n_rays += 1;
+            if n_rays == PACKET {
+                flush(&rays, &mut tested, &mut lit);
+                n_rays = 0;
+            }
+        }
+        if n_rays > 0 {
+            flush(&rays[..n_rays], &mut tested, &mut lit);
+        }
+        if tested == 0 {
+            let ray = Ray { origin: mean.p + n * self.ctx.offset(mean.p), dir: self.ctx.sun, tmax: f32::INFINITY };
+            counts.shadow += 1;
+            return if self.ctx.occluded(&ray) { 0.0 } else { 1.0 };
+        }
+        counts.shadow += u64::from(tested);
+        lit as f32 / tested as f32
+    }
+
+    /// The sun's light leaving fragment `f` (of triangle `tri`) toward the camera.
+    #[inline]
+    fn direct(&self, px: &PixelSamples, f: &Fragment, tri: u32, counts: &mut RayCounts) -> f32 {
+        let Some(s) = self.surface(tri, px.ideal(f.mean[0], f.mean[1])) else { return 0.0 };
+        let l = self.sun_term(&s);
+        if l <= 0.0 {
             return 0.0;
         }
-        let p = s.ray.origin + s.ray.dir * s.hit.t;
-        let origin = p + n * ctx.offset(p);
-        counts.shadow += 1;
-        if ctx.occluded(&Ray { origin, dir: ctx.sun, tmax: f32::INFINITY }) {
-            return 0.0;
+        match self.class(&s) {
+            Class::Lit => l,
+            Class::Dark => 0.0,
+            Class::Partial => l * self.lit_share(px, f.setup, tri, &s, counts),
         }
-        f_cos * ctx.scene.sun_irradiance
     }
 
     /// Indirect light leaving `s` toward the camera: one bounce sampled from its BRDF and
     /// the rest of a path (its direct light is the fragment's, not counted here).
     #[inline]
-    pub fn indirect(&self, s: &Surface, key: u64, counts: &mut RayCounts) -> f32 {
+    fn indirect(&self, s: &Surface, key: u64, counts: &mut RayCounts) -> f32 {
         let Some(rest) = self.rest else { return 0.0 };
         let mut rng = Rng::for_sample(self.seed, self.frame, key, 0x1_0000);
-        let sc = self.ctx.scatter(&s.ray, &s.hit, 1.0, 0, &mut rng);
+        let ray = Ray { origin: s.p, dir: s.dir, tmax: f32::INFINITY };
+        let target = self.ctx.scene;
+        let hit = Hit {
+            tri: s.tri,
+            t: 0.0,
+            normal: target.normals[s.tri as usize],
+            material: target.mesh.material[s.tri as usize],
+        };
+        let sc = self.ctx.scatter(&ray, &hit, 1.0, 0, &mut rng);
         match sc.next {
-            Some((ray, beta)) => beta * rest.radiance(ray, &mut rng, counts, &mut ()),
+            Some((ray, beta)) => {
+                counts.bounce += 1;
+                beta * rest.radiance(ray, &mut rng, counts, &mut ())
+            }
             None => 0.0,
         }
     }
 }
 
-/// The radiance of one pixel (`row`, `col`) from its `fragments` (of `setups`' triangles),
-/// `background` samples that see no triangle, and the triangle its sample 0 sees at
-/// offset `first` (indirect light).
-#[allow(clippy::too_many_arguments)]
-#[inline(never)]
+/// The radiance of pixel (`row`, `col`) from its `fragments` (setup indices mapped to
+/// mesh triangles by `tri_of`, each with its share) and the `background`'s share;
+/// indirect light from a path at its sample 0.
 pub fn pixel(
     shader: &Shader,
     tri_of: &dyn Fn(u32) -> u32,
+    px: &PixelSamples,
     fragments: &[Fragment],
-    background: u32,
-    row: u32,
-    col: u32,
-    first: Option<(u32, [f32; 2])>,
+    background: f32,
+    (row, col): (u32, u32),
     counts: &mut RayCounts,
 ) -> f32 {
-    let inv = 1.0 / SAMPLES as f32;
-    let mut l = background as f32 * inv * shader.ctx.scene.background;
+    let mut l = background * shader.ctx.scene.background;
     for f in fragments {
-        let (x, y) = (f64::from(col) + f64::from(f.mean[0]), f64::from(row) + f64::from(f.mean[1]));
-        if let Some(s) = shader.surface(tri_of(f.setup), x, y) {
-            l += f.count as f32 * inv * shader.direct(&s, counts);
-        }
+        l += f.weight * shader.direct(px, f, tri_of(f.setup), counts);
     }
-    if let Some((setup, [ox, oy])) = first {
-        let (x, y) = (f64::from(col) + f64::from(ox), f64::from(row) + f64::from(oy));
-        if let Some(s) = shader.surface(tri_of(setup), x, y) {
+    if shader.rest.is_some() && px.ids[0] != NONE {
+        let tri = tri_of(px.ids[0]);
+        if let Some(s) = shader.surface(tri, px.ideal(px.sx[0], px.sy[0])) {
             l += shader.indirect(&s, shader.view.pixel_key(row, col), counts);
         }
     }

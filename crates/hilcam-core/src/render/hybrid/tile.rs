@@ -19,9 +19,30 @@ pub struct TileBuffers {
     pub id: Vec<[u32; SAMPLES]>,
     /// Each pixel's ideal image point of its corner and the ideal offsets of a unit step
     /// in x and in y (an affine map of the pixel, exact for a pinhole).
-    map: Vec<[f64; 6]>,
+    pub map: Vec<[f64; 6]>,
     /// Whether a triangle's box reached the pixel (its samples were set up).
     pub touched: Vec<bool>,
+    /// The triangles that may overlap each pixel (its square not wholly outside them) and
+    /// how many of its samples each has inside (nearest there or not); `None` once more
+    /// than [`MAX_INSIDE`] did.
+    pub inside: Vec<Option<InsideList>>,
+}
+
+/// Triangles inside a pixel that are tracked (more: the pixel is not resolved exactly).
+pub const MAX_INSIDE: usize = 32;
+
+/// Up to [`MAX_INSIDE`] (setup index, samples inside) pairs.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct InsideList {
+    pub len: u8,
+    pub entries: [(u32, u32); MAX_INSIDE],
+}
+
+impl InsideList {
+    /// How many of the pixel's samples lie inside triangle `id` (0 if untracked).
+    pub fn inside(&self, id: u32) -> u32 {
+        self.entries[..self.len as usize].iter().find(|e| e.0 == id).map_or(0, |e| e.1)
+    }
 }
 
 impl Default for TileBuffers {
@@ -34,6 +55,7 @@ impl Default for TileBuffers {
             id: vec![[NONE; SAMPLES]; n],
             map: vec![[0.0; 6]; n],
             touched: vec![false; n],
+            inside: vec![None; n],
         }
     }
 }
@@ -45,8 +67,11 @@ pub struct Fragment {
     pub setup: u32,
     /// Samples of the pixel that see it.
     pub count: u32,
-    /// Mean sample offset in the pixel (x, y).
+    /// Where in the pixel it is seen on average (x, y offsets): its samples' mean, or the
+    /// centroid of its exact area.
     pub mean: [f32; 2],
+    /// Its share of the pixel's area: `count / SAMPLES`, or its exact area.
+    pub weight: f32,
 }
 
 /// The tile at tile coordinates (`tx`, `ty`): its pixels (image coordinates, inclusive
@@ -142,14 +167,27 @@ fn rasterise_body(
                     pattern::fill(seed, frame, key(row, col), &mut buf.sx[p], &mut buf.sy[p]);
                     buf.depth[p] = [f32::NEG_INFINITY; SAMPLES];
                     buf.id[p] = [NONE; SAMPLES];
+                    buf.inside[p] = Some(InsideList::default());
                 }
-                pixel(s, i, &buf.map[p], (w_ref, scale), &buf.sx[p], &buf.sy[p], &mut buf.depth[p], &mut buf.id[p]);
+                let n =
+                    pixel(s, i, &buf.map[p], (w_ref, scale), &buf.sx[p], &buf.sy[p], &mut buf.depth[p], &mut buf.id[p]);
+                if let Some(n) = n {
+                    buf.inside[p] = buf.inside[p].and_then(|mut l| {
+                        let k = l.len as usize;
+                        (k < MAX_INSIDE).then(|| {
+                            l.entries[k] = (i, n);
+                            l.len += 1;
+                            l
+                        })
+                    });
+                }
             }
         }
     }
 }
 
-/// The samples of one pixel against one triangle.
+/// The samples of one pixel against one triangle; returns how many lie inside it, or None
+/// when the pixel's square lies wholly outside the triangle.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn pixel(
@@ -161,7 +199,7 @@ fn pixel(
     sy: &[f32; SAMPLES],
     depth: &mut [f32; SAMPLES],
     ids: &mut [u32; SAMPLES],
-) {
+) -> Option<u32> {
     // Each edge as e + α·sx + β·sy over the pixel; the same numbers for both triangles
     // of a shared edge (canonical edge, same pixel map).
     let mut e = [[0.0f32; 3]; 3];
@@ -177,7 +215,7 @@ fn pixel(
         let margin = 1e-5 * (c.abs() + a.abs() + b.abs());
         let sign = if ed.k_pos { 1.0 } else { -1.0 };
         if corners.iter().all(|&v| sign * v < -margin) {
-            return; // wholly outside
+            return None; // wholly outside
         }
         all_inside &= corners.iter().all(|&v| sign * v > margin);
     }
@@ -186,11 +224,12 @@ fn pixel(
         ((s.w_dx * m[2] + s.w_dy * m[3]) * scale) as f32,
         ((s.w_dx * m[4] + s.w_dy * m[5]) * scale) as f32,
     ];
-    if all_inside {
+    Some(if all_inside {
         depth_only(wd, id, sx, sy, depth, ids);
+        SAMPLES as u32
     } else {
-        samples(&e, pos, wd, id, sx, sy, depth, ids);
-    }
+        samples(&e, pos, wd, id, sx, sy, depth, ids)
+    })
 }
 
 /// Keep `w` and `id` where `hit`, branch-free (the loops below vectorise).
@@ -213,19 +252,22 @@ fn samples(
     sy: &[f32; SAMPLES],
     depth: &mut [f32; SAMPLES],
     ids: &mut [u32; SAMPLES],
-) {
+) -> u32 {
     // An inside test per edge: k·E > 0, ties to the edge's positive side (`v ≥ 0` for
     // k > 0, `v < 0` for k < 0).
     let inside = |k: usize, x: f32, y: f32| {
         let v = e[k][0] + e[k][1] * x + e[k][2] * y;
         (v >= 0.0) == pos[k]
     };
+    let mut n = 0;
     for j in 0..SAMPLES {
         let (x, y) = (sx[j], sy[j]);
         let w = wd[0] + wd[1] * x + wd[2] * y;
-        let hit = inside(0, x, y) & inside(1, x, y) & inside(2, x, y) & (w > depth[j]);
-        keep(hit, w, id, &mut depth[j], &mut ids[j]);
+        let ins = inside(0, x, y) & inside(1, x, y) & inside(2, x, y);
+        n += u32::from(ins);
+        keep(ins & (w > depth[j]), w, id, &mut depth[j], &mut ids[j]);
     }
+    n
 }
 
 /// [`samples`] for a pixel wholly inside the triangle: the depth test alone.
@@ -252,7 +294,7 @@ pub fn resolve(ids: &[u32; SAMPLES], sx: &[f32; SAMPLES], sy: &[f32; SAMPLES], o
     let id0 = ids[0];
     if id0 != NONE && ids.iter().all(|&i| i == id0) {
         let mean = |v: &[f32; SAMPLES]| v.iter().sum::<f32>() / SAMPLES as f32;
-        out.push(Fragment { setup: id0, count: SAMPLES as u32, mean: [mean(sx), mean(sy)] });
+        out.push(Fragment { setup: id0, count: SAMPLES as u32, mean: [mean(sx), mean(sy)], weight: 1.0 });
         return 0;
     }
     let mut background = 0;
@@ -268,12 +310,86 @@ pub fn resolve(ids: &[u32; SAMPLES], sx: &[f32; SAMPLES], sy: &[f32; SAMPLES], o
                 f.mean[0] += sx[j];
                 f.mean[1] += sy[j];
             }
-            None => out.push(Fragment { setup: id, count: 1, mean: [sx[j], sy[j]] }),
+            None => out.push(Fragment { setup: id, count: 1, mean: [sx[j], sy[j]], weight: 0.0 }),
         }
     }
     for f in &mut out[start..] {
         let n = f.count as f32;
         f.mean = [f.mean[0] / n, f.mean[1] / n];
+        f.weight = n / SAMPLES as f32;
     }
     background
+}
+
+/// Replace the sampled shares of `fragments` (one pixel's) by exact areas when every one
+/// is seen whole in the pixel — it is the nearest at every sample inside it (`inside`) —
+/// so that no triangle's area there is hidden by another's. A triangle that overlaps the
+/// pixel but holds none of its samples (a sliver between them) is added as a fragment when
+/// it is nearer than what the sample closest to its centroid sees, else taken as hidden.
+/// Returns the background's share, or None (the sampled shares stand) when some fragment
+/// is partly hidden, a triangle went untracked, or the areas do not add up.
+pub fn exact_shares(px: &ExactInput, fragments: &mut Vec<Fragment>) -> Option<f32> {
+    let ExactInput { setup, inside, map, ids, sx, sy } = *px;
+    let inside = inside.as_ref()?;
+    if fragments.iter().any(|f| inside.inside(f.setup) != f.count) {
+        return None;
+    }
+    let sampled = fragments.len();
+    let mut total = 0.0;
+    for f in fragments.iter_mut() {
+        let (area, c) = super::area::clipped(&setup.tris[f.setup as usize].ideal, map)?;
+        total += area;
+        f.weight = area as f32;
+        f.mean = [(c[0] as f32).clamp(0.0, 1.0), (c[1] as f32).clamp(0.0, 1.0)];
+    }
+    for &(id, n) in &inside.entries[..inside.len as usize] {
+        if n > 0 {
+            continue;
+        }
+        let (area, c) = super::area::clipped(&setup.tris[id as usize].ideal, map)?;
+        if area <= 0.0 {
+            continue;
+        }
+        // What the sample nearest the sliver's centroid sees, and whether the sliver is
+        // nearer there (larger w = 1/z; the same plane within rounding counts as seen).
+        let (cx, cy) = (c[0] as f32, c[1] as f32);
+        let k = (0..SAMPLES)
+            .min_by(|&a, &b| {
+                let d = |k: usize| (sx[k] - cx).powi(2) + (sy[k] - cy).powi(2);
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap_or(0);
+        let ideal = [map[0] + map[2] * c[0] + map[4] * c[1], map[1] + map[3] * c[0] + map[5] * c[1]];
+        let w_sliver = setup.tris[id as usize].w_at(ideal[0], ideal[1]);
+        let seen = ids[k] == NONE || {
+            let w_there = setup.tris[ids[k] as usize].w_at(ideal[0], ideal[1]);
+            w_sliver >= w_there * (1.0 - 1e-7)
+        };
+        if seen {
+            total += area;
+            fragments.push(Fragment {
+                setup: id,
+                count: 0,
+                mean: [cx.clamp(0.0, 1.0), cy.clamp(0.0, 1.0)],
+                weight: area as f32,
+            });
+        }
+    }
+    // Whole triangles that do not overlap cannot cover more than the pixel.
+    if total > 1.0 + 1e-6 {
+        fragments.truncate(sampled);
+        return None;
+    }
+    Some((1.0 - total).max(0.0) as f32)
+}
+
+/// What [`exact_shares`] reads of one pixel.
+#[derive(Clone, Copy)]
+pub struct ExactInput<'a> {
+    pub setup: &'a Setup,
+    pub inside: &'a Option<InsideList>,
+    pub map: &'a [f64; 6],
+    pub ids: &'a [u32; SAMPLES],
+    pub sx: &'a [f32; SAMPLES],
+    pub sy: &'a [f32; SAMPLES],
 }
