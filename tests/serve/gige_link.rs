@@ -109,7 +109,7 @@ fn whole_block(rx: &UdpSocket) -> Vec<(gvsp::PacketHeader, usize, Duration)> {
 async fn r42_without_gevscpd_the_stream_leaves_no_faster_than_a_1_gbps_link() {
     let _alone = crate::gige::LOOPBACK_STREAM.lock().await;
     assert_eq!(GigeConfig::default().link_mbps, 1000, "the default link is 1 Gb/s");
-    let rig = Rig::start(Ipv4Addr::new(127, 0, 0, 61), 1024, 512).await;
+    let rig = Rig::start(Ipv4Addr::new(127, 0, 0, 71), 1024, 512).await;
     let addr = rig.device.gvcp_addr();
     tokio::task::spawn_blocking(move || {
         let mut c = RawClient::new(addr);
@@ -139,7 +139,7 @@ async fn r42_without_gevscpd_the_stream_leaves_no_faster_than_a_1_gbps_link() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r42_a_resend_is_served_between_the_packets_of_the_frame_in_flight() {
-    let rig = Rig::start(Ipv4Addr::new(127, 0, 0, 62), 128, 128).await;
+    let rig = Rig::start(Ipv4Addr::new(127, 0, 0, 72), 128, 128).await;
     let addr = rig.device.gvcp_addr();
     tokio::task::spawn_blocking(move || {
         let mut c = RawClient::new(addr);
@@ -227,10 +227,10 @@ const LOADED_8HZ_MS: [u64; 8] = [110, 45, 125, 125, 125, 125, 125, 125];
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r42_in_rate_mode_every_frame_a_loaded_renderer_publishes_goes_out() {
-    let (blocks, dropped) = publish_unevenly(Ipv4Addr::new(127, 0, 0, 63), true, &LOADED_8HZ_MS).await;
+    let (blocks, dropped) = publish_unevenly(Ipv4Addr::new(127, 0, 0, 73), true, &LOADED_8HZ_MS).await;
     assert_eq!((blocks, dropped), (LOADED_8HZ_MS.len(), 0));
     // In pose / external mode the device thins frames to the rate (docs/gige.md, "Frame
     // rate"): there frame 1 is dropped.
-    let (blocks, dropped) = publish_unevenly(Ipv4Addr::new(127, 0, 0, 64), false, &LOADED_8HZ_MS).await;
+    let (blocks, dropped) = publish_unevenly(Ipv4Addr::new(127, 0, 0, 74), false, &LOADED_8HZ_MS).await;
     assert_eq!((blocks, dropped), (LOADED_8HZ_MS.len() - 1, 1));
 }
