@@ -386,7 +386,7 @@ fn scene_around(fragment: &str) -> String {
     let material = fragment
         .lines()
         .find_map(|l| l.trim().strip_prefix("materials.").or_else(|| l.trim().strip_prefix("[materials.")))
-        .map(|r| r.split(|c| c == ' ' || c == ']' || c == '=').next().unwrap().to_string());
+        .map(|r| r.split([' ', ']', '=']).next().unwrap().to_string());
     let mut tail = String::from("\n[[mesh]]\nobj = \"meshes/plate.obj\"\n");
     match material {
         Some(m) => tail.push_str(&format!("material = \"{m}\"\n")),
@@ -597,7 +597,7 @@ fn every_code_block_of_the_docs_runs_or_loads() {
                 }
                 _ => check_other(&b),
             }
-            tally.block(&format!("{} {}", b.info, b.kind()).trim().to_string());
+            tally.block(format!("{} {}", b.info, b.kind()).trim());
         }
     }
     let blocks: usize = tally.kinds.values().sum();
@@ -673,7 +673,7 @@ mod rust_snippets {
     /// docs/sensor.md, "Monte Carlo noise and the sensor".
     fn sensor_md(
         sensor: &Sensor,
-        radiance: &RadianceImage,
+        radiance: RadianceImage,
         variance: Vec<f32>,
         seed: u64,
         t_s: f64,
@@ -689,7 +689,7 @@ mod rust_snippets {
     }
 
     /// docs/folds.md, "The statistic".
-    fn folds_md(mesh: &TriMesh, mli_index: u32, seed: u64) -> Result<TriMesh, FoldError> {
+    fn folds_md(mesh: TriMesh, mli_index: u32, seed: u64) -> Result<TriMesh, FoldError> {
         use hilcam_core::scene::fold;
         let fit = fold::fit_for_edge(FoldLevel::Medium.target(), seed, 0.01)?; // < 1 s
         let folded = fold::wrap_faces(&mesh, &[mli_index], &fit.params, seed, 0.01);
