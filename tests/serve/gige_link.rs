@@ -234,3 +234,69 @@ async fn r42_in_rate_mode_every_frame_a_loaded_renderer_publishes_goes_out() {
     let (blocks, dropped) = publish_unevenly(Ipv4Addr::new(127, 0, 0, 74), false, &LOADED_8HZ_MS).await;
     assert_eq!((blocks, dropped), (LOADED_8HZ_MS.len() - 1, 1));
 }
+
+/// The same through `hilcam serve` on a machine kept busy: `rate` mode at 8 Hz with every
+/// core spinning in other threads for the acquisition. Every frame the server publishes
+/// reaches the client and none is counted as dropped for the frame rate.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r42_in_rate_mode_under_load_serve_sends_every_frame_it_renders() {
+    use crate::gige_rate::metric;
+    use crate::serve_common;
+    use hilcam_core::link::InputEvent;
+    use hilcam_core::serve::config::{InputConfig, TriggerConfig};
+    use hilcam_core::serve::scheduler::TriggerMode;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let ip = Ipv4Addr::new(127, 0, 0, 75);
+    let dir = tempfile::tempdir().unwrap();
+    let scene = crate::gige::dn_sphere_scene(dir.path());
+    let trigger = TriggerConfig { mode: TriggerMode::Rate, rate_hz: Some(8.0), extrapolate: false };
+    let mut cfg = serve_common::config(scene, InputConfig::default(), trigger, Default::default());
+    cfg.output.gige = Some(GigeConfig { address: ip, ..GigeConfig::default() });
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let server = serve_common::start(cfg, Some(rx)).await;
+    let metrics = server.info.metrics.expect("metrics endpoint");
+    let gvcp = std::net::SocketAddr::from((ip, 3956));
+    let pose = crate::gige::lit_pose(1, glam::DVec3::new(0.0, 0.0, 10.0));
+    tx.send(InputEvent::Pose { pose, arrival: Instant::now() }).await.unwrap();
+    let busy = Arc::new(AtomicBool::new(true));
+    let hogs: Vec<_> = (0..4)
+        .map(|_| {
+            let b = busy.clone();
+            std::thread::spawn(move || {
+                let mut x = 0u64;
+                while b.load(Ordering::Relaxed) {
+                    x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+                }
+            })
+        })
+        .collect();
+    let blocks = tokio::task::spawn_blocking(move || {
+        let mut c = RawClient::new(gvcp);
+        let rx = stamping_socket();
+        acquire(&mut c, &rx, 1500, 0);
+        let (end, mut buf, mut trailers) = (Instant::now() + Duration::from_secs(3), vec![0u8; 2048], 0u64);
+        while Instant::now() < end {
+            if let Some((n, _)) = recv_stamped(&rx, &mut buf) {
+                trailers += u64::from(gvsp::parse_header(&buf[..n]).unwrap().content == gvsp::CONTENT_TRAILER);
+            }
+        }
+        assert_eq!(c.write(reg::ACQUISITION_STOP, 1), 0);
+        // What was on the wire when acquisition stopped.
+        rx.set_read_timeout(Some(Duration::from_millis(300))).unwrap();
+        while let Some((n, _)) = recv_stamped(&rx, &mut buf) {
+            trailers += u64::from(gvsp::parse_header(&buf[..n]).unwrap().content == gvsp::CONTENT_TRAILER);
+        }
+        trailers
+    })
+    .await
+    .unwrap();
+    busy.store(false, Ordering::Relaxed);
+    hogs.into_iter().for_each(|h| h.join().unwrap());
+    let sent = metric(metrics, "hilcam_gige_frames_sent_total").await as u64;
+    let thinned = metric(metrics, "hilcam_gige_frames_dropped_total{reason=\"frame_rate\"}").await;
+    drop(tx);
+    server.finish().await;
+    assert!(blocks >= 8, "{blocks} blocks in 3 s at 8 Hz");
+    assert_eq!((thinned, blocks), (0, sent), "every frame published while acquiring went out");
+}
