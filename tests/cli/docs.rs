@@ -363,11 +363,12 @@ fn run_console(b: &Block, sandbox: &Sandbox, tally: &mut Tally) {
     }
 }
 
-/// Run or check the `sh` block's commands.
-fn check_sh(b: &Block, helps: &mut Helps) {
-    for (k, cmd) in commands(&b.lines, None) {
+/// Check the `sh` block's commands; how many there were.
+fn check_sh(b: &Block, helps: &mut Helps) -> usize {
+    let cmds = commands(&b.lines, None);
+    for (k, cmd) in &cmds {
         let at = format!("{}:{}", b.page.display(), b.line + 1 + k);
-        let w = words(&cmd);
+        let w = words(cmd);
         check_paths(&at, &w);
         for c in simple_commands(&w) {
             if let Some(args) = hilcam_args(c) {
@@ -375,6 +376,7 @@ fn check_sh(b: &Block, helps: &mut Helps) {
             }
         }
     }
+    cmds.len()
 }
 
 /// A minimal scene around a fragment: the nav1024 camera, the shipped plate, a material.
@@ -549,6 +551,8 @@ fn check_other(b: &Block) {
 struct Tally {
     kinds: BTreeMap<String, usize>,
     commands: usize,
+    /// Shell commands checked (not run).
+    shell: usize,
     time: std::time::Duration,
     slowest: (std::time::Duration, String),
 }
@@ -582,7 +586,7 @@ fn every_code_block_of_the_docs_runs_or_loads() {
             }
             match b.info.as_str() {
                 "console" => run_console(&b, &sandbox, &mut tally),
-                "sh" => check_sh(&b, &mut helps),
+                "sh" => tally.shell += check_sh(&b, &mut helps),
                 "toml" => check_toml(&b, &sandbox),
                 "json" => check_json(&b, &mut first_record),
                 "rust" => {
@@ -602,8 +606,9 @@ fn every_code_block_of_the_docs_runs_or_loads() {
     }
     let blocks: usize = tally.kinds.values().sum();
     eprintln!(
-        "docs: {blocks} code blocks checked ({:?}); {} commands ran in {:.1} s (slowest {:.1} s at {}); {:.1} s in all",
+        "docs: {blocks} code blocks checked ({:?}); {} shell commands checked; {} commands ran in {:.1} s (slowest {:.1} s at {}); {:.1} s in all",
         tally.kinds,
+        tally.shell,
         tally.commands,
         tally.time.as_secs_f64(),
         tally.slowest.0.as_secs_f64(),

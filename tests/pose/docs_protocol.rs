@@ -138,7 +138,8 @@ fn stated_lengths_are_the_encoders() {
     for (b, f) in block.iter().zip(&frames) {
         assert_eq!((b + 2).div_ceil(7), *f, "the stream bytes fill the frames");
     }
-    let fd: Vec<usize> = three_poses().iter().map(|q| can::encode_fd(CanIds::default(), q, true).data().len()).collect();
+    let fd: Vec<usize> =
+        three_poses().iter().map(|q| can::encode_fd(CanIds::default(), q, true).data().len()).collect();
     let stated = numbers_after(&p, "One FD frame on `base + 0x10`: the group sequence byte, then the block;", 5);
     assert_eq!(&stated[..3], &block.iter().map(|b| b + 1).collect::<Vec<_>>()[..], "FD bytes before padding");
     assert_eq!(fd, vec![stated[3], stated[4], stated[4]], "padded FD lengths");
