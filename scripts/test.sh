@@ -50,8 +50,15 @@ HILCAM_CHROMIUM=$(scripts/setup-chromium.sh)
 export HILCAM_CHROMIUM
 lap "setup (python venv, vcan check, Aravis, chromium)"
 
-cargo test --all-targets
+# The docs' own examples (tests/cli/docs.rs) run as a step of their own below, so that
+# their count and time show; the rest of the suite skips them here.
+cargo test --all-targets -- --skip docs::
 lap "cargo test --all-targets (build + run)"
+
+# Docs that run: every code block of README.md and docs/*.md against the program (the cli
+# binary is built above; docs/testing.md, "Docs that run").
+cargo test --test cli docs:: -- --nocapture
+lap "docs' examples (tests/cli/docs.rs)"
 
 # --- pose input (issue 4), continued --------------------------------------
 if [ "$vcan_mode" = vm ]; then

@@ -98,3 +98,42 @@ fn io_errors_name_the_file() {
     let e = load(Path::new("/nonexistent/scene.toml")).err().unwrap();
     assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("/nonexistent/scene.toml"));
 }
+
+/// The `[pose]` default a line of docs/scene.md's format block states for `key`:
+/// `key = … # … (default [a, b, c])` → [a, b, c].
+fn documented_pose_default(key: &str) -> [f64; 3] {
+    let page = std::fs::read_to_string("docs/scene.md").unwrap();
+    let line = page
+        .lines()
+        .find(|l| l.starts_with(&format!("{key} = ")) && l.contains("(default ["))
+        .unwrap_or_else(|| panic!("docs/scene.md states no default for pose.{key}"));
+    let list = line.split("(default [").nth(1).unwrap().split(']').next().unwrap();
+    let v: Vec<f64> = list.split(',').map(|t| t.trim().replace('−', "-").parse().unwrap()).collect();
+    v.try_into().unwrap()
+}
+
+/// Issue 42: a `[pose]` table that lacks `position` or `sun` takes the documented default
+/// for that field (it was refused with `missing field`; the defaults held only without
+/// the table).
+#[test]
+fn r42_a_pose_table_missing_a_field_takes_its_documented_default() {
+    let (position, sun) = (documented_pose_default("position"), documented_pose_default("sun"));
+    assert_eq!((position, sun), ([0.0, 0.0, 10.0], [0.0, 0.0, -1.0]), "the defaults docs/scene.md states");
+    let dir = fixture();
+    let load_pose = |table: &str| {
+        let p = write(dir.path(), "s.toml", &format!("{GOOD}\n[pose]\n{table}"));
+        load(&p).unwrap_or_else(|e| panic!("[pose] {table:?}: {e}")).pose
+    };
+    let only_attitude = load_pose("attitude = [0.0, 1.0, 0.0, 0.0]\n");
+    assert_eq!(only_attitude.position.to_array(), position);
+    assert_eq!(only_attitude.sun_dir.to_array(), sun);
+    assert_eq!(only_attitude.attitude.to_array(), [1.0, 0.0, 0.0, 0.0], "x, y, z, w: a half turn about x");
+    let only_position = load_pose("position = [1.0, 2.0, 30.0]\n");
+    assert_eq!((only_position.position.to_array(), only_position.sun_dir.to_array()), ([1.0, 2.0, 30.0], sun));
+    let only_sun = load_pose("sun = [0.0, 1.0, 0.0]\n");
+    assert_eq!((only_sun.position.to_array(), only_sun.sun_dir.to_array()), (position, [0.0, 1.0, 0.0]));
+    // An empty table is the absent one.
+    let empty = load_pose("");
+    let absent = load(&write(dir.path(), "a.toml", GOOD)).unwrap().pose;
+    assert_eq!(format!("{empty:?}"), format!("{absent:?}"));
+}

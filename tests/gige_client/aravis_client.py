@@ -23,6 +23,7 @@ from gi.repository import Aravis  # noqa: E402
 META_CHUNK_ID = 0x48430002
 FOOTPRINT_CHUNK_ID = 0x48430010
 TRUTH_CHUNK_IDS = {"depth": 0x48430011, "mask": 0x48430012, "normal": 0x48430013, "body_xyz": 0x48430014}
+MATERIALS_CHUNK_ID = 0x48430015
 
 
 def meta(buf):
@@ -50,6 +51,9 @@ def truth(buf):
         data = buf.get_chunk_data(cid)
         if data:  # Aravis gives empty data for a chunk id not in the block
             out[name] = {"len": len(data), "crc32": zlib.crc32(bytes(data))}
+    table = buf.get_chunk_data(MATERIALS_CHUNK_ID)
+    if table:  # the mask's id -> material-name table, NUL-padded
+        out["materials"] = bytes(table).split(b"\0")[0].decode("ascii")
     return out
 
 

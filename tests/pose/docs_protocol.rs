@@ -97,3 +97,50 @@ fn frame_stream_example_is_the_encoders_bytes() {
     let frame = common::frames::example_frame();
     assert_eq!(doc, frame.encode().bytes);
 }
+
+/// The integers in the text after the first `marker` (up to `n` of them; `1 200` style
+/// thousands are not used in these sentences).
+fn numbers_after(page: &str, marker: &str, n: usize) -> Vec<usize> {
+    let start = page.find(marker).unwrap_or_else(|| panic!("docs/protocol.md has no `{marker}`")) + marker.len();
+    page[start..]
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|t| !t.is_empty())
+        .take(n)
+        .map(|t| t.parse().unwrap())
+        .collect()
+}
+
+/// The example pose with no option, with velocity, with velocity and angular rate.
+fn three_poses() -> [Pose; 3] {
+    let v = Some(glam::DVec3::new(1.0, 2.0, 3.0));
+    let w = Some(glam::DVec3::new(0.1, 0.2, 0.3));
+    let p = example_pose();
+    [p, Pose { velocity: v, ..p }, Pose { velocity: v, angular_rate: w, ..p }]
+}
+
+/// Issue 42: the lengths the page states are those of what the encoders produce.
+#[test]
+fn stated_lengths_are_the_encoders() {
+    let p = page();
+    let serial_len: Vec<usize> = three_poses().iter().map(|q| serial::encode_frame(&Message::Pose(*q)).len()).collect();
+    let n: Vec<usize> = serial_len.iter().map(|l| l - serial::HEADER_LEN - 4).collect();
+    assert_eq!(numbers_after(&p, "**Pose payload** (type 1), N = ", 3), n, "pose payload lengths");
+    assert_eq!(numbers_after(&p, "Bandwidth: a pose frame is ", 2), vec![serial_len[0], serial_len[2]]);
+    assert_eq!(numbers_after(&p, "for more than one maximum frame (", 1), vec![serial_len[2]]);
+    let flags = [0, can::FLAG_VELOCITY, can::FLAG_VELOCITY | can::FLAG_ANGULAR_RATE];
+    let block: Vec<usize> = flags.iter().map(|&f| can::block_len(f).unwrap()).collect();
+    assert_eq!(numbers_after(&p, "Length ", 3), block, "compact block lengths");
+    let frames: Vec<usize> = three_poses().iter().map(|q| can::encode_group(CanIds::default(), q).len()).collect();
+    // "Group size: 6 frames (no options: 41 stream bytes), 8 frames (one option: 53 …"
+    let stated = numbers_after(&p, "Group size: ", 6);
+    assert_eq!([stated[0], stated[2], stated[4]].to_vec(), frames, "group frames");
+    assert_eq!([stated[1], stated[3], stated[5]].to_vec(), block.iter().map(|b| b + 2).collect::<Vec<_>>());
+    for (b, f) in block.iter().zip(&frames) {
+        assert_eq!((b + 2).div_ceil(7), *f, "the stream bytes fill the frames");
+    }
+    let fd: Vec<usize> =
+        three_poses().iter().map(|q| can::encode_fd(CanIds::default(), q, true).data().len()).collect();
+    let stated = numbers_after(&p, "One FD frame on `base + 0x10`: the group sequence byte, then the block;", 5);
+    assert_eq!(&stated[..3], &block.iter().map(|b| b + 1).collect::<Vec<_>>()[..], "FD bytes before padding");
+    assert_eq!(fd, vec![stated[3], stated[4], stated[4]], "padded FD lengths");
+}

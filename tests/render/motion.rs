@@ -227,3 +227,52 @@ fn a_frame_says_when_its_rows_integrated() {
         assert_eq!(got.line_time_ns, line_time_ns, "{exposure:?}");
     }
 }
+
+/// The radiance of `s` (`scenes/satellite_blur.toml`: the satellite tumbling at 2 rad/s
+/// and drifting at 1.5 m/s) at 128² with the same field of view, at `depth` (uniform
+/// sampling, 2 spp), through an exposure of `mode` lasting `integration_s`: the view is
+/// built as the frame pipeline builds it (`ExposureTiming::motion`).
+fn satellite_blur_radiance(
+    s: &Scene,
+    mode: hilcam_core::sensor::ExposureMode,
+    integration_s: f64,
+    depth: u32,
+) -> Vec<u8> {
+    let cam = crate::common::scenes::scaled_camera(s, 128, 128, [0.0, 0.0]);
+    let settings = RenderSettings { spp: Spp::whole(2), depth, adaptive: false, ..s.render };
+    let timing = hilcam_core::sensor::ExposureTiming { mode, integration_s, line_time_s: 0.0 };
+    let mut view = s.view(&cam, &s.pose).with_distortion(s.sensor.optics.distortion);
+    if let Some(m) = timing.motion(&s.pose) {
+        view = view.with_motion(m, &s.pose, s.frame_origin_body);
+    }
+    bytes(&render(s, &view, &RenderOptions::new(settings, 1)).0)
+}
+
+/// Issue 42, item 5: `integration_time_s = 0` is accepted, and a zero-length global
+/// exposure is the instant frame byte for byte at any depth; a 1e-12 s one (the target
+/// moves 1e-11 m) draws the instant frame's random numbers in every bounce, so it is the
+/// instant frame too (it differed in 774 of 65 536 pixels at depth 2 when the exposure's
+/// time took a dimension of the path's sample stream).
+#[test]
+fn r42_a_zero_length_exposure_is_the_instant_frame_at_any_depth() {
+    use hilcam_core::sensor::ExposureMode::{Global, Instant};
+    let path = std::path::Path::new("scenes/satellite_blur.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let zero = text.replace("integration_time_s = 20e-3", "integration_time_s = 0");
+    assert_ne!(zero, text);
+    let parts = hilcam_core::scene::file::parse(path, &zero)
+        .unwrap_or_else(|e| panic!("integration_time_s = 0 is refused: {e}"));
+    let s = hilcam_core::scene::Scene::build(parts);
+    let det = s.sensor.detector.as_ref().unwrap();
+    assert_eq!((det.integration_time_s, det.exposure), (0.0, Global));
+    for depth in [1, 2, 3] {
+        let instant = satellite_blur_radiance(&s, Instant, 0.02, depth);
+        let zero = satellite_blur_radiance(&s, Global, 0.0, depth);
+        assert_eq!(zero, instant, "depth {depth}: a zero-length exposure");
+        let tiny = satellite_blur_radiance(&s, Global, 1e-12, depth);
+        let differ = tiny.chunks(4).zip(instant.chunks(4)).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "depth {depth}: a 1e-12 s exposure differs from the instant frame in {differ} pixels");
+        let moving = satellite_blur_radiance(&s, Global, 0.02, depth);
+        assert_ne!(moving, instant, "depth {depth}: the 20 ms exposure smears");
+    }
+}

@@ -40,6 +40,8 @@ pub(crate) fn camera(w: u32, h: u32) -> CameraDescription {
         frame_rate_hz: RATE_HZ as f32,
         frame_rate_max_hz: reg::FRAME_RATE_MAX,
         truth: Default::default(),
+        truth_materials_len: 0,
+        rate_sets_schedule: false,
     }
 }
 
@@ -57,7 +59,7 @@ fn square_centre(pose_seq: u32, w: u32, h: u32) -> (f64, f64) {
 
 /// Image `k` of the synthetic source: a 12-bit frame with a bright square at
 /// [`square_centre`] of pose 1000 + k; odd images are flagged EXTRAPOLATED.
-fn synthetic_frame(k: u64, w: u32, h: u32) -> EncodedFrame {
+pub(crate) fn synthetic_frame(k: u64, w: u32, h: u32) -> EncodedFrame {
     let pose_seq = 1000 + k as u32;
     let (cx, cy) = square_centre(pose_seq, w, h);
     let (x0, y0) = ((cx - 3.5) as u32, (cy - 3.5) as u32);

@@ -1,7 +1,7 @@
 //! `[output] truth` on the GigE Vision camera: `hilcam serve` renders the pose sent over
-//! a pty on each software trigger, and Aravis (its Python bindings) finds the footprint
-//! and one chunk per truth channel in the block, equal to `FramePipeline::truth` for
-//! the same pose — over the whole sensor and over a client's ROI.
+//! a pty on each software trigger, and Aravis (its Python bindings) finds the footprint,
+//! one chunk per truth channel in the block and the mask's material table, equal to
+//! `FramePipeline::truth` for the same pose — over the whole sensor and over a client's ROI.
 
 use crate::gige::{dn_sphere_scene, python_client};
 use glam::DVec3;
@@ -79,10 +79,13 @@ async fn aravis_reads_truth_chunks_equal_to_the_pipelines_truth_whole_and_in_an_
         );
         assert_eq!(t["mask"]["crc32"].as_u64(), Some(crc32(want.mask.iter().map(|m| m.to_le_bytes()))), "mask");
         assert!(t.get("normal").is_none(), "normal not configured: {v}");
+        // The mask's table: the sphere scene's one material (issue 42).
+        assert_eq!(t["materials"].as_str(), Some("1=white_paint"), "{v}");
         let payload = v["features"]["PayloadSize"].as_u64().unwrap();
-        // Pixels (Mono16) + trailers, metadata and the SFNC chunks + footprint chunk + the two channels.
+        // Pixels (Mono16) + trailers, metadata and the SFNC chunks + footprint chunk + the
+        // two channels + the table ("1=white_paint", 13 bytes, NUL-padded to 16).
         let chunks = hilcam_core::sink::gige::chunk::CHUNK_OVERHEAD as u64;
-        assert_eq!(payload, 2 * n + chunks + (40 + 8) + 2 * (4 * n + 8));
+        assert_eq!(payload, 2 * n + chunks + (40 + 8) + 2 * (4 * n + 8) + (16 + 8));
     }
     let report = server.finish().await;
     assert_eq!(report.scheduler.triggers, 2);

@@ -646,6 +646,7 @@ fn example_truth() -> hilcam_core::render::truth::TruthImage {
         height: 2,
         channels: hilcam_core::render::truth::TruthChannels::parse("depth,mask").unwrap(),
         mask: vec![0, 1, 1, 0],
+        materials: Some("1=paint".into()),
         depth: vec![f32::INFINITY, 5.0, 5.25, f32::INFINITY],
         normal: Default::default(),
         body_xyz: Default::default(),
@@ -677,6 +678,17 @@ fn truth_worked_example_encodes_to_the_documented_bytes_and_decodes_back() {
     assert_eq!(frame.meta.flags.0, FrameFlags::LATE | FrameFlags::EXTRAPOLATED | FrameFlags::TRUTH);
     let t = truth.unwrap();
     assert_eq!((t.image.mask.clone(), t.image.depth.clone()), (example_truth().mask, example_truth().depth));
+    assert_eq!(t.image.materials.as_deref(), Some("1=paint"), "the mask's table");
+    // Issue 42: the sentence's byte counts are the dump's (it said 132 for 124 bytes).
+    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/protocol.md")).unwrap();
+    let section = &page[page.find("### Worked example with truth").unwrap()..];
+    let number_before = |marker: &str| -> usize {
+        let head = section[..section.find(marker).unwrap_or_else(|| panic!("no `{marker}`"))].trim_end();
+        head.rsplit(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap()
+    };
+    let after_payload = doc.len() - HEADER_LEN - 8;
+    assert_eq!(number_before("bytes follow it"), after_payload, "docs/protocol.md: bytes after the payload");
+    assert_eq!(number_before("-byte block"), after_payload - 8, "docs/protocol.md: the block's length");
     let fp = t.footprint.unwrap();
     assert_eq!((fp.pixels, fp.centroid_px, fp.bbox_px), (2, [1.0, 1.0], [0, 0, 2, 2]));
     // The payload accessor stops before the block.

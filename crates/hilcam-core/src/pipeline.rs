@@ -27,7 +27,10 @@ pub struct RenderedFrame {
     pub render: RenderStats,
     /// Time spent in the sensor model.
     pub sensor_time: Duration,
-    /// Integration time the sensor used (None without a detector).
+    /// Integration time the frame shows: the detector's, or, for radiance output from a
+    /// camera whose exposure integrates over time (global, rolling), the exposure's
+    /// duration. None when nothing integrated (no detector; float output of an instant
+    /// exposure).
     pub integration_s: Option<f64>,
     /// When the rows integrated (what the frame's metadata reports for time-tagging).
     pub exposure: ExposureTiming,
@@ -268,7 +271,9 @@ impl FramePipeline {
             settings: *settings,
             render,
             sensor_time: t0.elapsed(),
-            integration_s: out.integration_time_s,
+            // A float32 frame has no detector stage, but a timed exposure still
+            // integrated its radiance over `timing`: it is tagged with that duration.
+            integration_s: out.integration_time_s.or(timing.integrates_motion().then_some(timing.integration_s)),
             exposure: timing,
             mc_noise: out.stats.mc,
         })

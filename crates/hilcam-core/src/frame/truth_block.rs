@@ -16,7 +16,10 @@
 //!
 //! Channel ids: 1 depth (f32 ×1), 2 mask (u32 ×1), 3 normal (f32 ×3), 4 body_xyz (f32 ×3);
 //! element types 1 = f32, 2 = u32. Data are component planes one after another (all x,
-//! then all y, then all z), each row-major like the payload, little-endian.
+//! then all y, then all z), each row-major like the payload, little-endian. With the mask
+//! comes item 5, `materials` (element type 3 = ASCII text, 1 component): the mask's
+//! id → material-name table, `1=name;2=name;…` ([`crate::render::truth::materials_table`]),
+//! at most [`MATERIALS_MAX_LEN`] bytes, not padded.
 
 use super::{EncodedFrame, Frame, FrameFlags, Malformed};
 use crate::render::truth::{Footprint, TruthChannel, TruthChannels, TruthImage};
@@ -29,6 +32,12 @@ pub const ITEM_HEADER_LEN: usize = 16;
 
 const F32: u8 = 1;
 const U32: u8 = 2;
+const TEXT: u8 = 3;
+/// Item id of the mask's material table (after the four channels).
+pub const MATERIALS_ID: u16 = 5;
+/// The longest material table a block carries (and a receiver accepts): a serve config
+/// whose scene has a longer one and sends the mask is refused at start.
+pub const MATERIALS_MAX_LEN: usize = 65_536;
 
 /// [`super::CRC32`] (the same CRC, the same values) with slice-by-16 tables: a block is
 /// up to 16 bytes per pixel per channel, tens of MB at 1024², where the bytewise table
@@ -59,10 +68,16 @@ fn layout(c: TruthChannel) -> (u8, u8) {
 }
 
 /// The largest `truth_len` a receiver accepts for a `width`×`height` frame: room for 16
-/// four-byte values per pixel (today's channels use at most 8) plus 1 KiB of headers, so
-/// a corrupt or hostile length cannot ask for more than a few times the image.
+/// four-byte values per pixel (today's channels use at most 8), the material table and
+/// 1 KiB of headers, so a corrupt or hostile length cannot ask for more than a few times
+/// the image.
 pub fn max_truth_len(width: u32, height: u32) -> u64 {
-    1024 + 64 * u64::from(width) * u64::from(height)
+    1024 + MATERIALS_MAX_LEN as u64 + 64 * u64::from(width) * u64::from(height)
+}
+
+/// The material table a block of `truth` carries: with the mask only.
+fn materials_item(truth: &TruthImage) -> Option<&str> {
+    truth.materials.as_deref().filter(|_| truth.channels.contains(TruthChannel::Mask))
 }
 
 /// A frame's truth as the block carries it: the channels sent, and the footprint (sent
@@ -87,9 +102,10 @@ pub enum TruthBlockError {
 pub fn encode_truth_block(truth: &TruthImage) -> Vec<u8> {
     let n = truth.width as usize * truth.height as usize;
     let items: Vec<TruthChannel> = truth.channels.iter().collect();
+    let table = materials_item(truth);
     let data_len: usize = items.iter().map(|&c| n * 4 * layout(c).1 as usize).sum();
-    let mut b = Vec::with_capacity(FIXED_LEN + items.len() * ITEM_HEADER_LEN + data_len + 4);
-    b.extend_from_slice(&(items.len() as u16).to_le_bytes());
+    let mut b = Vec::with_capacity(FIXED_LEN + (items.len() + 1) * ITEM_HEADER_LEN + data_len + 4);
+    b.extend_from_slice(&((items.len() + usize::from(table.is_some())) as u16).to_le_bytes());
     b.extend_from_slice(&[0; 6]);
     let f = truth.footprint();
     b.extend_from_slice(&f.map_or(0, |f| f.pixels).to_le_bytes());
@@ -110,6 +126,12 @@ pub fn encode_truth_block(truth: &TruthImage) -> Vec<u8> {
             TruthChannel::Normal => truth.normal.iter().for_each(|p| put_le(&mut b, p, f32::to_le_bytes)),
             TruthChannel::BodyXyz => truth.body_xyz.iter().for_each(|p| put_le(&mut b, p, f32::to_le_bytes)),
         }
+    }
+    if let Some(t) = table {
+        b.extend_from_slice(&MATERIALS_ID.to_le_bytes());
+        b.extend_from_slice(&[TEXT, 1, 0, 0, 0, 0]);
+        b.extend_from_slice(&(t.len() as u64).to_le_bytes());
+        b.extend_from_slice(t.as_bytes());
     }
     let crc = BLOCK_CRC.checksum(&b);
     b.extend_from_slice(&crc.to_le_bytes());
@@ -148,6 +170,7 @@ pub fn decode_truth_block(width: u32, height: u32, b: &[u8]) -> Result<WireTruth
         height,
         channels: TruthChannels::NONE,
         mask: Vec::new(),
+        materials: None,
         depth: Vec::new(),
         normal: Default::default(),
         body_xyz: Default::default(),
@@ -162,6 +185,16 @@ pub fn decode_truth_block(width: u32, height: u32, b: &[u8]) -> Result<WireTruth
             .and_then(|len| body.get(start..start.checked_add(len)?))
             .ok_or_else(|| bad(format!("item {k} (channel {id}): {len} data bytes run past the end")))?;
         at = start + data.len();
+        if id == MATERIALS_ID {
+            let text = std::str::from_utf8(data)
+                .ok()
+                .filter(|t| (ty, comps) == (TEXT, 1) && t.len() <= MATERIALS_MAX_LEN && t.is_ascii())
+                .ok_or_else(|| {
+                    bad(format!("item {k} (materials): not a table of ASCII text of at most {MATERIALS_MAX_LEN} bytes"))
+                })?;
+            image.materials = Some(text.into());
+            continue;
+        }
         let Some(c) = TruthChannel::ALL.into_iter().find(|&c| channel_id(c) == id) else { continue };
         if (ty, comps) != layout(c) || data.len() != n * 4 * comps as usize {
             return Err(bad(format!(
@@ -230,6 +263,7 @@ mod tests {
             height: 1,
             channels,
             mask: vec![0, 2, 1],
+            materials: Some("1=gold;2=paint".into()),
             depth: vec![f32::INFINITY, 5.0, 5.5],
             normal: [vec![f32::NAN, 0.0, 0.1], vec![f32::NAN, 0.0, 0.2], vec![f32::NAN, -1.0, -0.9]],
             body_xyz: [vec![f32::NAN, 1.0, 2.0], vec![f32::NAN, 3.0, 4.0], vec![f32::NAN, 5.0, 6.0]],
@@ -240,9 +274,10 @@ mod tests {
     fn a_block_decodes_to_the_channels_and_footprint_it_was_encoded_from() {
         let t = image();
         let b = encode_truth_block(&t);
-        assert_eq!(b.len(), FIXED_LEN + 4 * ITEM_HEADER_LEN + 3 * 4 * 8 + 4);
+        assert_eq!(b.len(), FIXED_LEN + 5 * ITEM_HEADER_LEN + 3 * 4 * 8 + "1=gold;2=paint".len() + 4);
         let w = decode_truth_block(3, 1, &b).unwrap();
         assert_eq!(w.footprint, t.footprint());
+        assert_eq!(w.image.materials.as_deref(), Some("1=gold;2=paint"));
         assert_eq!((w.image.channels, &w.image.mask, &w.image.depth), (t.channels, &t.mask, &t.depth));
         // NaN ≠ NaN: compare the bits.
         let bits = |p: &[Vec<f32>; 3]| p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();

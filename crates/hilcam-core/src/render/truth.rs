@@ -16,7 +16,7 @@
 
 use crate::render::camera::View;
 use crate::render::cull::coverage::Coverage;
-use crate::render::target::Target;
+use crate::render::target::{Material, Target};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -25,7 +25,9 @@ use rayon::prelude::*;
 pub enum TruthChannel {
     /// Range from the camera centre to the hit along the ray, metres (+inf on a miss).
     Depth,
-    /// Material index + 1 of the hit (0: background).
+    /// The hit's material number, 0 on a miss: 1 + the material's index with the
+    /// scene's materials sorted by name (byte order, as `[materials.NAME]` keys sort);
+    /// [`TruthImage::materials`] names them.
     Mask,
     /// Unit face normal in the camera frame, turned to face the camera (NaN on a miss).
     Normal,
@@ -112,11 +114,23 @@ pub struct TruthImage {
     pub channels: TruthChannels,
     /// Material index + 1 of the hit, 0 where the ray misses.
     pub mask: Vec<u32>,
+    /// The mask's id → material-name table, [`materials_table`] of the scene (filled by
+    /// [`render_truth`]; the stream and GigE send it with the mask).
+    pub materials: Option<std::sync::Arc<str>>,
     pub depth: Vec<f32>,
     /// x, y, z planes.
     pub normal: [Vec<f32>; 3],
     /// x, y, z planes.
     pub body_xyz: [Vec<f32>; 3],
+}
+
+/// The mask table of `materials` (the scene's, in mask order): `1=name;2=name;…`, mask
+/// value = material index + 1; names ASCII-escaped as Rust's `escape_default` writes them
+/// (`é` as `\u{e9}`), so the table is ASCII (EXR text is Latin-1).
+pub fn materials_table(materials: &[Material]) -> String {
+    let pairs: Vec<_> =
+        materials.iter().enumerate().map(|(i, m)| format!("{}={}", i + 1, m.name.escape_default())).collect();
+    pairs.join(";")
 }
 
 /// Where the target lies on the image: the pixels whose centre ray hits it.
@@ -179,6 +193,7 @@ pub fn render_truth(target: &Target, view: &View, channels: TruthChannels) -> Tr
         height,
         channels,
         mask: vec![0; n],
+        materials: Some(materials_table(&target.materials).into()),
         depth: plane(TruthChannel::Depth, MISS.depth),
         normal: planes3(TruthChannel::Normal),
         body_xyz: planes3(TruthChannel::BodyXyz),
@@ -268,6 +283,7 @@ mod tests {
             height: 3,
             channels: TruthChannels::NONE,
             mask: vec![0; 12],
+            materials: None,
             depth: vec![],
             normal: Default::default(),
             body_xyz: Default::default(),

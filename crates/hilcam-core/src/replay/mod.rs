@@ -61,7 +61,7 @@ pub enum ReplayError {
     AutoExposure { what: String },
     #[error("--integration-s: the sensor has no [sensor.detector], so there is no integration time to pin")]
     NoDetector,
-    #[error("--integration-s {0}: must be positive and finite")]
+    #[error("--integration-s {0}: must be finite and ≥ 0")]
     BadIntegration(f64),
     #[error("--every must be ≥ 1")]
     BadEvery,
@@ -114,7 +114,7 @@ pub fn select_frames(n_rows: u64, every: u64, shard: Shard) -> Vec<u64> {
 /// Pin the scene's sensor to a fixed integration time and switch auto-exposure off, so
 /// any subset of frames renders independently of the others.
 pub fn pin_integration_time(scene: &mut Scene, seconds: f64) -> Result<(), ReplayError> {
-    if !(seconds.is_finite() && seconds > 0.0) {
+    if !(seconds.is_finite() && seconds >= 0.0) {
         return Err(ReplayError::BadIntegration(seconds));
     }
     let det = scene.sensor.detector.as_mut().ok_or(ReplayError::NoDetector)?;
@@ -378,7 +378,6 @@ pub fn replay_jobs_until(
     let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
     progress(&stats);
     let mut last = None;
-    let materials = if cfg.truth.is_empty() { Vec::new() } else { pipeline.scene().materials.clone() };
     for job in todo {
         let k = job.index;
         if let Some(signal) = stop() {
@@ -423,7 +422,7 @@ pub fn replay_jobs_until(
             let truth_name = truth_exr::truth_file_name(k);
             let truth_path = dir.join(&truth_name);
             let t0 = std::time::Instant::now();
-            let written = truth_exr::write_truth_exr(&truth_path, &truth, &materials);
+            let written = truth_exr::write_truth_exr(&truth_path, &truth);
             stats.truth_write_time += t0.elapsed();
             if let Err(e) = written {
                 // The image without its truth is not a complete frame.

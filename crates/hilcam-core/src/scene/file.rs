@@ -204,9 +204,12 @@ fn zero() -> Spanned<f64> {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct PoseSection {
+    /// Each field has its default, whether the table is absent or only lacks the field.
+    #[serde(default = "ahead")]
     position: Spanned<[f64; 3]>,
     #[serde(default = "identity")]
     attitude: Spanned<[f64; 4]>,
+    #[serde(default = "sun_behind")]
     sun: Spanned<[f64; 3]>,
     /// Relative velocity of the target origin, camera frame, m/s (a camera that
     /// integrates over its exposure smears the motion).
@@ -217,16 +220,26 @@ struct PoseSection {
     camera_to_inertial: Option<Spanned<[f64; 4]>>,
 }
 
+/// The default pose (docs/scene.md): the target 10 m ahead, unrotated, lit from behind
+/// the camera.
+fn ahead() -> Spanned<[f64; 3]> {
+    Spanned::new(0..0, [0.0, 0.0, 10.0])
+}
+
 fn identity() -> Spanned<[f64; 4]> {
     Spanned::new(0..0, [1.0, 0.0, 0.0, 0.0])
+}
+
+fn sun_behind() -> Spanned<[f64; 3]> {
+    Spanned::new(0..0, [0.0, 0.0, -1.0])
 }
 
 impl Default for PoseSection {
     fn default() -> Self {
         PoseSection {
-            position: Spanned::new(0..0, [0.0, 0.0, 10.0]),
+            position: ahead(),
             attitude: identity(),
-            sun: Spanned::new(0..0, [0.0, 0.0, -1.0]),
+            sun: sun_behind(),
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,

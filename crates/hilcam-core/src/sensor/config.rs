@@ -271,6 +271,31 @@ impl SensorConfig {
         self.output.unwrap_or(if self.adc.is_some() { OutputKind::Dn } else { OutputKind::Float32 })
     }
 
+    /// What a float32 output leaves out of a configured detector, as the warning at
+    /// start-up says it (None: nothing is left out). The radiance skips the charge, noise
+    /// and ADC stages; a global or rolling exposure still integrates the radiance over
+    /// its time, and the frame is tagged with that integration time.
+    pub fn float_output_note(&self) -> Option<String> {
+        use super::ExposureMode;
+        let det = self.detector.as_ref().filter(|_| self.output_kind() == OutputKind::Float32)?;
+        let mode = match det.exposure {
+            ExposureMode::Instant => {
+                return Some(
+                    "sensor: output = \"float32\" sends radiance; [sensor.detector] and [sensor.adc] are not applied"
+                        .into(),
+                );
+            }
+            ExposureMode::Global => "global",
+            ExposureMode::Rolling => "rolling",
+        };
+        Some(format!(
+            "sensor: output = \"float32\" sends radiance: [sensor.detector]'s {mode} exposure is applied (the \
+             radiance is integrated over integration_time_s = {} s, and each frame is tagged with it); its charge, \
+             noise and [sensor.adc] are not",
+            det.integration_time_s
+        ))
+    }
+
     /// The f-number from `f_number` or `aperture_mm` and the focal length.
     pub fn f_number(&self, camera: &CameraModel) -> Option<f64> {
         match (self.optics.f_number, self.optics.aperture_mm) {
@@ -405,7 +430,9 @@ impl SensorConfig {
                 }
             }
         }
-        positive("sensor.detector.integration_time_s", d.integration_time_s)?;
+        // 0 is allowed: a zero-length exposure collects no charge and integrates no
+        // motion (the instant frame's radiance; docs/sensor.md §11).
+        non_negative("sensor.detector.integration_time_s", d.integration_time_s)?;
         if let Some(v) = d.full_well_e {
             positive("sensor.detector.full_well_e", v)?;
         }

@@ -166,10 +166,8 @@ impl Sensor {
                 vec![psf::Kernel::airy(n, camera.pitch_um, &wl, *radius_px)]
             }
         };
-        if cfg.detector.is_some() && output == OutputKind::Float32 {
-            tracing::warn!(
-                "sensor: output = \"float32\" sends radiance; [sensor.detector] and [sensor.adc] are not applied"
-            );
+        if let Some(note) = cfg.float_output_note() {
+            tracing::warn!("{note}");
         }
         Ok(Sensor {
             camera: camera.clone(),

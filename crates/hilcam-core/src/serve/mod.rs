@@ -86,6 +86,16 @@ pub async fn run(
     let clock = SessionClock::now();
     let scene = Arc::new(crate::scene::load(&cfg.scene)?);
     let camera = scene.camera.scaled(cfg.width, None);
+    let table = crate::render::truth::materials_table(&scene.materials).len();
+    if cfg.output.truth.contains(crate::render::truth::TruthChannel::Mask)
+        && table > crate::frame::truth_block::MATERIALS_MAX_LEN
+    {
+        anyhow::bail!(
+            "output.truth: the mask's material table of {} is {table} bytes, more than the {} a truth block carries",
+            cfg.scene.display(),
+            crate::frame::truth_block::MATERIALS_MAX_LEN
+        );
+    }
     let o = &cfg.render;
     let settings = scene.render.overridden(o.spp, o.depth, o.sampler, o.seed).with_quality(o.quality, o.sensor_k);
     crate::sensor::check_quality(&settings.quality, &scene.sensor)

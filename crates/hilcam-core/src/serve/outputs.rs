@@ -50,9 +50,7 @@ impl Outputs {
         if let Some(r) = &cfg.record
             && let Some(dir) = &r.dir
         {
-            let materials = if cfg.output.truth.is_empty() { Vec::new() } else { scene.materials.clone() };
-            let rc = RecorderConfig { materials, ..RecorderConfig::new(dir, r.format) };
-            out.sinks.push(Sink::Recorder(Recorder::start(rc, registry)?));
+            out.sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(dir, r.format), registry)?));
         }
         if let Some(g) = &cfg.output.gige {
             out.start_gige(g, cfg, scene, camera, registry).await?;
@@ -72,7 +70,8 @@ impl Outputs {
         let rate_sets_schedule = cfg.trigger.mode == super::scheduler::TriggerMode::Rate;
         let desc = CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz, rate_sets_schedule)
             .map_err(anyhow::Error::msg)?;
-        let desc = CameraDescription { truth: cfg.output.truth, ..desc };
+        let table = crate::render::truth::materials_table(&scene.materials);
+        let desc = CameraDescription { truth: cfg.output.truth, truth_materials_len: table.len() as u32, ..desc };
         let device = GigeDevice::start(g, desc, registry.clone()).await?;
         let dropped =
             registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);

@@ -241,10 +241,10 @@ pub async fn receive(addr: SocketAddr, opts: RecvOptions) -> Result<RecvSummary,
                 .map_err(|e| RecvError::Save { path: path.clone(), message: e.to_string() })?
                 .map_err(|e| RecvError::Save { path, message: e.to_string() })?;
             if let Some(t) = truth {
-                // The client does not know the scene: the mask table stays empty.
+                // The mask table comes with the mask channel (the block's `materials` item).
                 let path = dir.join(super::truth_exr::truth_file_name(seq));
                 let p = path.clone();
-                tokio::task::spawn_blocking(move || super::truth_exr::write_truth_exr(&p, &t.image, &[]))
+                tokio::task::spawn_blocking(move || super::truth_exr::write_truth_exr(&p, &t.image))
                     .await
                     .map_err(|e| RecvError::Save { path: path.clone(), message: e.to_string() })?
                     .map_err(|e| RecvError::Save { path, message: e.to_string() })?;

@@ -165,20 +165,11 @@ pub struct RecorderConfig {
     pub queue_depth: usize,
     /// While writes keep failing, report "still failing" at most this often (default 5 s).
     pub failure_report_every: Duration,
-    /// The scene's materials, named in a truth EXR's mask table (frames that carry truth
-    /// are saved with `truth_<k>.exr` beside the image).
-    pub materials: Vec<crate::render::target::Material>,
 }
 
 impl RecorderConfig {
     pub fn new(dir: impl Into<PathBuf>, format: ImageFormat) -> Self {
-        RecorderConfig {
-            dir: dir.into(),
-            format,
-            queue_depth: 8,
-            failure_report_every: Duration::from_secs(5),
-            materials: Vec::new(),
-        }
+        RecorderConfig { dir: dir.into(), format, queue_depth: 8, failure_report_every: Duration::from_secs(5) }
     }
 }
 
@@ -328,7 +319,7 @@ fn record_one(cfg: &RecorderConfig, frame: &EncodedFrame, log: &mut LineLog) -> 
     let Some(truth) = &frame.truth else { return record_image(cfg, frame, log, None) };
     let name = super::truth_exr::truth_file_name(frame.meta.frame_seq);
     let path = cfg.dir.join(&name);
-    super::truth_exr::write_truth_exr(&path, truth, &cfg.materials).map_err(|e| {
+    super::truth_exr::write_truth_exr(&path, truth).map_err(|e| {
         let reason = match &e {
             e if e.is_disk_full() => Reason::DiskFull,
             super::truth_exr::TruthWriteError::Io { .. } => Reason::Io,

@@ -4,10 +4,9 @@
 //! Channels (only those asked for; EXR stores them sorted by name): `depth`, `mask`,
 //! `normal.X`/`.Y`/`.Z`, `body_xyz.X`/`.Y`/`.Z`. The header attribute `hilcam_materials`
 //! (text) maps mask values to material names: `1=gold_mli;2=white_paint` (0 is the
-//! background).
+//! background; `render::truth::materials_table`).
 
 use crate::render::film::write_file_atomically;
-use crate::render::target::Material;
 use crate::render::truth::{TruthChannel, TruthImage};
 use std::path::Path;
 
@@ -18,14 +17,6 @@ pub fn truth_file_name(frame_seq: u64) -> String {
 
 /// Header attribute holding the mask → material-name table.
 pub const MATERIALS_ATTRIBUTE: &str = "hilcam_materials";
-
-/// The mask table of `materials`: `1=name;2=name;…` (mask value = material index + 1).
-pub fn materials_table(materials: &[Material]) -> String {
-    // EXR text is Latin-1: names are written ASCII-escaped (`é` as `\\u{e9}`).
-    let pairs: Vec<_> =
-        materials.iter().enumerate().map(|(i, m)| format!("{}={}", i + 1, m.name.escape_default())).collect();
-    pairs.join(";")
-}
 
 /// Why a truth file could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -42,9 +33,9 @@ impl TruthWriteError {
     }
 }
 
-/// Write `truth`'s channels to `path` (float32, lossless), with the mask table of
-/// `materials` in the header.
-pub fn write_truth_exr(path: &Path, truth: &TruthImage, materials: &[Material]) -> Result<(), TruthWriteError> {
+/// Write `truth`'s channels to `path` (float32, lossless), with its mask table
+/// (`TruthImage::materials`; empty when it has none) in the header.
+pub fn write_truth_exr(path: &Path, truth: &TruthImage) -> Result<(), TruthWriteError> {
     use exr::prelude::*;
     let f32s = |v: &Vec<f32>| FlatSamples::F32(v.clone());
     let mut list = Vec::new();
@@ -66,9 +57,10 @@ pub fn write_truth_exr(path: &Path, truth: &TruthImage, materials: &[Material]) 
         }
     }
     let mut attributes = LayerAttributes::named("truth");
-    attributes
-        .other
-        .insert(Text::from(MATERIALS_ATTRIBUTE), AttributeValue::Text(Text::from(materials_table(materials).as_str())));
+    attributes.other.insert(
+        Text::from(MATERIALS_ATTRIBUTE),
+        AttributeValue::Text(Text::from(truth.materials.as_deref().unwrap_or(""))),
+    );
     let layer = Layer::new(
         (truth.width as usize, truth.height as usize),
         attributes,

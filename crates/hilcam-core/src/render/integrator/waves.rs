@@ -169,11 +169,9 @@ impl TileJob<'_> {
                 let sample = pass[next];
                 let mut rng = self.sample_stream::<S>(sample);
                 let (x, y) = self.position(sample, &mut rng);
-                // A moving view's sample takes its time in its row's window from the
-                // stream's next dimension (stratified like the position).
                 let ray = match self.view.motion {
                     None => self.view.primary_ray(x, y),
-                    Some(_) => self.view.primary_ray_at(x, y, sample.row, rng.next_1d()),
+                    Some(_) => self.view.primary_ray_at(x, y, sample.row, self.exposure_time::<S>(sample)),
                 };
                 // A ray that misses the bounding sphere sees the background (already set), or
                 // the planet (from the exposure start's camera).
@@ -197,6 +195,16 @@ impl TileJob<'_> {
     #[inline]
     fn sample_stream<S: PerSample>(&self, CameraSample { row, col, index }: CameraSample) -> S {
         S::for_sample(self.seed, self.frame, self.view.pixel_key(row, col), index)
+    }
+
+    /// Where in its row's exposure a moving view's sample is taken, in [0, 1): from a
+    /// stream of its own (the sample's key in another domain; stratified over the pixel's
+    /// samples), never from the path's stream, so that the bounces draw the numbers the
+    /// instant frame's draw and a zero-length exposure changes none of them (issue 42).
+    #[inline]
+    fn exposure_time<S: PerSample>(&self, CameraSample { row, col, index }: CameraSample) -> f32 {
+        const EXPOSURE_TIME_DOMAIN: u64 = 0x7e3a_11c0_5e9d_0042;
+        S::for_sample(self.seed ^ EXPOSURE_TIME_DOMAIN, self.frame, self.view.pixel_key(row, col), index).next_1d()
     }
 
     /// The sample's position in the image (its stream's first 2-D point within the pixel).

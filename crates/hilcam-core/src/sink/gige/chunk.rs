@@ -30,7 +30,10 @@
 //! col0, row0, col1, row1 u32 @24, half-open) and one chunk per channel
 //! ([`truth_chunk_id`]: depth 0x48430011, mask 0x48430012, normal 0x48430013, body_xyz
 //! 0x48430014), whose data are the channel's planes over the block's window,
-//! little-endian like the pixels: f32 (mask u32), x plane then y then z.
+//! little-endian like the pixels: f32 (mask u32), x plane then y then z. With the mask
+//! comes [`MATERIALS_CHUNK_ID`]: the mask's id → material-name table (ASCII,
+//! `1=name;2=name;…`, as the stream's block carries it), NUL-terminated and padded with
+//! NULs to a multiple of 4 bytes.
 
 use crate::frame::FrameMeta;
 use crate::frame::truth_block::channel_id;
@@ -115,8 +118,9 @@ pub struct SfncValues {
     pub frame_id: u64,
 }
 
-/// Bytes the chunks of `set` add to a `width`×`height` image (truth only with channels).
-pub fn chunks_len(set: ChunkSet, truth: TruthChannels, width: u32, height: u32) -> u64 {
+/// Bytes the chunks of `set` add to a `width`×`height` image (truth only with channels;
+/// `materials_len`: bytes of the scene's material table, sent with the mask).
+pub fn chunks_len(set: ChunkSet, truth: TruthChannels, materials_len: u32, width: u32, height: u32) -> u64 {
     let mut n = 8u64;
     if set.contains(ChunkKind::HilcamMetadata) {
         n += (META_LEN + 8) as u64;
@@ -127,7 +131,7 @@ pub fn chunks_len(set: ChunkSet, truth: TruthChannels, width: u32, height: u32) 
         }
     }
     if set.contains(ChunkKind::HilcamTruth) {
-        n += truth_chunks_len(truth, width, height);
+        n += truth_chunks_len(truth, materials_len, width, height);
     }
     n
 }
@@ -136,6 +140,15 @@ pub fn chunks_len(set: ChunkSet, truth: TruthChannels, width: u32, height: u32) 
 pub const FOOTPRINT_CHUNK_ID: u32 = 0x4843_0010;
 /// Bytes of the footprint chunk's data.
 pub const FOOTPRINT_LEN: usize = 40;
+
+/// Chunk id of the mask's material table ("HC" 0x0015: the stream's item 5).
+pub const MATERIALS_CHUNK_ID: u32 = FOOTPRINT_CHUNK_ID + crate::frame::truth_block::MATERIALS_ID as u32;
+
+/// Bytes of the material-table chunk's data for a table of `len` bytes: NUL-terminated,
+/// padded to a multiple of 4.
+pub fn materials_chunk_data_len(len: u32) -> u32 {
+    (len / 4 + 1) * 4
+}
 
 /// Chunk id of truth channel `c`: [`FOOTPRINT_CHUNK_ID`] + its stream id (depth 1, mask 2,
 /// normal 3, body_xyz 4).
@@ -150,14 +163,17 @@ fn components(c: TruthChannel) -> usize {
     }
 }
 
-/// Bytes the truth chunks add to a `width`×`height` block (0 without channels).
-pub fn truth_chunks_len(channels: TruthChannels, width: u32, height: u32) -> u64 {
+/// Bytes the truth chunks add to a `width`×`height` block (0 without channels), the
+/// material table (`materials_len` bytes) included when the mask is sent.
+pub fn truth_chunks_len(channels: TruthChannels, materials_len: u32, width: u32, height: u32) -> u64 {
     if channels.is_empty() {
         return 0;
     }
     let n = u64::from(width) * u64::from(height);
     let data: u64 = channels.iter().map(|c| 8 + n * 4 * components(c) as u64).sum();
-    (8 + FOOTPRINT_LEN as u64) + data
+    let table =
+        if channels.contains(TruthChannel::Mask) { 8 + u64::from(materials_chunk_data_len(materials_len)) } else { 0 };
+    (8 + FOOTPRINT_LEN as u64) + data + table
 }
 
 /// Append the footprint and channel chunks of `truth` over `window` (whose offsets are
@@ -175,6 +191,7 @@ pub fn append_truth_chunks(block: &mut Vec<u8>, truth: &TruthImage, window: Wind
         height: window.height,
         channels: TruthChannels::NONE,
         mask,
+        materials: None,
         depth: Vec::new(),
         normal: Default::default(),
         body_xyz: Default::default(),
@@ -197,6 +214,13 @@ pub fn append_truth_chunks(block: &mut Vec<u8>, truth: &TruthImage, window: Wind
             TruthChannel::BodyXyz => {
                 b.extend(truth.body_xyz.iter().flat_map(|p| crop(p)).flat_map(|v| v.to_le_bytes()))
             }
+        });
+    }
+    if truth.channels.contains(TruthChannel::Mask) {
+        let table = truth.materials.as_deref().unwrap_or("").as_bytes();
+        push_chunk(block, MATERIALS_CHUNK_ID, |b| {
+            b.extend_from_slice(table);
+            b.resize(b.len() + (materials_chunk_data_len(table.len() as u32) as usize - table.len()), 0);
         });
     }
 }
@@ -295,7 +319,7 @@ mod tests {
         let sfnc = SfncValues { timestamp: 123_456_789, exposure_us: 1000.0, frame_id: 9 };
         append_chunks(&mut block, &meta, ChunkSet::ALL, &sfnc);
         assert_eq!(block.len(), 4 + CHUNK_OVERHEAD);
-        assert_eq!(chunks_len(ChunkSet::ALL, TruthChannels::NONE, 2, 1), CHUNK_OVERHEAD as u64);
+        assert_eq!(chunks_len(ChunkSet::ALL, TruthChannels::NONE, 0, 2, 1), CHUNK_OVERHEAD as u64);
         let be = |id| u64::from_be_bytes(find_chunk(&block, id).unwrap().try_into().unwrap());
         assert_eq!((be(TIMESTAMP_CHUNK_ID), be(FRAME_ID_CHUNK_ID)), (123_456_789, 9));
         assert_eq!(f64::from_bits(be(EXPOSURE_CHUNK_ID)), 1000.0);
@@ -303,7 +327,7 @@ mod tests {
         let set = ChunkSet::ALL.with(ChunkKind::HilcamMetadata, false).with(ChunkKind::Timestamp, false);
         let mut small = vec![1, 2, 3, 4];
         append_chunks(&mut small, &meta, set, &sfnc);
-        assert_eq!(small.len() as u64, 4 + chunks_len(set, TruthChannels::NONE, 2, 1));
+        assert_eq!(small.len() as u64, 4 + chunks_len(set, TruthChannels::NONE, 0, 2, 1));
         assert_eq!(find_chunk(&small, META_CHUNK_ID), None);
         assert_eq!(find_chunk(&small, IMAGE_CHUNK_ID).unwrap(), &[1, 2, 3, 4]);
         assert!(find_chunk(&small, FRAME_ID_CHUNK_ID).is_some());
@@ -326,6 +350,7 @@ mod tests {
             height: 2,
             channels,
             mask: vec![0, 1, 0, 0, 0, 2],
+            materials: None,
             depth: vec![9.0, 1.0, 9.0, 9.0, 9.0, 2.0],
             normal: [vec![0.5; 6], vec![0.25; 6], vec![-1.0; 6]],
             body_xyz: Default::default(),
@@ -333,7 +358,7 @@ mod tests {
         let window = Window { x: 1, y: 0, width: 2, height: 2 };
         let mut block = vec![7; 8];
         append_truth_chunks(&mut block, &truth, window);
-        assert_eq!(block.len() as u64, 8 + truth_chunks_len(channels, 2, 2));
+        assert_eq!(block.len() as u64, 8 + truth_chunks_len(channels, 0, 2, 2));
         let f32s = |b: &[u8]| b.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect::<Vec<_>>();
         assert_eq!(f32s(find_chunk(&block, 0x4843_0011).unwrap()), [1.0, 9.0, 9.0, 2.0]);
         let mask = find_chunk(&block, 0x4843_0012).unwrap();

@@ -8,6 +8,9 @@ use std::net::Ipv4Addr;
 
 /// Blocks the resend ring may keep: each is a whole frame (a 1024² Mono16 block is 2 MiB).
 pub const RESEND_RING_MAX: usize = 64;
+/// The link speeds the stream may be paced at, Mb/s: 10 Mb/s Ethernet to 100 GbE.
+pub const LINK_MBPS_MIN: u32 = 10;
+pub const LINK_MBPS_MAX: u32 = 100_000;
 
 /// `[output.gige]`.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
@@ -22,6 +25,9 @@ pub struct GigeConfig {
     pub stream_port: u16,
     /// Initial packet size (IP datagram bytes), until a client writes GevSCPSPacketSize.
     pub packet_size: u32,
+    /// The speed of the link the camera simulates, Mb/s (default 1000): packets leave no
+    /// faster than it carries them; a client's GevSCPD adds its delay after each.
+    pub link_mbps: u32,
     /// Bootstrap strings: at most 31 bytes (manufacturer, model), 15 (serial, user_name).
     pub manufacturer: String,
     pub model: String,
@@ -54,6 +60,7 @@ impl Default for GigeConfig {
             gvcp_port: GVCP_PORT,
             stream_port: 0,
             packet_size: 1500,
+            link_mbps: 1000,
             manufacturer: "hilcam".into(),
             model: "hilcam simulated camera".into(),
             serial: "HILCAM0001".into(),
@@ -93,6 +100,10 @@ impl GigeConfig {
                 "output.gige.packet_size",
                 format!("{p}: must be {PACKET_SIZE_MIN}..={PACKET_SIZE_MAX} in steps of {PACKET_SIZE_INC}"),
             ));
+        }
+        let l = self.link_mbps;
+        if !(LINK_MBPS_MIN..=LINK_MBPS_MAX).contains(&l) {
+            return Err(("output.gige.link_mbps", format!("{l}: must be {LINK_MBPS_MIN}..={LINK_MBPS_MAX} Mb/s")));
         }
         let t = self.pending_timeout_ms;
         if !(reg::PENDING_TIMEOUT_MIN_MS..=reg::PENDING_TIMEOUT_MAX_MS).contains(&t) {
@@ -150,6 +161,7 @@ mod tests {
         assert!(refused(GigeConfig { packet_size: 100_000, ..d() }).starts_with("output.gige.packet_size: 100000"));
         let e = refused(GigeConfig { pending_timeout_ms: 70_000, ..d() });
         assert_eq!(e, "output.gige.pending_timeout_ms: 70000: must be 10..=65535 ms");
+        assert_eq!(refused(GigeConfig { link_mbps: 0, ..d() }), "output.gige.link_mbps: 0: must be 10..=100000 Mb/s");
         // 8 characters, 16 bytes: refused whole, never cut mid-character.
         let e = refused(GigeConfig { user_name: "ÄÖÜßäöüé".into(), ..d() });
         assert!(e.starts_with("output.gige.user_name: \"ÄÖÜßäöüé\" is 16 bytes"), "{e}");

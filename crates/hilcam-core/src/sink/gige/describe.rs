@@ -46,6 +46,8 @@ impl CameraDescription {
                 _ => FRAME_RATE_MAX,
             },
             truth: Default::default(),
+            truth_materials_len: 0,
+            rate_sets_schedule: rate_hz.is_some() && rate_sets_schedule,
         })
     }
 }

@@ -1,8 +1,8 @@
 //! The GigE Vision device: the thin I/O shell around the pure codecs. One tokio task
 //! serves the GVCP sockets (the control socket and the two broadcast-discovery ones:
 //! commands → [`Control`] → acknowledges, heartbeat expiry); one std thread owns the
-//! GVSP socket (`stream.rs`: ROI and format, packets paced by the negotiated delay, a
-//! bounded ring of recent blocks for resends).
+//! GVSP socket (`stream.rs`: ROI and format, packets paced at the link speed plus the
+//! negotiated delay, a bounded ring of recent blocks for resends).
 //!
 //! Frames come in through [`GigeDevice::publish`] (the `Sink` interface: never
 //! blocks); what a client sets comes out through [`GigeDevice::settings`] (a `watch`
@@ -190,7 +190,13 @@ impl GigeDevice {
             metrics: Metrics::new(&registry),
             stop: stop.clone(),
         });
-        let sender = Sender { socket: stream, jobs, stop, ring_len: cfg.resend_ring };
+        let sender = Sender {
+            socket: stream,
+            jobs,
+            stop,
+            ring_len: cfg.resend_ring,
+            link_bps: u64::from(cfg.link_mbps) * 1_000_000,
+        };
         let thread_shared = shared.clone();
         let stream_thread = std::thread::Builder::new()
             .name("gige-stream".into())
@@ -286,7 +292,9 @@ impl GigeDevice {
                     m.dropped_untriggered.inc();
                     return;
                 }
-            } else if !s.gate.lock().expect("rate gate lock").admit(Instant::now(), st.frame_rate_hz) {
+            } else if !c.regs.camera.rate_sets_schedule
+                && !s.gate.lock().expect("rate gate lock").admit(Instant::now(), st.frame_rate_hz)
+            {
                 m.dropped_rate.inc();
                 return;
             }

@@ -185,6 +185,13 @@ pub struct CameraDescription {
     /// Ground-truth channels sent as chunks with every block in chunk mode (`[output]
     /// truth`; empty: none).
     pub truth: crate::render::truth::TruthChannels,
+    /// Bytes of the scene's material table, sent as a chunk with the mask (PayloadSize
+    /// counts it).
+    pub truth_materials_len: u32,
+    /// The renderer runs at AcquisitionFrameRate (`rate` trigger mode): every frame it
+    /// publishes is one the client's rate asked for, so the device lets each through
+    /// (thinning them again would drop the frames a loaded machine publishes late).
+    pub rate_sets_schedule: bool,
 }
 
 impl CameraDescription {
@@ -226,6 +233,8 @@ pub struct CameraSettings {
     pub chunks: ChunkSet,
     /// The truth channels each block carries in chunk mode (the device's, fixed).
     pub truth: crate::render::truth::TruthChannels,
+    /// Bytes of the material table sent with the mask (the device's, fixed).
+    pub truth_materials_len: u32,
 }
 
 impl CameraSettings {
@@ -244,6 +253,7 @@ impl CameraSettings {
             chunk_mode: true,
             chunks: ChunkSet::ALL,
             truth: cam.truth,
+            truth_materials_len: cam.truth_materials_len,
         }
     }
 
@@ -259,7 +269,8 @@ impl CameraSettings {
 
     /// Bytes of one block (pixels, plus the enabled chunks when chunk mode is on).
     pub fn payload_size(&self) -> u64 {
-        let chunks = super::chunk::chunks_len(self.chunks, self.truth, self.width, self.height);
+        let chunks =
+            super::chunk::chunks_len(self.chunks, self.truth, self.truth_materials_len, self.width, self.height);
         self.image_bytes() + if self.chunk_mode { chunks } else { 0 }
     }
 }
@@ -862,6 +873,8 @@ pub(crate) mod tests {
             frame_rate_hz: 10.0,
             frame_rate_max_hz: FRAME_RATE_MAX,
             truth: Default::default(),
+            truth_materials_len: 0,
+            rate_sets_schedule: false,
         }
     }
 

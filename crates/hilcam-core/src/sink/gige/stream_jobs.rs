@@ -88,6 +88,12 @@ impl<F, R> Jobs<F, R> {
         s.resends.pop_front().map_or(Next::Idle, Next::Resend)
     }
 
+    /// A waiting resend request, without waiting (served between a frame's packets).
+    pub fn take_resend(&self) -> Option<R> {
+        let mut s = self.state.lock().expect("jobs lock");
+        if s.stopped { None } else { s.resends.pop_front() }
+    }
+
     pub fn stopped(&self) -> bool {
         self.state.lock().expect("jobs lock").stopped
     }
