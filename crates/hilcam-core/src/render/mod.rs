@@ -154,6 +154,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         fill: _,
         raster: raster_buffers,
         coverage: box_coverage,
+        coverage_of,
         bands: band_buffers,
         stat,
         variance: variance_buffer,
@@ -176,6 +177,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let mut traced = 0u64;
     let mut samples = 0u64;
     let mut primary_rasterised = false;
+    *coverage_of = None;
     if let Some(rect) = rect {
         let ctx = PathContext::new(target, view.sun, settings);
         // The silhouette spans and the rasteriser hold for one camera position: a moving
@@ -220,6 +222,9 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         } else {
             box_coverage.from_leaf_boxes(target, view, rect).then_some(&*box_coverage)
         };
+        // Kept for the frame's ground truth: an instant view's coverage holds for its
+        // pixel centres too.
+        *coverage_of = coverage.filter(|_| !moving).map(|_| (view.clone(), primary_rasterised));
         let job = TileJob {
             view,
             ctx: &ctx,
