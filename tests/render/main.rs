@@ -23,6 +23,8 @@ mod motion;
 mod planet;
 mod primary_raster;
 mod sensor;
+mod sensor_fused;
+mod sensor_noise;
 mod shadow_packet;
 mod silhouette;
 mod stars;

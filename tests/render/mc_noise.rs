@@ -8,6 +8,7 @@ use hilcam_core::render::film::RadianceImage;
 use hilcam_core::render::sampling::Rng;
 use hilcam_core::sensor::config::{AdcConfig, BandConfig, DetectorConfig, NoiseMode, PsfConfig};
 use hilcam_core::sensor::detector::Detector;
+use hilcam_core::sensor::stream::{PixelNoise, frame_key};
 use hilcam_core::sensor::{CameraPreset, OutputKind, Sensor, SensorConfig, SensorError, noise, optics, psf, ptc};
 
 /// A DN sensor: band 0.45–0.75 µm, f/4, τ = 0.8, 16-bit ADC.
@@ -513,7 +514,7 @@ fn substituted_shot_noise_has_the_remaining_variance() {
         let n = 200_000;
         let (mut s, mut s2) = (0.0, 0.0);
         for i in 0..n {
-            let e = d.sample_substituted(lambda, v, &mut noise::frame_rng(7, i)).collected_e;
+            let e = d.sample_substituted(lambda, v, &mut PixelNoise::new(frame_key(7), i)).collected_e;
             s += e;
             s2 += e * e;
         }

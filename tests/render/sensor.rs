@@ -5,7 +5,7 @@ use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::camera::distortion::Distortion;
 use hilcam_core::render::film::{Pixels, RadianceImage};
 use hilcam_core::sensor::config::{AdcConfig, AutoExposureConfig, BandConfig, DetectorConfig, PsfConfig, QeConfig};
-use hilcam_core::sensor::{CameraPreset, OutputKind, Sensor, SensorConfig, SensorError, noise, psf, ptc};
+use hilcam_core::sensor::{CameraPreset, OutputKind, Sensor, SensorConfig, SensorError, psf, ptc};
 use std::path::Path;
 
 const H: f64 = 6.626_070_15e-34;
@@ -34,7 +34,7 @@ pub(crate) fn quiet_detector(t: f64) -> DetectorConfig {
     }
 }
 
-fn dn_config(det: DetectorConfig, adc: AdcConfig) -> SensorConfig {
+pub(crate) fn dn_config(det: DetectorConfig, adc: AdcConfig) -> SensorConfig {
     let mut c = SensorConfig {
         band: Some(BandConfig { min_um: 0.45, max_um: 0.75 }),
         detector: Some(det),
@@ -46,7 +46,7 @@ fn dn_config(det: DetectorConfig, adc: AdcConfig) -> SensorConfig {
     c
 }
 
-fn adc(bits: u8, gain: f64, offset: f64) -> AdcConfig {
+pub(crate) fn adc(bits: u8, gain: f64, offset: f64) -> AdcConfig {
     AdcConfig { bits, gain_e_per_dn: gain, offset_dn: offset }
 }
 
@@ -296,80 +296,6 @@ fn noise_is_deterministic_per_seed_and_independent_of_thread_count() {
     assert_ne!(a.pixels, run(2, 43).pixels);
 }
 
-// ---------------------------------------------------------------- Poisson sampling
-
-fn poisson_pmf(lambda: f64, k: usize) -> f64 {
-    let mut p = (-lambda).exp();
-    for i in 1..=k {
-        p *= lambda / i as f64;
-    }
-    p
-}
-
-fn sample_poisson(lambda: f64, n: usize, seed: u64) -> Vec<f64> {
-    (0..n as u64)
-        .map(|i| {
-            let mut r = noise::frame_rng(seed, i);
-            let (z, _) = noise::normal_pair(&mut r);
-            noise::poisson(lambda, z, &mut r)
-        })
-        .collect()
-}
-
-#[test]
-fn poisson_is_exact_below_the_threshold() {
-    // Chi-square of sampled counts against the exact pmf (bins with expectation ≥ 5,
-    // tails pooled). The 99.9 % point of χ² with ν ≤ 60 is below 100.
-    for &lambda in &[0.3, 3.0, 12.0, 29.0] {
-        assert!(lambda < noise::POISSON_EXACT_BELOW);
-        let n = 200_000;
-        let xs = sample_poisson(lambda, n, lambda.to_bits());
-        let kmax = (lambda + 10.0 * lambda.sqrt() + 10.0) as usize;
-        let mut counts = vec![0f64; kmax + 1];
-        for x in &xs {
-            counts[(*x as usize).min(kmax)] += 1.0;
-        }
-        let (mut chi2, mut dof, mut pool_o, mut pool_e, mut cum) = (0.0, 0, 0.0, 0.0, 0.0);
-        for (k, o) in counts.iter().enumerate() {
-            let p = if k == kmax { 1.0 - cum } else { poisson_pmf(lambda, k) };
-            cum += p;
-            pool_o += o;
-            pool_e += p * n as f64;
-            if pool_e >= 5.0 {
-                chi2 += (pool_o - pool_e).powi(2) / pool_e;
-                dof += 1;
-                pool_o = 0.0;
-                pool_e = 0.0;
-            }
-        }
-        assert!(dof >= 2 && chi2 < 100.0, "λ={lambda}: χ²={chi2} with {dof} bins");
-    }
-}
-
-#[test]
-fn poisson_normal_approximation_above_the_threshold_is_close_and_unbiased() {
-    // At the threshold: Kolmogorov distance to the exact Poisson CDF < 0.005.
-    let lambda = noise::POISSON_EXACT_BELOW;
-    let n = 400_000;
-    let mut xs = sample_poisson(lambda, n, 1);
-    xs.sort_by(f64::total_cmp);
-    let (mut cdf, mut d) = (0.0, 0.0f64);
-    for k in 0..(3.0 * lambda) as usize {
-        cdf += poisson_pmf(lambda, k);
-        let emp = xs.partition_point(|x| *x <= k as f64) as f64 / n as f64;
-        d = d.max((emp - cdf).abs());
-    }
-    assert!(d < 0.005, "KS distance {d}");
-    // Mean and variance equal λ for large means (variance within sampling error).
-    for &lambda in &[30.0, 1000.0, 1e6] {
-        let xs = sample_poisson(lambda, n, 2);
-        let m = xs.iter().sum::<f64>() / n as f64;
-        let v = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
-        assert!((m - lambda).abs() < 5.0 * (lambda / n as f64).sqrt(), "λ={lambda} mean {m}");
-        assert!((v / lambda - 1.0).abs() < 0.012, "λ={lambda} var {v}");
-    }
-}
-
 // ---------------------------------------------------------------- PSF
 
 fn total(v: &[f32]) -> f64 {
@@ -451,7 +377,7 @@ fn corner_samples(cam: &CameraModel) -> Vec<DVec2> {
     v
 }
 
-fn preset(name: &str) -> std::path::PathBuf {
+pub(crate) fn preset(name: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cameras").join(name)
 }
 

@@ -9,7 +9,7 @@ use crate::render::camera::{CameraModel, View, Window};
 use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
 use crate::render::sampling::mix64;
-use crate::render::truth::{TruthChannels, TruthImage, render_truth};
+use crate::render::truth::{TruthChannels, TruthImage, render_truth_with};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
 use crate::sensor::mc_noise::McNoiseStats;
@@ -108,6 +108,11 @@ impl FramePipeline {
         &self.sensor
     }
 
+    #[cfg(test)]
+    pub(crate) fn buffers(&self) -> &FrameBuffers {
+        &self.buffers
+    }
+
     /// Back to the state of a new pipeline: fresh buffers and auto-exposure. After a frame
     /// that stopped half-way (a caught panic) the buffers' bookkeeping of what the last
     /// frame wrote, and the exposure state, cannot be trusted.
@@ -162,7 +167,8 @@ impl FramePipeline {
                 .map_err(|e| SensorError::Invalid { field: "roi".into(), message: e.to_string() })?;
             view = view.window(&w);
         }
-        Ok(render_truth(&self.scene, &view, channels))
+        // After a frame through this very view (no motion, no ROI), its coverage.
+        Ok(render_truth_with(&self.scene, &view, channels, self.buffers.coverage_for(&view)))
     }
 
     fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {

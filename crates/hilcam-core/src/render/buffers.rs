@@ -12,6 +12,7 @@ use super::cull::SilhouetteBuffers;
 use super::cull::coverage::Coverage;
 use super::cull::visibility::PrimaryRaster;
 use super::integrator::waves::{CameraSample, Scratch};
+use crate::render::camera::View;
 use crate::render::film::RadianceImage;
 use crate::render::sampling::{Rng, SobolStream};
 use std::sync::Mutex;
@@ -26,6 +27,9 @@ pub struct FrameBuffers<L = ()> {
     pub(super) raster: PrimaryRaster,
     /// The pixels a traced frame samples (`cull::coverage::Coverage::from_leaf_boxes`).
     pub(super) coverage: Coverage,
+    /// The instant view whose pixels the last frame's coverage marks (None after a moving
+    /// frame, or one without coverage), and whether it is the rasteriser's.
+    pub(super) coverage_of: Option<(View, bool)>,
     /// One per band of rows; a frame uses the first `rows / BAND_ROWS` (the rest keep their
     /// capacity for larger frames).
     pub(super) bands: Vec<Band<L>>,
@@ -55,6 +59,7 @@ impl<L> Default for FrameBuffers<L> {
             fill: 0.0,
             raster: PrimaryRaster::default(),
             coverage: Coverage::default(),
+            coverage_of: None,
             bands: Vec::new(),
             bands_used: 0,
             size: (0, 0),
@@ -70,6 +75,19 @@ impl<L> Default for FrameBuffers<L> {
 }
 
 impl<L> FrameBuffers<L> {
+    /// The last frame's coverage (the pixels whose samples may hit a triangle), when it
+    /// marks `view`'s pixels: the same instant view. A pixel it leaves out cannot see the
+    /// target from anywhere in its area, so the ground truth's pixel-centre rays may skip
+    /// it too.
+    pub fn coverage_for(&self, view: &View) -> Option<&Coverage> {
+        match &self.coverage_of {
+            Some((v, raster)) if v.same_rays(view) => {
+                Some(if *raster { &self.raster.coverage } else { &self.coverage })
+            }
+            _ => None,
+        }
+    }
+
     /// The image of the last frame rendered into these buffers.
     pub fn image(&self) -> &RadianceImage {
         &self.image

@@ -155,6 +155,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         fill: _,
         raster: raster_buffers,
         coverage: box_coverage,
+        coverage_of,
         bands: band_buffers,
         stat,
         variance: variance_buffer,
@@ -178,6 +179,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     let mut traced = 0u64;
     let mut samples = 0u64;
     let mut primary_rasterised = false;
+    *coverage_of = None;
     // The hybrid method where it applies (an instant view, no planet): no bands, no
     // per-pixel variance (its frames carry no Monte Carlo report yet).
     let hybrid_frame = match (rect, settings.method) {
@@ -238,6 +240,9 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         } else {
             box_coverage.from_leaf_boxes(target, view, rect).then_some(&*box_coverage)
         };
+        // Kept for the frame's ground truth: an instant view's coverage holds for its
+        // pixel centres too.
+        *coverage_of = coverage.filter(|_| !moving).map(|_| (view.clone(), primary_rasterised));
         let job = TileJob {
             view,
             ctx: &ctx,

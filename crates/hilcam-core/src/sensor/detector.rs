@@ -3,7 +3,8 @@
 
 use super::config::DetectorConfig;
 use super::noise;
-use crate::render::sampling::Rng;
+use super::stream::PixelNoise;
+use super::ziggurat::{self, Ziggurat};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -16,13 +17,26 @@ pub const FPN_CACHE_MAX_PIXELS: usize = 1 << 24;
 #[derive(Clone, Debug, PartialEq)]
 pub struct FixedPattern {
     seed: u64,
-    map: Option<Arc<Vec<[f32; 2]>>>,
+    map: Option<Arc<FpnMaps>>,
+}
+
+/// The cached pattern as two planes, so that a pass that needs only one reads only it.
+#[derive(Debug, PartialEq)]
+struct FpnMaps {
+    prnu: Vec<f32>,
+    dsnu: Vec<f32>,
+    /// The largest DSNU value of any pixel (bounds every pixel's dark charge).
+    dsnu_max: f32,
 }
 
 impl FixedPattern {
     pub fn new(seed: u64, pixels: usize) -> Self {
-        let map = (pixels <= FPN_CACHE_MAX_PIXELS)
-            .then(|| Arc::new((0..pixels as u64).into_par_iter().map(|p| Self::compute(seed, p)).collect()));
+        let map = (pixels <= FPN_CACHE_MAX_PIXELS).then(|| {
+            let z: Vec<[f32; 2]> = (0..pixels as u64).into_par_iter().map(|p| Self::compute(seed, p)).collect();
+            let dsnu: Vec<f32> = z.iter().map(|z| z[1]).collect();
+            let dsnu_max = dsnu.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            Arc::new(FpnMaps { prnu: z.iter().map(|z| z[0]).collect(), dsnu, dsnu_max })
+        });
         FixedPattern { seed, map }
     }
 
@@ -36,9 +50,30 @@ impl FixedPattern {
     #[inline]
     pub fn z(&self, pixel: u64) -> [f32; 2] {
         match &self.map {
-            Some(m) => m[pixel as usize],
+            Some(m) => [m.prnu[pixel as usize], m.dsnu[pixel as usize]],
             None => Self::compute(self.seed, pixel),
         }
+    }
+
+    /// The DSNU value of `pixel` alone.
+    #[inline]
+    pub fn z_dsnu(&self, pixel: u64) -> f32 {
+        match &self.map {
+            Some(m) => m.dsnu[pixel as usize],
+            None => Self::compute(self.seed, pixel)[1],
+        }
+    }
+
+    /// The DSNU values of pixels `first..first + n` (one sensor row's run), when the
+    /// pattern is cached.
+    #[inline]
+    pub fn dsnu_run(&self, first: u64, n: usize) -> Option<&[f32]> {
+        self.map.as_ref().map(|m| &m.dsnu[first as usize..first as usize + n])
+    }
+
+    /// The largest DSNU value of any pixel, when the pattern is cached.
+    pub fn dsnu_max(&self) -> Option<f32> {
+        self.map.as_ref().map(|m| m.dsnu_max)
     }
 }
 
@@ -58,6 +93,8 @@ pub struct Detector {
     pub shot_noise: bool,
     pub full_well_e: Option<f64>,
     pub read_noise_e: f64,
+    /// The normal variates' tables.
+    zig: &'static Ziggurat,
 }
 
 /// The charge of one pixel at each stage.
@@ -93,6 +130,7 @@ impl Detector {
             shot_noise: cfg.shot_noise,
             full_well_e: cfg.full_well_e,
             read_noise_e: cfg.read_noise_e.unwrap_or(0.0),
+            zig: ziggurat::tables(),
         }
     }
 
@@ -108,14 +146,42 @@ impl Detector {
     /// [`Detector::expected`] as its (photo, dark) parts, e⁻.
     #[inline]
     pub fn expected_parts(&self, radiance: f64, pixel: u64) -> (f64, f64) {
-        let mut photo = radiance.max(0.0) * self.e_per_radiance;
-        let mut dark = self.dark_e;
-        if let Some(fp) = &self.fixed_pattern {
-            let [z1, z2] = fp.z(pixel);
-            photo *= (1.0 + self.prnu * z1 as f64).max(0.0);
-            dark = (dark + self.dsnu_e * z2 as f64).max(0.0);
+        match &self.fixed_pattern {
+            Some(fp) => self.expected_parts_z(radiance, fp.z(pixel)),
+            None => self.expected_parts_z(radiance, [0.0; 2]),
         }
-        (photo, dark)
+    }
+
+    /// [`Detector::expected_parts`] at a pixel whose fixed pattern is `z` (ignored
+    /// without one).
+    #[inline]
+    pub fn expected_parts_z(&self, radiance: f64, z: [f32; 2]) -> (f64, f64) {
+        let photo = radiance.max(0.0) * self.e_per_radiance;
+        match &self.fixed_pattern {
+            Some(_) => (photo * self.prnu_factor(z[0]), self.dark_z(z[1])),
+            None => (photo, self.dark_e),
+        }
+    }
+
+    /// `max(0, 1 + PRNU·z₁)`.
+    #[inline]
+    fn prnu_factor(&self, z1: f32) -> f64 {
+        (1.0 + self.prnu * z1 as f64).max(0.0)
+    }
+
+    /// The mean dark charge of a pixel whose DSNU value is `z2`, e⁻ (with a fixed pattern).
+    #[inline]
+    pub fn dark_z(&self, z2: f32) -> f64 {
+        (self.dark_e + self.dsnu_e * z2 as f64).max(0.0)
+    }
+
+    /// An upper bound of every pixel's mean dark charge, e⁻ (None when the pattern is
+    /// not cached: then each pixel's must be computed).
+    pub fn dark_max(&self) -> Option<f64> {
+        match &self.fixed_pattern {
+            Some(fp) => fp.dsnu_max().map(|z| self.dark_z(z)),
+            None => Some(self.dark_e),
+        }
     }
 
     /// Photo-electrons per unit radiance at `pixel`, PRNU included: the slope of
@@ -123,19 +189,26 @@ impl Detector {
     #[inline]
     pub fn photo_gain(&self, pixel: u64) -> f64 {
         match &self.fixed_pattern {
-            Some(fp) => self.e_per_radiance * (1.0 + self.prnu * fp.z(pixel)[0] as f64).max(0.0),
+            Some(fp) => self.photo_gain_z(fp.z(pixel)[0]),
+            None => self.e_per_radiance,
+        }
+    }
+
+    /// [`Detector::photo_gain`] at a pixel whose PRNU value is `z1`.
+    #[inline]
+    pub fn photo_gain_z(&self, z1: f32) -> f64 {
+        match &self.fixed_pattern {
+            Some(_) => self.e_per_radiance * self.prnu_factor(z1),
             None => self.e_per_radiance,
         }
     }
 
     /// Sample the pixel's charge: Poisson shot noise (if on), full-well clip, then
-    /// Gaussian read noise. `rng` is the pixel's frame stream.
-    #[inline]
-    pub fn sample(&self, expected_e: f64, rng: &mut Rng) -> PixelCharge {
-        let need_normal = self.read_noise_e > 0.0 || (self.shot_noise && expected_e >= noise::POISSON_EXACT_BELOW);
-        let (z_shot, z_read) = if need_normal { noise::normal_pair(rng) } else { (0.0, 0.0) };
-        let e = if self.shot_noise { noise::poisson(expected_e, z_shot, rng) } else { expected_e };
-        self.clip_and_read(expected_e, e, z_read)
+    /// Gaussian read noise, from the pixel's frame streams `s`.
+    #[inline(always)]
+    pub fn sample(&self, expected_e: f64, s: &mut PixelNoise) -> PixelCharge {
+        let e = if self.shot_noise { noise::poisson_with(self.zig, expected_e, &mut s.shot) } else { expected_e };
+        self.clip_and_read(expected_e, e, s)
     }
 
     /// [`Detector::sample`] for a pixel whose expected charge already carries Monte Carlo
@@ -144,21 +217,23 @@ impl Detector {
     /// adds, as in [`noise::poisson_normal`]), so that Monte Carlo plus shot noise has the
     /// camera's variance λ wherever v ≤ λ. Shot noise must be on (validated).
     #[inline]
-    pub fn sample_substituted(&self, expected_e: f64, mc_var_e2: f64, rng: &mut Rng) -> PixelCharge {
-        let (z_shot, z_read) = noise::normal_pair(rng);
+    pub fn sample_substituted(&self, expected_e: f64, mc_var_e2: f64, s: &mut PixelNoise) -> PixelCharge {
+        let z_shot = self.zig.normal(&mut s.shot);
         let sd = (expected_e - mc_var_e2 - 1.0 / 12.0).max(0.0).sqrt();
         let e = super::adc::floor(expected_e + sd * z_shot + 0.5).max(0.0);
-        self.clip_and_read(expected_e, e, z_read)
+        self.clip_and_read(expected_e, e, s)
     }
 
-    /// The collected charge `e` clipped at the full well, then read with noise `z_read`.
-    #[inline]
-    fn clip_and_read(&self, expected_e: f64, e: f64, z_read: f64) -> PixelCharge {
+    /// The collected charge `e` clipped at the full well, then read with noise from the
+    /// read stream of `s` (no draw without read noise).
+    #[inline(always)]
+    pub fn clip_and_read(&self, expected_e: f64, e: f64, s: &mut PixelNoise) -> PixelCharge {
         let (e, full) = match self.full_well_e {
             Some(fw) if e >= fw => (fw, true),
             _ => (e, false),
         };
-        PixelCharge { expected_e, collected_e: e, full, read_e: e + self.read_noise_e * z_read }
+        let read_e = if self.read_noise_e > 0.0 { e + self.read_noise_e * self.zig.normal(&mut s.read) } else { e };
+        PixelCharge { expected_e, collected_e: e, full, read_e }
     }
 }
 
@@ -172,7 +247,10 @@ mod tests {
         let live = FixedPattern { seed: 7, map: None };
         for p in [0u64, 1, 500, 999] {
             assert_eq!(cached.z(p), live.z(p));
+            assert_eq!(cached.z_dsnu(p), live.z(p)[1]);
         }
+        let max = (0..1000).map(|p| live.z(p)[1]).fold(f32::MIN, f32::max);
+        assert_eq!(cached.dsnu_max(), Some(max));
         assert_ne!(cached.z(0), FixedPattern::new(8, 1).z(0));
     }
 }

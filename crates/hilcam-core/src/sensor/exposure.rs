@@ -4,6 +4,7 @@
 use super::adc::Adc;
 use super::config::AutoExposureConfig;
 use crate::render::film::Pixels;
+use rayon::prelude::*;
 
 /// Changes smaller than this fraction are ignored, so noise does not make the
 /// integration time dither from frame to frame.
@@ -81,22 +82,16 @@ impl AutoExposure {
 /// Nearest-rank percentile `p` (0 < p ≤ 100) of integer pixels, via a histogram.
 /// Float pixels have no DN: returns 0.
 pub fn percentile_dn(pixels: &Pixels, p: f64) -> f64 {
-    let mut hist = vec![0u64; 65536];
-    let n = match pixels {
-        Pixels::Mono8(d) => {
-            d.iter().for_each(|&v| hist[v as usize] += 1);
-            d.len()
-        }
-        Pixels::Mono16 { data, .. } => {
-            data.iter().for_each(|&v| hist[v as usize] += 1);
-            data.len()
-        }
+    let hist = match pixels {
+        Pixels::Mono8(d) => histogram(d, 256),
+        Pixels::Mono16 { data, .. } => histogram(data, 65536),
         Pixels::Float32(_) => return 0.0,
     };
+    let n: u64 = hist.iter().sum();
     if n == 0 {
         return 0.0;
     }
-    let rank = ((p / 100.0 * n as f64).ceil() as u64).clamp(1, n as u64);
+    let rank = ((p / 100.0 * n as f64).ceil() as u64).clamp(1, n);
     let mut cum = 0u64;
     for (v, c) in hist.iter().enumerate() {
         cum += c;
@@ -104,7 +99,33 @@ pub fn percentile_dn(pixels: &Pixels, p: f64) -> f64 {
             return v as f64;
         }
     }
-    65535.0
+    (hist.len() - 1) as f64
+}
+
+/// Counts of each value below `bins`, over chunks in parallel. Within a chunk, four
+/// interleaved tables: a frame is mostly a few codes, and one table would wait on its
+/// own last increment of the same bin at nearly every pixel.
+fn histogram<T: Copy + Into<usize> + Sync>(data: &[T], bins: usize) -> Vec<u64> {
+    // Only as many bins as the largest value needs (a 10-bit frame fills 1024).
+    let bins = data.par_iter().map(|v| (*v).into() + 1).max().unwrap_or(0).min(bins);
+    data.par_chunks(1 << 16)
+        .fold(
+            || vec![0u32; 4 * bins],
+            |mut h, chunk| {
+                let quads = chunk.chunks_exact(4);
+                for v in quads.remainder() {
+                    h[(*v).into()] += 1;
+                }
+                for q in quads {
+                    for (k, v) in q.iter().enumerate() {
+                        h[k * bins + (*v).into()] += 1;
+                    }
+                }
+                h
+            },
+        )
+        .map(|h| (0..bins).map(|b| (0..4).map(|k| u64::from(h[k * bins + b])).sum()).collect::<Vec<u64>>())
+        .reduce(Vec::new, |a, b| if a.is_empty() { b } else { a.iter().zip(&b).map(|(x, y)| x + y).collect() })
 }
 
 #[cfg(test)]

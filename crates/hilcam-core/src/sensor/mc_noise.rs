@@ -83,7 +83,7 @@ impl McRow {
     /// Count one pixel: expected `photo` and `dark` charge, Monte Carlo variance `v_e`
     /// (e⁻²), read noise `read_e2` (e⁻²).
     #[inline]
-    fn add(&mut self, k: f64, shot: bool, photo: f64, dark: f64, v_e: f64, read_e2: f64) {
+    pub fn add(&mut self, k: f64, shot: bool, photo: f64, dark: f64, v_e: f64, read_e2: f64) {
         if photo < 1.0 {
             return;
         }

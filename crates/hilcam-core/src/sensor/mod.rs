@@ -7,13 +7,19 @@
 //! - [`config`]: `SensorConfig` (serde) and `CameraPreset` (`[camera]` + `[sensor]`).
 //! - [`optics`]: transmittance, cos⁴ vignetting, the photon budget.
 //! - [`psf`]: Gaussian and Airy kernels, energy-preserving convolution.
+//! - [`psf_band`]: a separable PSF row by row, with the whole-image convolution's bits.
 //! - [`detector`]: QE, dark current, fixed pattern, shot noise, full well, read noise.
-//! - [`noise`]: seeded normal and Poisson variates keyed by (frame seed, pixel).
+//! - [`stream`]: each pixel's counter-based noise streams, keyed by (frame seed, pixel).
+//! - [`ziggurat`]: exact standard normal variates, fast.
+//! - [`noise`]: Poisson variates; the fixed pattern's normals.
+//! - [`empty_well`]: the DN of a pixel without charge, drawn from its exact distribution.
 //! - [`adc`]: gain, offset, bit depth, clipping.
 //! - [`exposure`]: auto-exposure state across frames.
 //! - [`ptc`]: photon-transfer measurement (gain and read noise from flat fields).
 //! - [`mc_noise`]: the renderer's Monte Carlo variance through the chain, the camera's
 //!   noise bound for `quality = "sensor"`, and the per-frame report.
+//! - `convert`: the fused DN pass (optics, PSF, detector, ADC, report) over bands of rows;
+//!   `optics_plan`: the optics it runs, planned per sensor and window.
 //!
 //! ```
 //! use crate::render::camera::CameraModel;
@@ -28,14 +34,20 @@
 
 pub mod adc;
 pub mod config;
+mod convert;
 pub mod detector;
+pub mod empty_well;
 pub mod exposure;
 pub mod mc_noise;
 pub mod noise;
 pub mod optics;
+mod optics_plan;
 pub mod psf;
+pub mod psf_band;
 pub mod ptc;
 pub mod shutter;
+pub mod stream;
+pub mod ziggurat;
 
 pub use config::{CameraPreset, NoiseMode, OutputKind, SensorConfig, check_quality};
 pub use exposure::{AutoExposure, ExposureUpdate};
@@ -44,10 +56,12 @@ pub use shutter::{ExposureMode, ExposureTiming};
 
 use crate::render::camera::{CameraModel, PixelKeys, Window};
 use crate::render::film::{Pixels, RadianceImage};
-use adc::{Adc, Conversion};
+use adc::Adc;
 use detector::Detector;
+use optics_plan::{PsfPlan, Scale};
 use rayon::prelude::*;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Errors from loading, validating or applying a sensor model.
 #[derive(Debug, thiserror::Error)]
@@ -81,6 +95,12 @@ pub struct Sensor {
     fixed_pattern: Option<detector::FixedPattern>,
     /// The part of the array this sensor converts (the whole array unless [`Sensor::windowed`]).
     window: Window,
+    /// τ cos⁴ over the window (None when it scales nothing) and the PSF's plan for it.
+    scale: Option<Scale>,
+    psf_plan: PsfPlan,
+    /// The DN distribution of an empty well (with a detector whose shot noise is on and DN
+    /// output): how the dark pixels are read.
+    empty_well: Option<Arc<empty_well::EmptyWell>>,
 }
 
 /// One converted frame.
@@ -113,19 +133,6 @@ pub struct FrameStats {
     /// The frame's Monte Carlo noise against the camera's (present when a variance image
     /// was given and the sensor has a detector with DN output).
     pub mc: Option<McNoiseStats>,
-}
-
-/// Per-row partial sums; reduced in row order so the totals are thread-count independent.
-#[derive(Clone, Copy, Default)]
-struct RowStats {
-    expected: f64,
-    max_expected: f64,
-    collected: f64,
-    full: u64,
-    low: u64,
-    high: u64,
-    dn: f64,
-    mc: mc_noise::McRow,
 }
 
 impl Sensor {
@@ -169,19 +176,30 @@ impl Sensor {
         if let Some(note) = cfg.float_output_note() {
             tracing::warn!("{note}");
         }
+        let window = Window::full(camera);
+        let adc = cfg.adc.as_ref().map(Adc::new);
+        let empty_well = match (&cfg.detector, &adc, output) {
+            (Some(d), Some(a), OutputKind::Dn) if d.shot_noise => {
+                empty_well::EmptyWell::new(d.read_noise_e.unwrap_or(0.0), a).map(Arc::new)
+            }
+            _ => None,
+        };
         Ok(Sensor {
             camera: camera.clone(),
             cfg: cfg.clone(),
             output,
             radiance_scale: cfg.radiance_scale.unwrap_or(1.0),
+            scale: Scale::new(&cfg.optics, camera, &window),
+            psf_plan: PsfPlan::new(&cfg.optics.psf, &psf, &window),
             psf,
             e_per_radiance_s: optics::electrons_per_radiance_second(cfg, camera),
-            adc: cfg.adc.as_ref().map(Adc::new),
+            adc,
+            empty_well,
             fixed_pattern: cfg.detector.as_ref().and_then(|d| {
                 (d.prnu.unwrap_or(0.0) > 0.0 || d.dsnu_e_per_s.unwrap_or(0.0) > 0.0)
                     .then(|| detector::FixedPattern::new(d.fpn_seed, camera.width as usize * camera.height as usize))
             }),
-            window: Window::full(camera),
+            window,
         })
     }
 
@@ -193,7 +211,12 @@ impl Sensor {
     /// [`Sensor::psf_margin`]): each pixel gets the cos⁴ factor, fixed pattern and noise
     /// stream of its place on the full array. `window` must be inside the array.
     pub fn windowed(&self, window: Window) -> Sensor {
-        Sensor { window, ..self.clone() }
+        Sensor {
+            window,
+            scale: Scale::new(&self.cfg.optics, &self.camera, &window),
+            psf_plan: PsfPlan::new(&self.cfg.optics.psf, &self.psf, &window),
+            ..self.clone()
+        }
     }
 
     /// The part of the array converted.
@@ -309,7 +332,7 @@ impl Sensor {
         t_s: f64,
         k: f64,
     ) -> Result<SensorOutput, SensorError> {
-        let rad = self.optics(img)?;
+        self.check_size(img)?;
         if let Some(v) = variance
             && v.len() != img.data.len()
         {
@@ -317,6 +340,7 @@ impl Sensor {
         }
         let w = img.width as usize;
         if self.output == OutputKind::Float32 {
+            let rad = self.optics(img)?;
             let s = self.radiance_scale;
             let data: Vec<f32> =
                 if s == 1.0 { rad.data } else { rad.data.par_iter().map(|v| (*v as f64 * s) as f32).collect() };
@@ -337,64 +361,8 @@ impl Sensor {
         }
         let adc = self.adc.expect("validated: DN output has an ADC");
         let det = self.detector(t_s);
-        // The Monte Carlo variance after the optics, radiance² (only with a detector: the
-        // comparison and the substitution are in electrons).
-        let mc_var = match (variance, &det) {
-            (Some(v), Some(_)) => Some(self.optics_variance(v)?),
-            _ => None,
-        };
-        let substitute = self.cfg.detector.as_ref().is_some_and(|d| d.noise == NoiseMode::Substitute);
-        let scale = self.radiance_scale;
-        let keys = self.keys();
-        let n = rad.data.len();
-        let mut dn = vec![0u16; n];
-        let rows: Vec<RowStats> = dn
-            .par_chunks_mut(w)
-            .zip(rad.data.par_chunks(w))
-            .enumerate()
-            .map(|(row, (out, src))| {
-                let mut st = RowStats::default();
-                let mc_row = mc_var.as_ref().map(|v| &v[row * w..(row + 1) * w]);
-                for (col, (o, l)) in out.iter_mut().zip(src).enumerate() {
-                    let pixel = keys.key(row as u32, col as u32);
-                    let (expected, collected, full, read) = match &det {
-                        Some(d) => {
-                            let mut rng = noise::frame_rng(frame_seed, pixel);
-                            let c = match mc_row {
-                                None => d.sample(d.expected(*l as f64, pixel), &mut rng),
-                                Some(vr) => {
-                                    let (photo, dark, v_e) = st.mc.add_pixel(k, d, *l as f64, vr[col] as f64, pixel);
-                                    if substitute && v_e > 0.0 {
-                                        d.sample_substituted(photo + dark, v_e, &mut rng)
-                                    } else {
-                                        d.sample(photo + dark, &mut rng)
-                                    }
-                                }
-                            };
-                            (c.expected_e, c.collected_e, c.full, c.read_e)
-                        }
-                        None => {
-                            let e = *l as f64 * scale;
-                            (e, e, false, e)
-                        }
-                    };
-                    let conv = adc.convert(read);
-                    match conv {
-                        Conversion::InRange(_) => {}
-                        Conversion::ClippedLow => st.low += 1,
-                        Conversion::ClippedHigh(_) => st.high += 1,
-                    }
-                    let v = conv.dn();
-                    *o = v as u16;
-                    st.expected += expected;
-                    st.max_expected = st.max_expected.max(expected);
-                    st.collected += collected;
-                    st.full += full as u64;
-                    st.dn += v as f64;
-                }
-                st
-            })
-            .collect();
+        let (dn, rows) = self.convert_dn(img, variance, det.as_ref(), adc, frame_seed, k)?;
+        let n = dn.len();
         let mut s = FrameStats::default();
         for r in &rows {
             s.mean_expected_e += r.expected;
@@ -403,9 +371,9 @@ impl Sensor {
             s.full_well_pixels += r.full;
             s.adc_low_clipped += r.low;
             s.adc_high_clipped += r.high;
-            s.mean_dn += r.dn;
+            s.mean_dn += r.dn as f64;
         }
-        s.mc = mc_var.as_ref().map(|_| McNoiseStats::from_rows(k, rows.iter().map(|r| r.mc)));
+        s.mc = variance.filter(|_| det.is_some()).map(|_| McNoiseStats::from_rows(k, rows.iter().map(|r| r.mc)));
         s.mean_expected_e /= n as f64;
         s.mean_collected_e /= n as f64;
         s.mean_dn /= n as f64;

@@ -1,20 +1,17 @@
-//! Random variates for the sensor noise: uniform, normal, Poisson.
+//! Random variates for the sensor noise: Poisson shot noise, and the fixed pattern's
+//! normal pairs.
 //!
-//! Every draw comes from a [`crate::render::sampling::Rng`] keyed by (frame seed, pixel), so a
-//! frame's noise is a pure function of its seed whatever the thread count.
+//! A frame's noise comes from each pixel's [`PixelStream`] (counter-based, keyed by frame
+//! seed and pixel), normals from the [`ziggurat`](super::ziggurat): a frame's noise is a
+//! pure function of its seed whatever the thread count. The fixed pattern, drawn once per
+//! sensor, keeps its own PCG streams and polar-method normals.
 
+use super::stream::PixelStream;
+use super::ziggurat::{self, Ziggurat};
 use crate::render::sampling::{Rng, mix64};
 
-/// Domain separators, so the sensor's streams never coincide with the renderer's
-/// (which key by (seed, frame, pixel, sample)) even when the same seed is passed.
-const FRAME_NOISE_DOMAIN: u64 = 0x53_454e_534f_5231; // "SENSOR1"
+/// Domain separator of the fixed pattern's streams (see [`super::stream`] for the frame's).
 const FIXED_PATTERN_DOMAIN: u64 = 0x46_5058_4d41_5031; // "FPXMAP1"
-
-/// The per-frame noise stream of one pixel.
-#[inline]
-pub fn frame_rng(frame_seed: u64, pixel: u64) -> Rng {
-    Rng::for_sample(mix64(frame_seed ^ FRAME_NOISE_DOMAIN), 0, pixel, 0)
-}
 
 /// The fixed-pattern stream of one pixel: the same in every frame for one `fpn_seed`.
 #[inline]
@@ -31,6 +28,7 @@ pub fn uniform_open(rng: &mut Rng) -> f64 {
 /// Two independent standard normal variates (Marsaglia's polar method: Box–Muller
 /// without the sine and cosine; 1.27 uniform pairs per call on average). Exact normal;
 /// the rejection loop draws from the pixel's own stream, so it stays deterministic.
+/// Used for the fixed pattern, drawn once per sensor.
 #[inline]
 pub fn normal_pair(rng: &mut Rng) -> (f64, f64) {
     loop {
@@ -53,19 +51,35 @@ pub fn normal_pair(rng: &mut Rng) -> (f64, f64) {
 /// normal's variance is reduced by 5/36 to keep the sampled variance at λ.
 pub const POISSON_EXACT_BELOW: f64 = 30.0;
 
-/// A Poisson variate of mean `lambda` (≥ 0). `z` is a standard normal draw used only
-/// above [`POISSON_EXACT_BELOW`]; below it one uniform is taken from `rng`.
-#[inline]
-pub fn poisson(lambda: f64, z: f64, rng: &mut Rng) -> f64 {
+/// A Poisson variate of mean `lambda` (≥ 0) from `s`: one uniform below
+/// [`POISSON_EXACT_BELOW`], one normal at and above it; nothing for λ = 0.
+pub fn poisson(lambda: f64, s: &mut PixelStream) -> f64 {
+    poisson_with(ziggurat::tables(), lambda, s)
+}
+
+/// [`poisson`] with the normal's tables at hand.
+#[inline(always)]
+pub fn poisson_with(zig: &Ziggurat, lambda: f64, s: &mut PixelStream) -> f64 {
     if lambda <= 0.0 {
         return 0.0;
     }
-    if lambda < POISSON_EXACT_BELOW { poisson_inversion(lambda, uniform_open(rng)) } else { poisson_normal(lambda, z) }
+    if lambda < POISSON_EXACT_BELOW {
+        poisson_inversion(lambda, s.uniform_open())
+    } else {
+        poisson_normal(lambda, zig.normal(s))
+    }
 }
 
 /// Exact Poisson by sequential search of the CDF: smallest k with F(k) ≥ u.
-#[inline]
+#[inline(always)]
 pub fn poisson_inversion(lambda: f64, u: f64) -> f64 {
+    // F(0) = e^−λ ≥ 1 − λ: most draws of a dark pixel's small mean end here, without
+    // the exponential.
+    if u <= 1.0 - lambda { 0.0 } else { poisson_search(lambda, u) }
+}
+
+#[inline(never)]
+fn poisson_search(lambda: f64, u: f64) -> f64 {
     let mut p = (-lambda).exp();
     let mut f = p;
     let mut k = 0u32;
@@ -104,17 +118,27 @@ mod tests {
     }
 
     #[test]
-    fn streams_are_keyed_and_distinct() {
-        let a = frame_rng(1, 5).next_u32();
-        assert_eq!(a, frame_rng(1, 5).next_u32());
-        assert_ne!(a, frame_rng(2, 5).next_u32());
-        assert_ne!(a, frame_rng(1, 6).next_u32());
-        assert_ne!(a, fixed_pattern_rng(1, 5).next_u32());
+    fn the_shortcut_agrees_with_the_search() {
+        // u ≤ 1 − λ returns 0 without the exponential; the search gives 0 there too.
+        for l in [1e-6, 1e-3, 0.1, 0.5] {
+            for k in 1..1000 {
+                let u = k as f64 / 1000.0 * (1.0 - l);
+                let mut f = (-l).exp();
+                let mut n = 0;
+                let mut p = f;
+                while f < u {
+                    n += 1;
+                    p *= l / n as f64;
+                    f += p;
+                }
+                assert_eq!(poisson_inversion(l, u), n as f64, "λ {l} u {u}");
+            }
+        }
     }
 
     #[test]
     fn normal_pair_moments() {
-        let mut r = frame_rng(9, 0);
+        let mut r = fixed_pattern_rng(9, 0);
         let n = 200_000;
         let (mut s, mut s2, mut c) = (0.0, 0.0, 0.0);
         for _ in 0..n / 2 {
@@ -126,7 +150,7 @@ mod tests {
         let n = n as f64;
         assert!((s / n).abs() < 0.01);
         // Shape: P(|z| > 1) = 0.3173, P(|z| > 2) = 0.0455, P(|z| > 3) = 0.0027.
-        let mut r = frame_rng(10, 0);
+        let mut r = fixed_pattern_rng(10, 0);
         let mut tails = [0.0; 3];
         for _ in 0..n as usize / 2 {
             let (a, b) = normal_pair(&mut r);

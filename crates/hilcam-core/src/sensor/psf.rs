@@ -73,7 +73,7 @@ impl Kernel {
     }
 
     #[inline]
-    fn at(&self, mx: i64, my: i64) -> f32 {
+    pub(super) fn at(&self, mx: i64, my: i64) -> f32 {
         let side = 2 * self.rx + 1;
         self.weights[(my + self.ry as i64) as usize * side + (mx + self.rx as i64) as usize]
     }
@@ -143,13 +143,13 @@ fn reflect(j: i64, n: usize) -> usize {
 /// For each output index o along an axis of length n, the (input index, kernel offset)
 /// pairs whose scatter lands on o (`of(o)`); every (i, m) pair occurs exactly once. Kept
 /// flat (one list and its offsets) so an axis costs three allocations, not one per index.
-struct Gather {
+pub(super) struct Gather {
     start: Vec<usize>,
     pairs: Vec<(usize, i64)>,
 }
 
 impl Gather {
-    fn new(n: usize, r: usize) -> Gather {
+    pub(super) fn new(n: usize, r: usize) -> Gather {
         let target = |i: usize, m: i64| reflect(i as i64 + m, n);
         let offsets = || (0..n).flat_map(|i| (-(r as i64)..=r as i64).map(move |m| (i, m)));
         // Counting sort by output index, keeping each list in (i, m) order.
@@ -170,7 +170,7 @@ impl Gather {
         Gather { start, pairs }
     }
 
-    fn of(&self, o: usize) -> &[(usize, i64)] {
+    pub(super) fn of(&self, o: usize) -> &[(usize, i64)] {
         &self.pairs[self.start[o]..self.start[o + 1]]
     }
 }

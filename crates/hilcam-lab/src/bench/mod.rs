@@ -1,6 +1,7 @@
 //! Benchmarks that print ratios measured side by side in one run (never timed tests).
 
 pub mod effects;
+pub mod fixed_costs;
 pub mod quality;
 pub mod render;
 pub mod sampling;

@@ -36,6 +36,31 @@ pub enum BenchKind {
     /// through render + sensor, the share of lit pixels whose noise (and whose RMS error
     /// against a converged reference) exceeds half the camera's own, with the frame rate.
     Quality(crate::cli::bench_quality::QualityArgs),
+    /// The fixed per-frame costs: the sensor stage and the ground-truth pass, each beside
+    /// the frame it belongs to, measured in the same rounds.
+    Sensor(SensorBenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct SensorBenchArgs {
+    /// Scene file (its camera, sensor, pose and settings).
+    #[arg(long, default_value = "scenes/satellite.toml")]
+    pub scene: PathBuf,
+    /// Samples per pixel of the frames.
+    #[arg(long, default_value_t = 2)]
+    pub spp: u32,
+    /// Timed rounds (after one untimed); medians are reported.
+    #[arg(long, default_value_t = 10)]
+    pub rounds: usize,
+    /// Conversions of each round's frame by the sensor alone (all go into its median).
+    #[arg(long, default_value_t = 3)]
+    pub sensor_repeat: usize,
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// Truth channel sets to time, each as `depth,mask,…` (repeat the flag for more).
+    #[arg(long, value_parser = hilcam_core::render::truth::TruthChannels::parse,
+          default_values = ["depth,mask", "depth,mask,normal,body_xyz"])]
+    pub truth: Vec<hilcam_core::render::truth::TruthChannels>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -169,7 +194,18 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         BenchKind::Serve(s) => serve_bench(s),
         BenchKind::Effects(e) => effects(e),
         BenchKind::Quality(q) => crate::cli::bench_quality::run(q),
+        BenchKind::Sensor(s) => fixed_costs(s),
     }
+}
+
+fn fixed_costs(a: SensorBenchArgs) -> anyhow::Result<()> {
+    use crate::bench::fixed_costs::{measure, print};
+    rayon::ThreadPoolBuilder::new().num_threads(a.threads).build_global().ok();
+    anyhow::ensure!(a.rounds > 0 && a.spp > 0, "--rounds and --spp must be > 0");
+    println!("{}: spp {}, {} rounds, {} threads, medians", a.scene.display(), a.spp, a.rounds, a.threads);
+    let spp = hilcam_core::render::integrator::Spp::whole(a.spp);
+    print(&measure(&a.scene, spp, a.rounds, a.sensor_repeat, &a.truth)?);
+    Ok(())
 }
 
 fn effects(a: EffectsBenchArgs) -> anyhow::Result<()> {

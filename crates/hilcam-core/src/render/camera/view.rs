@@ -143,6 +143,19 @@ impl View {
         self
     }
 
+    /// True when `other` makes the same primary rays as this view through every pixel:
+    /// the same image, lens, camera placement and target bounds, neither moving.
+    pub fn same_rays(&self, other: &View) -> bool {
+        let b = |v: &View| (v.bounds.centre, v.bounds.radius, v.bounds.min, v.bounds.max);
+        (self.width, self.height, self.pp, self.inv_focal_px)
+            == (other.width, other.height, other.pp, other.inv_focal_px)
+            && (self.origin, self.cam_to_render, self.distortion, self.keys)
+                == (other.origin, other.cam_to_render, other.distortion, other.keys)
+            && b(self) == b(other)
+            && self.motion.is_none()
+            && other.motion.is_none()
+    }
+
     /// Random-number key of the image's pixel (`row`, `col`).
     #[inline]
     pub fn pixel_key(&self, row: u32, col: u32) -> u64 {

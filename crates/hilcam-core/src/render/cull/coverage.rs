@@ -78,6 +78,27 @@ impl Coverage {
         self.covered[(y - y0) as usize * self.stride + x / 64] & (1 << (x % 64)) != 0
     }
 
+    /// The columns of `cols` in `row` that [`Coverage::may_hit`] accepts, in order (read
+    /// from the bit words: a row's uncovered stretches cost a word per 64 pixels).
+    pub fn columns(&self, row: u32, cols: std::ops::Range<u32>) -> impl Iterator<Item = u32> + '_ {
+        let [x0, x1, y0, y1] = self.cover;
+        let (y, a, b) =
+            (row as i64, i64::from(cols.start).max(i64::from(x0)), i64::from(cols.end).min(i64::from(x1) + 1));
+        let words = if y < i64::from(y0) || y > i64::from(y1) || a >= b {
+            &[][..]
+        } else {
+            &self.covered[(y - i64::from(y0)) as usize * self.stride..][..self.stride]
+        };
+        let (a, b) = ((a - i64::from(x0)).max(0) as usize, (b - i64::from(x0)).max(0) as usize);
+        words.iter().enumerate().flat_map(move |(w, &word)| {
+            // This word's bits within [a, b).
+            let lo = (w * 64).max(a);
+            let hi = (w * 64 + 64).min(b);
+            let word = if lo >= hi { 0 } else { word & (!0u64 >> (64 - (hi - lo))) << (lo - w * 64) };
+            BitIter(word).map(move |bit| (x0 as usize + w * 64 + bit) as u32)
+        })
+    }
+
     /// Mark the cells each BVH leaf can be hit from: those its box projects onto (grown by
     /// [`ray_margin`] from its nearest corner), and for a leaf whose box spans more than
     /// [`BOX_CELLS`] cells, only those its triangles' outlines meet, row by row (as the
@@ -182,6 +203,22 @@ impl Coverage {
         self.marks = marks;
         self.finish(view, rect, [x_lo, x_hi, y_lo, y_hi], stride);
         true
+    }
+}
+
+/// The set bits of a word, lowest first.
+struct BitIter(u64);
+
+impl Iterator for BitIter {
+    type Item = usize;
+
+    #[inline]
+    fn next(&mut self) -> Option<usize> {
+        (self.0 != 0).then(|| {
+            let bit = self.0.trailing_zeros() as usize;
+            self.0 &= self.0 - 1;
+            bit
+        })
     }
 }
 

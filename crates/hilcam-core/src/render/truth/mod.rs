@@ -14,11 +14,11 @@
 //! exact crossing of the pixel-centre line with that triangle's plane, so range and body
 //! coordinates carry no f32 ray rounding (only the stored f32 of the channel).
 
-use crate::render::camera::View;
-use crate::render::cull::coverage::Coverage;
-use crate::render::target::{Material, Target};
-use glam::DVec3;
-use rayon::prelude::*;
+mod pass;
+
+pub use pass::{render_truth, render_truth_with};
+
+use crate::render::target::Material;
 
 /// One truth channel, by its command-line / config name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -160,106 +160,6 @@ impl TruthImage {
             bbox = [bbox[0].min(col), bbox[1].min(row), bbox[2].max(col + 1), bbox[3].max(row + 1)];
         }
         (n > 0).then(|| Footprint { centroid_px: [sx / n as f64, sy / n as f64], bbox_px: bbox, pixels: n })
-    }
-}
-
-/// What the pixel-centre ray of one pixel hits.
-#[derive(Clone, Copy)]
-struct TruthPixel {
-    mask: u32,
-    depth: f32,
-    normal: [f32; 3],
-    body: [f32; 3],
-}
-
-const MISS: TruthPixel = TruthPixel { mask: 0, depth: f32::INFINITY, normal: [f32::NAN; 3], body: [f32::NAN; 3] };
-
-/// Pixels computed together (in parallel) before they are scattered into the channel
-/// planes: bounds the temporary buffer at any image size.
-const BAND_PIXELS: usize = 64 * 1024;
-
-/// The truth of `target` through `view` (its exposure-start instant): one ray through each
-/// pixel centre that may see a triangle (inside `View::pixel_rect` and marked by the
-/// BVH leaves' projected boxes, `cull::coverage`, both conservative; every other pixel is
-/// a miss without a ray). Rayon over pixels; every pixel is a pure function of
-/// (target, view), so any thread count gives the same values.
-pub fn render_truth(target: &Target, view: &View, channels: TruthChannels) -> TruthImage {
-    let (width, height) = view.size();
-    let n = width as usize * height as usize;
-    let plane = |c, miss| if channels.contains(c) { vec![miss; n] } else { Vec::new() };
-    let planes3 = |c| [plane(c, f32::NAN), plane(c, f32::NAN), plane(c, f32::NAN)];
-    let mut out = TruthImage {
-        width,
-        height,
-        channels,
-        mask: vec![0; n],
-        materials: Some(materials_table(&target.materials).into()),
-        depth: plane(TruthChannel::Depth, MISS.depth),
-        normal: planes3(TruthChannel::Normal),
-        body_xyz: planes3(TruthChannel::BodyXyz),
-    };
-    let Some(rect) = (if target.accel.is_empty() { None } else { view.pixel_rect() }) else { return out };
-    let (w, rw) = (width as usize, (rect.col1 - rect.col0) as usize);
-    let band_rows = (BAND_PIXELS / rw.max(1)).max(1);
-    let mut coverage = Coverage::default();
-    let covered = coverage.from_leaf_boxes(target, view, rect);
-    let may_hit = |row, col| !covered || coverage.may_hit(row, col);
-    let mut band = Vec::new();
-    for row0 in (rect.row0 as usize..rect.row1 as usize).step_by(band_rows) {
-        let rows = row0..(row0 + band_rows).min(rect.row1 as usize);
-        (0..rows.len() * rw)
-            .into_par_iter()
-            .map(|k| {
-                let (col, row) = (rect.col0 + (k % rw) as u32, (row0 + k / rw) as u32);
-                if may_hit(row, col) { pixel(target, view, col, row) } else { MISS }
-            })
-            .collect_into_vec(&mut band);
-        for (k, p) in band.iter().enumerate().filter(|(_, p)| p.mask != 0) {
-            let i = (row0 + k / rw) * w + rect.col0 as usize + k % rw;
-            out.mask[i] = p.mask;
-            if let Some(d) = out.depth.get_mut(i) {
-                *d = p.depth;
-            }
-            for a in 0..3 {
-                if let Some(v) = out.normal[a].get_mut(i) {
-                    *v = p.normal[a];
-                }
-                if let Some(v) = out.body_xyz[a].get_mut(i) {
-                    *v = p.body[a];
-                }
-            }
-        }
-    }
-    out
-}
-
-/// Truth of pixel (`col`, `row`): the triangle the f32 tracer hits along the pixel-centre
-/// ray, the hit point recomputed in f64 on that triangle's plane.
-fn pixel(target: &Target, view: &View, col: u32, row: u32) -> TruthPixel {
-    let (x, y) = (f64::from(col) + 0.5, f64::from(row) + 0.5);
-    let Some(ray) = view.primary_ray(x, y) else { return MISS };
-    let Some(hit) = target.accel.intersect(&ray) else { return MISS };
-    // The line in f64: camera centre `o`, direction `d` (render frame).
-    let d_cam = view.camera_dir(x, y);
-    let d = view.cam_to_render * d_cam;
-    let o = view.origin;
-    let [a, _, _] = target.mesh.triangle(hit.tri as usize);
-    let n = hit.normal.as_dvec3();
-    let denom = n.dot(d);
-    let s = n.dot(a.as_dvec3() - o) / denom;
-    // A line grazing the plane: keep the tracer's own f32 point.
-    let p = if s.is_finite() && s > 0.0 { o + d * s } else { (ray.origin + ray.dir * hit.t).as_dvec3() };
-    let depth = (p - o).length();
-    let mut n_cam = view.cam_to_render.transpose() * n;
-    if n_cam.dot(d_cam) > 0.0 {
-        n_cam = -n_cam;
-    }
-    let body: DVec3 = p + target.frame_origin_body;
-    TruthPixel {
-        mask: hit.material + 1,
-        depth: depth as f32,
-        normal: n_cam.as_vec3().to_array(),
-        body: body.as_vec3().to_array(),
     }
 }
 
