@@ -115,15 +115,7 @@ pub fn render(
                             if frags.is_empty() {
                                 continue; // the caller's background stays
                             }
-                            let exact = tile::ExactInput {
-                                setup,
-                                inside: &buf.inside[p],
-                                map: &buf.map[p],
-                                ids: &buf.id[p],
-                                sx: &buf.sx[p],
-                                sy: &buf.sy[p],
-                            };
-                            let background = match tile::exact_shares(&exact, frags) {
+                            let background = match tile::exact_shares(setup, &buf.inside[p], &buf.map[p], frags) {
                                 Some(b) => {
                                     st.exact_pixels += 1;
                                     b

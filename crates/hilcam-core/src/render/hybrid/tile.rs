@@ -324,12 +324,16 @@ pub fn resolve(ids: &[u32; SAMPLES], sx: &[f32; SAMPLES], sy: &[f32; SAMPLES], o
 /// Replace the sampled shares of `fragments` (one pixel's) by exact areas when every one
 /// is seen whole in the pixel — it is the nearest at every sample inside it (`inside`) —
 /// so that no triangle's area there is hidden by another's. A triangle that overlaps the
-/// pixel but holds none of its samples (a sliver between them) is added as a fragment when
-/// it is nearer than what the sample closest to its centroid sees, else taken as hidden.
+/// pixel but holds none of its samples (a sliver between them) is added as a fragment
+/// unless another triangle over the pixel covers its centroid nearer to the camera.
 /// Returns the background's share, or None (the sampled shares stand) when some fragment
 /// is partly hidden, a triangle went untracked, or the areas do not add up.
-pub fn exact_shares(px: &ExactInput, fragments: &mut Vec<Fragment>) -> Option<f32> {
-    let ExactInput { setup, inside, map, ids, sx, sy } = *px;
+pub fn exact_shares(
+    setup: &Setup,
+    inside: &Option<InsideList>,
+    map: &[f64; 6],
+    fragments: &mut Vec<Fragment>,
+) -> Option<f32> {
     let inside = inside.as_ref()?;
     if fragments.iter().any(|f| inside.inside(f.setup) != f.count) {
         return None;
@@ -350,21 +354,17 @@ pub fn exact_shares(px: &ExactInput, fragments: &mut Vec<Fragment>) -> Option<f3
         if area <= 0.0 {
             continue;
         }
-        // What the sample nearest the sliver's centroid sees, and whether the sliver is
+        // Seen unless another triangle over the pixel covers the sliver's centroid and is
         // nearer there (larger w = 1/z; the same plane within rounding counts as seen).
+        // Only triangles that contain the point count: a neighbour's plane extended past
+        // its edge lies in front of a convex surface.
         let (cx, cy) = (c[0] as f32, c[1] as f32);
-        let k = (0..SAMPLES)
-            .min_by(|&a, &b| {
-                let d = |k: usize| (sx[k] - cx).powi(2) + (sy[k] - cy).powi(2);
-                d(a).total_cmp(&d(b))
-            })
-            .unwrap_or(0);
         let ideal = [map[0] + map[2] * c[0] + map[4] * c[1], map[1] + map[3] * c[0] + map[5] * c[1]];
         let w_sliver = setup.tris[id as usize].w_at(ideal[0], ideal[1]);
-        let seen = ids[k] == NONE || {
-            let w_there = setup.tris[ids[k] as usize].w_at(ideal[0], ideal[1]);
-            w_sliver >= w_there * (1.0 - 1e-7)
-        };
+        let seen = inside.entries[..inside.len as usize].iter().all(|&(other, _)| {
+            let t = &setup.tris[other as usize];
+            other == id || !contains(&t.ideal, ideal) || t.w_at(ideal[0], ideal[1]) <= w_sliver * (1.0 + 1e-7)
+        });
         if seen {
             total += area;
             fragments.push(Fragment {
@@ -383,13 +383,9 @@ pub fn exact_shares(px: &ExactInput, fragments: &mut Vec<Fragment>) -> Option<f3
     Some((1.0 - total).max(0.0) as f32)
 }
 
-/// What [`exact_shares`] reads of one pixel.
-#[derive(Clone, Copy)]
-pub struct ExactInput<'a> {
-    pub setup: &'a Setup,
-    pub inside: &'a Option<InsideList>,
-    pub map: &'a [f64; 6],
-    pub ids: &'a [u32; SAMPLES],
-    pub sx: &'a [f32; SAMPLES],
-    pub sy: &'a [f32; SAMPLES],
+/// True when point `p` lies inside or on the triangle `v` (either winding).
+fn contains(v: &[[f64; 2]; 3], p: [f64; 2]) -> bool {
+    let cross = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+    let (d0, d1, d2) = (cross(v[0], v[1]), cross(v[1], v[2]), cross(v[2], v[0]));
+    (d0 >= 0.0 && d1 >= 0.0 && d2 >= 0.0) || (d0 <= 0.0 && d1 <= 0.0 && d2 <= 0.0)
 }
