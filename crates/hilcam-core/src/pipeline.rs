@@ -108,8 +108,8 @@ impl FramePipeline {
         &self.sensor
     }
 
-    #[cfg(test)]
-    pub(crate) fn buffers(&self) -> &FrameBuffers {
+    /// The last frame's buffers (its image, coverage and sample counts), for checks.
+    pub fn buffers(&self) -> &FrameBuffers {
         &self.buffers
     }
 

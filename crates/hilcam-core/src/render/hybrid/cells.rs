@@ -79,6 +79,15 @@ impl Cells {
         base + 2 * (j * n + i) + u32::from(upper)
     }
 
+    /// Cell (`i`, `j`, `upper`) of triangle `t`, or None where the grid has no such cell
+    /// (past the hypotenuse).
+    #[inline]
+    pub fn cell(&self, t: u32, i: u32, j: u32, upper: bool) -> Option<u32> {
+        let n = self.res(t);
+        let used = if upper { i + j + 1 < n } else { i + j < n };
+        used.then(|| self.start[t as usize] + 2 * (j * n + i) + u32::from(upper))
+    }
+
     /// The corners of cell `c` of triangle `t` (whose vertices are `v`), or None for an
     /// unused slot.
     pub fn corners(&self, t: u32, c: u32, v: [Vec3; 3]) -> Option<[Vec3; 3]> {
@@ -149,6 +158,20 @@ mod tests {
             let corners = cells.corners(0, c, v).expect("a used cell");
             let (a, b) = barycentric(p, corners);
             assert!(a >= -1e-4 && b >= -1e-4 && a + b <= 1.0 + 1e-4, "({u}, {w}) not in cell {c}: ({a}, {b})");
+        }
+    }
+
+    #[test]
+    fn cells_by_grid_position_are_the_cells_of_their_points() {
+        let (_, cells) = one(0.26);
+        let n = cells.res(0);
+        for j in 0..n {
+            for i in 0..n {
+                let (u, w) = ((i as f32 + 0.25) / n as f32, (j as f32 + 0.25) / n as f32);
+                assert_eq!(cells.cell(0, i, j, false), (i + j < n).then(|| cells.cell_of(0, u, w)));
+                let (u, w) = ((i as f32 + 0.7) / n as f32, (j as f32 + 0.7) / n as f32);
+                assert_eq!(cells.cell(0, i, j, true), (i + j + 1 < n).then(|| cells.cell_of(0, u, w)));
+            }
         }
     }
 

@@ -112,16 +112,14 @@ pub fn render(
                             }
                             frags.clear();
                             let background = tile::resolve(&buf.id[p], &buf.sx[p], &buf.sy[p], frags);
+                            // Exact shares also find slivers in a pixel none of whose
+                            // samples a triangle covers (an edge clipping its corner).
+                            let exact = tile::exact_shares(setup, &buf.inside[p], &buf.map[p], frags);
                             if frags.is_empty() {
                                 continue; // the caller's background stays
                             }
-                            let background = match tile::exact_shares(setup, &buf.inside[p], &buf.map[p], frags) {
-                                Some(b) => {
-                                    st.exact_pixels += 1;
-                                    b
-                                }
-                                None => background as f32 / pattern::SAMPLES as f32,
-                            };
+                            st.exact_pixels += u64::from(exact.is_some());
+                            let background = exact.unwrap_or(background as f32 / pattern::SAMPLES as f32);
                             st.covered_pixels += 1;
                             st.fragments += frags.len() as u64;
                             let px = shade::PixelSamples {

@@ -92,13 +92,46 @@ impl Shader<'_> {
         bsdf.eval_cos(basis.to_local(-s.dir), basis.to_local(self.ctx.sun)).max(0.0) * target.sun_irradiance
     }
 
-    /// The class of the cell holding `s`.
-    #[inline]
-    fn class(&self, s: &Surface) -> Class {
+    /// The class shared by every cell of triangle `tri` that pixel `px`'s footprint may
+    /// reach (the barycentric box of the pixel's corners on the triangle's plane), or
+    /// `Partial` when they differ: a fragment whose mean point lies in a lit cell may
+    /// still reach into a shadowed one.
+    fn class_over(&self, tri: u32, px: &PixelSamples) -> Class {
+        /// More cells than this under one pixel (a grazing view): test sample by sample.
+        const MAX_CELLS: u32 = 16;
+        let cells = &self.memo.cells;
+        let n = cells.res(tri);
+        if n == 1 {
+            return self.memo.class(cells.of(tri).start);
+        }
         let mesh = &self.ctx.scene.mesh;
-        let v = mesh.indices[s.tri as usize].map(|i| mesh.positions[i as usize]);
-        let (u, w) = barycentric(s.p, v);
-        self.memo.class(self.memo.cells.cell_of(s.tri, u, w))
+        let v = mesh.indices[tri as usize].map(|i| mesh.positions[i as usize]);
+        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for (x, y) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let Some(s) = self.surface(tri, px.ideal(x, y)) else { return Class::Partial };
+            let (u, w) = barycentric(s.p, v);
+            (lo, hi) = ([lo[0].min(u), lo[1].min(w)], [hi[0].max(u), hi[1].max(w)]);
+        }
+        let nf = n as f32;
+        let index = |b: f32| (b * nf).floor().clamp(0.0, nf - 1.0) as u32;
+        let ((i0, i1), (j0, j1)) = ((index(lo[0]), index(hi[0])), (index(lo[1]), index(hi[1])));
+        if (i1 - i0 + 1) * (j1 - j0 + 1) > MAX_CELLS {
+            return Class::Partial;
+        }
+        let mut seen = None;
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                for upper in [false, true] {
+                    let Some(c) = cells.cell(tri, i, j, upper) else { continue };
+                    let class = self.memo.class(c);
+                    if seen.is_some_and(|k| k != class) {
+                        return Class::Partial;
+                    }
+                    seen = Some(class);
+                }
+            }
+        }
+        seen.unwrap_or(Class::Partial)
     }
 
     /// The share of `setup`'s coverage samples in `px` that see the sun, one shadow ray
@@ -142,7 +175,7 @@ impl Shader<'_> {
         if l <= 0.0 {
             return 0.0;
         }
-        match self.class(&s) {
+        match self.class_over(tri, px) {
             Class::Lit => l,
             Class::Dark => 0.0,
             Class::Partial => l * self.lit_share(px, f.setup, tri, &s, counts),

@@ -16,7 +16,7 @@
 
 mod pass;
 
-pub use pass::{render_truth, render_truth_with};
+pub use pass::{render_truth, render_truth_reference, render_truth_with};
 
 use crate::render::target::Material;
 

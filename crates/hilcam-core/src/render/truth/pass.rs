@@ -191,90 +191,38 @@ fn pixel(target: &Target, view: &View, d_cam: DVec3, ray: &Ray, hit: &Hit) -> Tr
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::pipeline::FramePipeline;
-    use crate::pose::Pose;
-    use crate::render::integrator::{RenderSettings, Spp};
-    use glam::DQuat;
-
-    /// The pass as it was before packets and shared coverage: every pixel of the rect, one
-    /// single-ray walk each, the line's direction taken anew. The reference.
-    fn one_by_one(target: &Target, view: &View, channels: TruthChannels) -> TruthImage {
-        let (w, h) = view.size();
-        let n = (w * h) as usize;
-        let nan = || vec![f32::NAN; n];
-        let mut out = TruthImage {
-            width: w,
-            height: h,
-            channels,
-            mask: vec![0; n],
-            materials: Some(crate::render::truth::materials_table(&target.materials).into()),
-            depth: vec![f32::INFINITY; n],
-            normal: [nan(), nan(), nan()],
-            body_xyz: [nan(), nan(), nan()],
-        };
-        let Some(rect) = view.pixel_rect() else { return out };
-        for row in rect.row0..rect.row1 {
-            for col in rect.col0..rect.col1 {
-                let (x, y) = (f64::from(col) + 0.5, f64::from(row) + 0.5);
-                let Some(ray) = view.primary_ray(x, y) else { continue };
-                let Some(hit) = target.accel.intersect(&ray) else { continue };
-                let p = pixel(target, view, view.camera_dir(x, y), &ray, &hit);
-                let i = (row * w + col) as usize;
-                out.mask[i] = p.mask;
-                out.depth[i] = p.depth;
-                for a in 0..3 {
-                    out.normal[a][i] = p.normal[a];
-                    out.body_xyz[a][i] = p.body[a];
-                }
+/// The truth pass as a plain loop: every pixel of the rect, one single-ray walk each,
+/// the line's direction taken anew. Slow; the reference [`render_truth`]'s packets and
+/// shared coverage are tested against, bit for bit (tests/render/truth.rs).
+pub fn render_truth_reference(target: &Target, view: &View, channels: TruthChannels) -> TruthImage {
+    let (w, h) = view.size();
+    let n = (w * h) as usize;
+    let nan = || vec![f32::NAN; n];
+    let mut out = TruthImage {
+        width: w,
+        height: h,
+        channels,
+        mask: vec![0; n],
+        materials: Some(crate::render::truth::materials_table(&target.materials).into()),
+        depth: vec![f32::INFINITY; n],
+        normal: [nan(), nan(), nan()],
+        body_xyz: [nan(), nan(), nan()],
+    };
+    let Some(rect) = view.pixel_rect() else { return out };
+    for row in rect.row0..rect.row1 {
+        for col in rect.col0..rect.col1 {
+            let (x, y) = (f64::from(col) + 0.5, f64::from(row) + 0.5);
+            let Some(ray) = view.primary_ray(x, y) else { continue };
+            let Some(hit) = target.accel.intersect(&ray) else { continue };
+            let p = pixel(target, view, view.camera_dir(x, y), &ray, &hit);
+            let i = (row * w + col) as usize;
+            out.mask[i] = p.mask;
+            out.depth[i] = p.depth;
+            for a in 0..3 {
+                out.normal[a][i] = p.normal[a];
+                out.body_xyz[a][i] = p.body[a];
             }
         }
-        out
     }
-
-    fn bits(t: &TruthImage) -> Vec<u32> {
-        let f = |v: &Vec<f32>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        let mut b = t.mask.clone();
-        b.extend(f(&t.depth));
-        t.normal.iter().chain(&t.body_xyz).for_each(|p| b.extend(f(p)));
-        b
-    }
-
-    /// The shipped satellite through the navigation camera's lens, at 256² and three
-    /// attitudes and at its own 1024² (150 k pixels see it): every channel of every pixel
-    /// the reference's, bit for bit — computed anew, and with the coverage of the frame
-    /// just rendered through the same view.
-    #[test]
-    fn packets_and_shared_coverage_give_the_single_ray_truth_bit_for_bit() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/satellite.toml");
-        let scene = std::sync::Arc::new(crate::scene::load(&path).unwrap());
-        for (width, turns) in [(256, &[0.0f64, 0.7, 2.1][..]), (1024, &[0.0][..])] {
-            check(&scene, width, turns);
-        }
-    }
-
-    fn check(scene: &std::sync::Arc<crate::scene::Scene>, width: u32, turns: &[f64]) {
-        let camera = scene.camera.scaled(Some(width), None);
-        let all = TruthChannels::parse("depth,mask,normal,body_xyz").unwrap();
-        let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..scene.render };
-        let mut pipeline = FramePipeline::new(scene.clone(), camera.clone()).unwrap();
-        for (k, &turn) in turns.iter().enumerate() {
-            let pose = Pose { attitude: scene.pose.attitude * DQuat::from_rotation_y(turn), ..scene.pose };
-            let view = scene.view(&camera, &pose).with_distortion(scene.sensor.optics.distortion);
-            assert!(view.has_distortion());
-            let want = bits(&one_by_one(scene, &view, all));
-            let hits = want[..(width * width) as usize].iter().filter(|m| **m != 0).count();
-            assert!(hits > 1000, "{width}², pose {k}: {hits} pixels see the target");
-            assert_eq!(bits(&render_truth(scene, &view, all)), want, "{width}², pose {k}, coverage computed");
-            pipeline.frame(&pose, &settings, k as u64).unwrap();
-            assert!(pipeline.buffers().coverage_for(&view).is_some(), "the frame's coverage is this view's");
-            assert_eq!(
-                bits(&pipeline.truth(&pose, &Default::default(), all).unwrap()),
-                want,
-                "{width}², pose {k}, shared"
-            );
-        }
-    }
+    out
 }
