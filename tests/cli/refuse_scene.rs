@@ -380,6 +380,20 @@ mod bypassing_the_pose_gate {
 /// camera that has no detector, and for one whose detector has no temporal noise, from
 /// the scene (naming its line), the render flag, and serve's `[render]`.
 #[test]
+fn sensor_quality_with_the_hybrid_method_is_refused() {
+    // A hybrid frame has no per-pixel sample budget for "sensor" to spend.
+    let f = Fixture::new();
+    let noisy = "[sensor]\noutput = \"dn\"\n[sensor.detector]\nqe = 0.5\nread_noise_e = 3.0\n\
+                 integration_time_s = 1e-3\n[sensor.adc]\nbits = 12\ngain_e_per_dn = 1.0\n[sensor.band]\n\
+                 min_um = 0.45\nmax_um = 0.75\n[sensor.optics]\nf_number = 2.8\n";
+    f.write("s.toml", &scene_text(&format!("method = \"hybrid\"\nquality = \"sensor\"\n{noisy}")));
+    has_all(&refused(&f.render(&[])), &["s.toml:26:", "render.quality", "method = \"hybrid\"", "\"fixed\""]);
+    // The flag cannot bring it back either.
+    f.write("s.toml", &scene_text(&format!("method = \"hybrid\"\n{noisy}")));
+    has_all(&refused(&f.render(&["--quality", "sensor", "--sensor"])), &["render.quality", "hybrid"]);
+}
+
+#[test]
 fn sensor_quality_without_a_noisy_camera_is_refused() {
     let f = Fixture::new();
     f.write("s.toml", &scene_text("quality = \"sensor\"\n"));

@@ -232,7 +232,7 @@ impl FramePipeline {
         // against and every DN frame's Monte Carlo noise report measures against.
         let noise = self.sensor.noise_bound(timing.integration_s, f64::from(settings.quality.k));
         if settings.quality.is_sensor() {
-            crate::sensor::check_quality(&settings.quality, self.sensor.config())
+            crate::sensor::check_quality(settings, self.sensor.config())
                 .map_err(|message| SensorError::Invalid { field: "render.quality".into(), message })?;
         }
         let (mut view, options) =

@@ -509,7 +509,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         method: r.method,
         seed: r.seed,
     };
-    if let Err(m) = crate::sensor::check_quality(&render.quality, &sensor) {
+    if let Err(m) = crate::sensor::check_quality(&render, &sensor) {
         return Err(field(r.quality.span(), "render.quality", m));
     }
     if !(1..=limits::MAX_DEPTH).contains(&render.depth) {

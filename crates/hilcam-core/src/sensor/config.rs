@@ -527,9 +527,19 @@ impl SensorConfig {
     }
 }
 
-/// Whether a sensor can judge `quality`: `"sensor"` measures Monte Carlo noise against the
-/// camera's, which needs a detector and DN output.
-pub fn check_quality(quality: &crate::render::integrator::QualityGoal, sensor: &SensorConfig) -> Result<(), String> {
+/// Whether a sensor can judge `settings.quality`: `"sensor"` measures Monte Carlo noise
+/// against the camera's, which needs a detector and DN output, and spends samples per
+/// pixel, which a hybrid frame does not have.
+pub fn check_quality(
+    settings: &crate::render::integrator::RenderSettings,
+    sensor: &SensorConfig,
+) -> Result<(), String> {
+    let quality = &settings.quality;
+    if quality.is_sensor() && settings.method == crate::render::integrator::Method::Hybrid {
+        return Err("\"sensor\" spends samples pixel by pixel, and method = \"hybrid\" takes a fixed 64 \
+                    coverage samples per pixel: use \"fixed\", or method = \"path\""
+            .into());
+    }
     if quality.is_sensor() && (sensor.detector.is_none() || sensor.output_kind() != OutputKind::Dn) {
         return Err("\"sensor\" measures the Monte Carlo noise against the camera's own, which needs a \
                     [sensor.detector] and DN output ([sensor.adc]); use \"fixed\" for this camera"

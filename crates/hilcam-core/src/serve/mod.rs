@@ -98,7 +98,7 @@ pub async fn run(
     }
     let o = &cfg.render;
     let settings = scene.render.overridden(o.spp, o.depth, o.sampler, o.seed).with_quality(o.quality, o.sensor_k);
-    crate::sensor::check_quality(&settings.quality, &scene.sensor)
+    crate::sensor::check_quality(&settings, &scene.sensor)
         .map_err(|m| anyhow::anyhow!("render.quality (scene {}, or [render] here): {m}", cfg.scene.display()))?;
     let pipeline = FramePipeline::new(scene.clone(), camera.clone()).context("sensor")?;
     // A camera that integrates over its exposure renders each frame from the pose at the
