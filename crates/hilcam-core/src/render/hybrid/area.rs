@@ -27,6 +27,16 @@ pub fn clipped(v: &[[f64; 2]; 3], m: &[f64; 6]) -> Option<(f64, [f64; 2])> {
     for (k, p) in v.iter().enumerate() {
         poly[k] = local(*p);
     }
+    // Most pixels lie wholly inside one triangle, and a small one wholly inside a pixel:
+    // no clipping needed for either.
+    if covers_unit_square(&poly[..3]) {
+        return Some((1.0, [0.5, 0.5]));
+    }
+    if poly[..3].iter().all(|p| (0.0..=1.0).contains(&p[0]) && (0.0..=1.0).contains(&p[1])) {
+        let [a, b, c] = [poly[0], poly[1], poly[2]];
+        let a2 = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        return Some(((a2 * 0.5).abs(), [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]));
+    }
     let mut tmp = [[0.0; 2]; MAX_VERTS + 1];
     // Keep the side where `axis` coordinate is ≥ `bound` (`keep_above`) or ≤ it.
     for (axis, bound, keep_above) in [(0, 0.0, true), (0, 1.0, false), (1, 0.0, true), (1, 1.0, false)] {
@@ -65,6 +75,19 @@ pub fn clipped(v: &[[f64; 2]; 3], m: &[f64; 6]) -> Option<(f64, [f64; 2])> {
         return Some((0.0, [0.5, 0.5]));
     }
     Some(((a2 * 0.5).abs(), [cx / (3.0 * a2), cy / (3.0 * a2)]))
+}
+
+/// True when the triangle `t` (pixel-local) holds all four corners of the unit square.
+#[inline]
+fn covers_unit_square(t: &[[f64; 2]]) -> bool {
+    let side = |a: [f64; 2], b: [f64; 2], p: [f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+    let orient = side(t[0], t[1], t[2]);
+    if orient == 0.0 {
+        return false;
+    }
+    [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+        .iter()
+        .all(|&p| (0..3).all(|e| side(t[e], t[(e + 1) % 3], p) * orient >= 0.0))
 }
 
 #[cfg(test)]
@@ -106,5 +129,17 @@ mod tests {
     fn a_triangle_outside_has_no_area() {
         let (a, _) = clipped(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], &UNIT).unwrap();
         assert_eq!(a, 0.0);
+    }
+
+    #[test]
+    fn a_triangle_inside_the_pixel_is_its_own_area_and_centroid() {
+        let v = [[10.2, 20.1], [10.9, 20.3], [10.4, 20.8]];
+        let (a, c) = clipped(&v, &UNIT).unwrap();
+        let twice = (0.7 * 0.7 - 0.2 * 0.2f64).abs();
+        assert!((a - twice / 2.0).abs() < 1e-12, "{a}");
+        assert!((c[0] - 0.5).abs() < 1e-12 && (c[1] - 0.4).abs() < 1e-12, "{c:?}");
+        // The same triangle nudged over the pixel's edge is clipped: less area.
+        let w = v.map(|p| [p[0] + 0.15, p[1]]);
+        assert!(clipped(&w, &UNIT).unwrap().0 < a);
     }
 }

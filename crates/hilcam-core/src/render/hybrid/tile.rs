@@ -171,15 +171,15 @@ fn rasterise_body(
                 }
                 let n =
                     pixel(s, i, &buf.map[p], (w_ref, scale), &buf.sx[p], &buf.sy[p], &mut buf.depth[p], &mut buf.id[p]);
-                if let Some(n) = n {
-                    buf.inside[p] = buf.inside[p].and_then(|mut l| {
-                        let k = l.len as usize;
-                        (k < MAX_INSIDE).then(|| {
-                            l.entries[k] = (i, n);
-                            l.len += 1;
-                            l
-                        })
-                    });
+                // In place: the list is a few hundred bytes, visited per triangle.
+                if let (Some(n), Some(l)) = (n, &mut buf.inside[p]) {
+                    let k = l.len as usize;
+                    if k < MAX_INSIDE {
+                        l.entries[k] = (i, n);
+                        l.len += 1;
+                    } else {
+                        buf.inside[p] = None; // untracked from here: sampled shares
+                    }
                 }
             }
         }
