@@ -14,6 +14,7 @@ mod bvh_wide;
 mod closest_packet;
 mod extremes;
 mod fold;
+mod ggx;
 mod hybrid;
 mod mc_noise;
 mod mc_ptc;
