@@ -22,6 +22,7 @@ mod mc_sensor;
 mod mc_variance;
 mod mis;
 mod motion;
+mod mtl;
 mod planet;
 mod primary_raster;
 mod sensor;

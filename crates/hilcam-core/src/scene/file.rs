@@ -44,6 +44,7 @@
 //! ```
 
 use super::limits;
+use super::mtl_bsdf;
 use super::obj::load_obj;
 use super::{Material, Scene, SceneParts};
 use crate::pose::Pose;
@@ -358,7 +359,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             spec.get_ref().build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
         materials.push(Material { name: name.clone(), bsdf });
     }
-    let index_of = |name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
+    let index_of = |materials: &[Material], name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
 
     // Meshes, transformed into the body frame.
     if file.mesh.is_empty() {
@@ -386,29 +387,40 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             limits::in_range(v, (-limits::ROTATE_DEG, limits::ROTATE_DEG), "°")
                 .map_err(|m| field(entry.rotate_deg.span(), &format!("mesh[{k}].rotate_deg"), m))?;
         }
-        // Map each MTL name to a scene material.
+        // Map each MTL name to a scene material: its [materials.NAME] table, or else the
+        // MTL's own definition (built once, its unused keys reported once).
         let mut map = Vec::new();
         for name in &loaded.material_names {
             let target = entry.material.as_ref().map(|m| m.get_ref().as_str()).unwrap_or(name);
-            match index_of(target) {
-                Some(i) => map.push(i),
-                None => {
-                    let (span, what) = match &entry.material {
-                        Some(m) => (m.span(), format!("mesh[{k}].material")),
-                        None => (entry.obj.span(), fname.clone()),
-                    };
-                    let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
-                    return Err(field(
-                        span,
-                        &what,
-                        format!(
-                            "material `{target}` used by {} has no [materials.{target}] entry (scene has: {})",
-                            obj_path.display(),
-                            known.join(", ")
-                        ),
-                    ));
-                }
+            if let Some(i) = index_of(&materials, target) {
+                map.push(i);
+                continue;
             }
+            let authored = entry.material.is_none().then(|| loaded.mtl.iter().find(|m| m.name == *name)).flatten();
+            if let Some(def) = authored {
+                let built = mtl_bsdf::bsdf_from_mtl(def).map_err(|m| field(entry.obj.span(), &fname, m))?;
+                for note in &built.notes {
+                    tracing::warn!(material = %name, "{note}");
+                }
+                tracing::info!(material = %name, mtl = %def.at(def.line), model = built.bsdf.model_name(), bsdf = ?built.bsdf, "material from the MTL");
+                materials.push(Material { name: name.clone(), bsdf: built.bsdf });
+                map.push((materials.len() - 1) as u32);
+                continue;
+            }
+            let (span, what) = match &entry.material {
+                Some(m) => (m.span(), format!("mesh[{k}].material")),
+                None => (entry.obj.span(), fname.clone()),
+            };
+            let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+            return Err(field(
+                span,
+                &what,
+                format!(
+                    "material `{target}` used by {} has no [materials.{target}] entry and no MTL definition (scene has: {})",
+                    obj_path.display(),
+                    known.join(", ")
+                ),
+            ));
         }
         let [rx, ry, rz] = rotate_deg.map(f64::to_radians);
         let rot = DQuat::from_euler(EulerRot::ZYX, rz, ry, rx);
@@ -428,7 +440,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         let fail = |m: String| field(w.span(), "wrap", m);
         let edge_m = *e.edge_m.get_ref();
         let edge_span = if e.edge_m.span().is_empty() { w.span() } else { e.edge_m.span() };
-        let Some(mat) = index_of(&e.material) else {
+        let Some(mat) = index_of(&materials, &e.material) else {
             return Err(fail(format!("material `{}` is not in [materials]", e.material)));
         };
         let target = match (&e.level, e.e_plane, e.var) {

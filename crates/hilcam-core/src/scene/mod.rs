@@ -4,6 +4,8 @@
 pub mod file;
 pub mod fold;
 pub mod limits;
+pub mod mtl;
+pub mod mtl_bsdf;
 pub mod obj;
 pub mod planet;
 

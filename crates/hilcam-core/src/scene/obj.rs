@@ -9,6 +9,8 @@ use std::path::Path;
 pub struct ObjMesh {
     pub mesh: TriMesh,
     pub material_names: Vec<String>,
+    /// Every material its MTL libraries define, with their keys and lines.
+    pub mtl: Vec<super::mtl::MtlMaterial>,
 }
 
 /// Load an OBJ file; the error names the file (and the line, for a bad vertex).
@@ -43,6 +45,7 @@ fn check_vertices(text: &str) -> Result<(), String> {
 fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!(": {e}"))?;
     check_vertices(&text)?;
+    let mtl_defs = super::mtl::libraries_of_obj(path.parent().unwrap_or(Path::new(".")), &text);
     let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| format!(": {e}"))?;
     // A missing or broken .mtl still loads the geometry; the names come from `usemtl`
     // only through the material list, so without it every face is `default`.
@@ -77,7 +80,7 @@ fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
     if out.indices.is_empty() {
         return Err(": no triangles".to_string());
     }
-    Ok(ObjMesh { mesh: out, material_names: names })
+    Ok(ObjMesh { mesh: out, material_names: names, mtl: mtl_defs })
 }
 
 #[cfg(test)]

@@ -109,11 +109,20 @@ impl Ggx {
     /// # Errors
     /// [`BsdfError::Invalid`] naming `roughness`, `base_color` or `metallic`.
     pub fn metallic_roughness(base: f32, metallic: f32, roughness: f32) -> Result<Self, BsdfError> {
+        Ggx::blend(base, metallic, roughness, GLTF_DIELECTRIC_IOR)
+    }
+
+    /// [`Ggx::metallic_roughness`] with the dielectric's index `ior` (the MTL PBR
+    /// extension's `Ni`).
+    ///
+    /// # Errors
+    /// [`BsdfError::Invalid`] naming `roughness`, `base_color`, `metallic` or `ior`.
+    pub fn blend(base: f32, metallic: f32, roughness: f32, ior: f32) -> Result<Self, BsdfError> {
         const M: &str = "ggx_metallic_roughness";
         check_unit(M, "base_color", base)?;
         check_unit(M, "metallic", metallic)?;
         let dist = check_roughness(M, roughness)?;
-        Ggx::build(dist, metallic, ConductorFresnel::Schlick { f0: base }, base, GLTF_DIELECTRIC_IOR)
+        Ggx::build(dist, metallic, ConductorFresnel::Schlick { f0: base }, base, check_eta(M, ior)?)
     }
 
     fn build(
