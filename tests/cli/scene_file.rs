@@ -79,7 +79,7 @@ fn unmapped_mtl_material_is_named() {
     let p = write(dir.path(), "s.toml", &GOOD.replace("[materials.paint]", "[materials.other]"));
     let e = load(&p).err().expect("expected an error").to_string();
     assert!(e.contains("s.toml:3:") && e.contains("`default`") && e.contains("[materials.default]"), "{e}");
-    assert!(e.contains("no MTL definition"), "{e}");
+    assert!(e.contains("no definition in the model file"), "{e}");
     // With the MTL's own `newmtl paint`, the same scene loads: the MTL's Kd is used.
     write(dir.path(), "p.mtl", PLATE_MTL);
     let scene = load(&p).unwrap_or_else(|e| panic!("{e}"));

@@ -15,6 +15,7 @@ mod closest_packet;
 mod extremes;
 mod fold;
 mod ggx;
+mod gltf;
 mod hybrid;
 mod mc_noise;
 mod mc_ptc;

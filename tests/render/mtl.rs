@@ -79,7 +79,7 @@ fn an_mtl_plate_without_a_materials_table_renders_its_kd() {
     for want in ["`Ps` ignored: panel.mtl:3", "`illum` ignored: panel.mtl:4", "`map_Kd` ignored: panel.mtl:5"] {
         assert!(log.contains(want), "log lacks {want}:\n{log}");
     }
-    assert!(log.contains("material from the MTL"), "{log}");
+    assert!(log.contains("material from the model file"), "{log}");
 }
 
 #[test]

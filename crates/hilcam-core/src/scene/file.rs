@@ -44,8 +44,7 @@
 //! ```
 
 use super::limits;
-use super::mtl_bsdf;
-use super::obj::load_obj;
+use super::model::load_model;
 use super::{Material, Scene, SceneParts};
 use crate::pose::Pose;
 use crate::render::bsdf::BsdfSpec;
@@ -373,7 +372,10 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
-        let loaded = load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
+        let loaded = load_model(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
+        for note in &loaded.notes {
+            tracing::warn!(mesh = %obj_path.display(), "{note}");
+        }
         let scale = *entry.scale.get_ref();
         limits::in_range(scale, limits::SCALE, "")
             .map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
@@ -396,13 +398,13 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 map.push(i);
                 continue;
             }
-            let authored = entry.material.is_none().then(|| loaded.mtl.iter().find(|m| m.name == *name)).flatten();
-            if let Some(def) = authored {
-                let built = mtl_bsdf::bsdf_from_mtl(def).map_err(|m| field(entry.obj.span(), &fname, m))?;
+            let authored = entry.material.is_none().then(|| loaded.authored(name)).flatten();
+            if let Some(built) = authored {
+                let built = built.map_err(|m| field(entry.obj.span(), &fname, m))?;
                 for note in &built.notes {
                     tracing::warn!(material = %name, "{note}");
                 }
-                tracing::info!(material = %name, mtl = %def.at(def.line), model = built.bsdf.model_name(), bsdf = ?built.bsdf, "material from the MTL");
+                tracing::info!(material = %name, file = %obj_path.display(), model = built.bsdf.model_name(), bsdf = ?built.bsdf, "material from the model file");
                 materials.push(Material { name: name.clone(), bsdf: built.bsdf });
                 map.push((materials.len() - 1) as u32);
                 continue;
@@ -416,7 +418,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 span,
                 &what,
                 format!(
-                    "material `{target}` used by {} has no [materials.{target}] entry and no MTL definition (scene has: {})",
+                    "material `{target}` used by {} has no [materials.{target}] entry and no definition in the model file (scene has: {})",
                     obj_path.display(),
                     known.join(", ")
                 ),

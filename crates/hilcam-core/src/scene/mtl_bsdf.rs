@@ -15,21 +15,12 @@
 //!   `Ni` is then MTL's refraction index of transparent materials, unused.
 //! - `Ke` is unused unless black: hilcam has no emitting surfaces yet.
 
+use super::authored::{AuthoredBsdf, MIN_ROUGHNESS, metallic_roughness};
 use super::mtl::{MtlKey, MtlMaterial};
-use crate::render::bsdf::{Bsdf, ConductorFresnel, Ggx, Lambert};
+use crate::render::bsdf::{Bsdf, Ggx, Lambert};
 
 /// Largest dielectric F0 a `Ks` maps to: the coating's index is at most 4.
 const MAX_DIELECTRIC_F0: f32 = 0.36;
-/// Smallest GGX roughness hilcam takes (α = 1e-4).
-const MIN_ROUGHNESS: f32 = 0.01;
-
-/// The BRDF of an MTL material and what its keys did not contribute.
-#[derive(Clone, Debug)]
-pub struct FromMtl {
-    pub bsdf: Bsdf,
-    /// One note per unused or adjusted key, each ending in `file:line`.
-    pub notes: Vec<String>,
-}
 
 /// `Kd r [g b]` → the band value (g and b default to r, as MTL says).
 fn band(m: &MtlMaterial, k: &MtlKey) -> Result<f32, String> {
@@ -63,7 +54,7 @@ fn scalar(m: &MtlMaterial, k: &MtlKey) -> Result<f32, String> {
 ///
 /// # Errors
 /// A used key whose value cannot be read or is out of range, named by `file:line`.
-pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<FromMtl, String> {
+pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
     let mut notes = Vec::new();
     let mut used: Vec<&str> = vec!["Kd"];
     let base = m.get("Kd").map(|k| band(m, k)).transpose()?.unwrap_or(1.0);
@@ -101,14 +92,7 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<FromMtl, String> {
             }
         }
         used.extend(["Ks", "Ns"]);
-        let g = if metallic == 1.0 {
-            Ggx::conductor(roughness, ConductorFresnel::Schlick { f0: base })
-        } else if metallic == 0.0 {
-            Ggx::plastic(roughness, base, ior)
-        } else {
-            Ggx::blend(base, metallic, roughness, ior)
-        };
-        Bsdf::Ggx(g.map_err(|e| format!("{}: {e}", m.at(m.line)))?)
+        metallic_roughness(base, metallic, roughness, ior).map_err(|e| format!("{}: {e}", m.at(m.line)))?
     } else {
         used.extend(["Ks", "Ns"]);
         let ks = m.get("Ks").map(|k| band(m, k)).transpose()?.unwrap_or(0.0);
@@ -163,16 +147,17 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<FromMtl, String> {
             notes.push(format!("`{}` ignored: {}", k.key, m.at(k.line)));
         }
     }
-    Ok(FromMtl { bsdf, notes })
+    Ok(AuthoredBsdf { bsdf, notes })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::bsdf::ConductorFresnel;
     use crate::scene::mtl::parse_mtl;
     use std::path::Path;
 
-    fn one(text: &str) -> Result<FromMtl, String> {
+    fn one(text: &str) -> Result<AuthoredBsdf, String> {
         let m = parse_mtl(Path::new("/x/panel.mtl"), &format!("newmtl panel\n{text}"));
         bsdf_from_mtl(&m[0])
     }

@@ -4,17 +4,12 @@ use crate::render::geometry::TriMesh;
 use glam::Vec3;
 use std::path::Path;
 
-/// Triangles of one OBJ file; `material` indexes `material_names`. Faces without a
-/// material get the name `default`.
-pub struct ObjMesh {
-    pub mesh: TriMesh,
-    pub material_names: Vec<String>,
-    /// Every material its MTL libraries define, with their keys and lines.
-    pub mtl: Vec<super::mtl::MtlMaterial>,
-}
+use super::model::{AuthoredMaterials, ModelMesh};
 
-/// Load an OBJ file; the error names the file (and the line, for a bad vertex).
-pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
+/// Load an OBJ file: its triangles, each face's MTL material name (`default` for faces
+/// without one) and every material its MTL libraries define, with their keys and lines.
+/// The error names the file (and the line, for a bad vertex).
+pub fn load_obj(path: &Path) -> Result<ModelMesh, String> {
     load_obj_unnamed(path).map_err(|m| format!("{}{m}", path.display()))
 }
 
@@ -42,7 +37,7 @@ fn check_vertices(text: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
+fn load_obj_unnamed(path: &Path) -> Result<ModelMesh, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!(": {e}"))?;
     check_vertices(&text)?;
     let mtl_defs = super::mtl::libraries_of_obj(path.parent().unwrap_or(Path::new(".")), &text);
@@ -80,7 +75,7 @@ fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
     if out.indices.is_empty() {
         return Err(": no triangles".to_string());
     }
-    Ok(ObjMesh { mesh: out, material_names: names, mtl: mtl_defs })
+    Ok(ModelMesh { mesh: out, material_names: names, authored: AuthoredMaterials::Mtl(mtl_defs), notes: Vec::new() })
 }
 
 #[cfg(test)]
