@@ -102,6 +102,32 @@ fn a_plate_glb_renders_as_the_same_plate_in_obj_and_mtl() {
 }
 
 #[test]
+fn a_non_indexed_plate_renders_as_the_indexed_one() {
+    // The same two triangles as six vertices and no `indices`: glTF's non-indexed form.
+    let dir = tempfile::tempdir().unwrap();
+    let c = [[-0.5f32, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]];
+    let mut bin = Vec::new();
+    for i in [0usize, 2, 1, 0, 3, 2] {
+        for x in c[i] {
+            bin.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"material":0}}]}}],"materials":[{PANEL}],
+"buffers":[{{"byteLength":72}}],"bufferViews":[{{"buffer":0,"byteLength":72}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":6,"type":"VEC3","min":[-0.5,-0.5,0],"max":[0.5,0.5,0]}}]}}"#
+    );
+    std::fs::write(dir.path().join("flat.glb"), glb(&json, &bin)).unwrap();
+    std::fs::write(dir.path().join("plate.glb"), glb(&plate_json("[{\"mesh\":0}]", PANEL, "", ""), &plate_bin()))
+        .unwrap();
+    let a = render_file(&scene_file(dir.path(), "a.toml", "flat.glb", 2));
+    let b = render_file(&scene_file(dir.path(), "b.toml", "plate.glb", 2));
+    assert!(a.iter().filter(|&&v| v > 0.0).count() > 39_000);
+    assert_eq!(a, b, "non-indexed and indexed plates differ");
+}
+
+#[test]
 fn node_transforms_place_the_plate_where_the_analytic_answer_says() {
     // Parent: 90° about +Z; child: translate (0.3, 0, 0), scale (0.5, 0.5, 1). The plate's
     // centre goes to R_z(90°)·(0.3, 0, 0) = (0, 0.3, 0) m, its side to 0.5 m. At 10 m with
