@@ -231,3 +231,37 @@ fn textures_and_unused_material_properties_are_reported_by_file_and_material() {
         assert!(log.contains(want), "log lacks {want}:\n{log}");
     }
 }
+
+#[test]
+fn the_shipped_satellite_renders_the_same_from_its_glb_and_its_obj() {
+    // scenes/gltf_satellite{,_obj}.toml: one model written both ways by
+    // scripts/make_gltf_satellite.py (node hierarchy with a mirrored panel, four GGX
+    // materials, no [materials] table), rendered at 256 px.
+    let render_at = |p: &str| {
+        let mut s = hilcam_core::scene::load(Path::new(p)).unwrap_or_else(|e| panic!("{e}"));
+        s.camera = s.camera.scaled(Some(256), None);
+        let (img, _) = render(&s, &s.view(&s.camera, &s.pose), &RenderOptions::new(s.render, 0));
+        (img.data, s.target.materials.iter().map(|m| (m.name.clone(), m.bsdf)).collect::<Vec<_>>())
+    };
+    let (a, ma) = render_at("scenes/gltf_satellite.toml");
+    let (b, mb) = render_at("scenes/gltf_satellite_obj.toml");
+    assert_eq!(ma, mb, "the two files give different materials");
+    assert_eq!(ma.len(), 4);
+    assert!(a.iter().filter(|&&v| v > 0.0).count() > 1000, "the satellite is in view");
+    assert!(a == b, "GLB and OBJ + MTL renders differ");
+}
+
+#[test]
+fn the_shipped_satellite_files_are_what_the_script_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new("python3")
+        .arg("scripts/make_gltf_satellite.py")
+        .arg(dir.path())
+        .output()
+        .expect("python3 runs scripts/make_gltf_satellite.py");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for f in ["sat.glb", "sat.obj", "sat.mtl"] {
+        let shipped = std::fs::read(Path::new("scenes/gltf_satellite").join(f)).unwrap();
+        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/gltf_satellite/{f} is stale");
+    }
+}

@@ -30,3 +30,25 @@ pub fn metallic_roughness(base: f32, metallic: f32, roughness: f32, ior: f32) ->
     };
     g.map(Bsdf::Ggx)
 }
+
+/// A one-line description of a BRDF for the load log (the GGX coating's table left out).
+pub fn describe(b: &Bsdf) -> String {
+    match b {
+        Bsdf::Lambert(l) => format!("lambert ρ {}", l.rho),
+        Bsdf::Ggx(g) => {
+            let f = match g.conductor {
+                ConductorFresnel::Schlick { f0 } => format!("Schlick F0 {f0}"),
+                ConductorFresnel::Complex { n, k } => format!("n {n} k {k}"),
+            };
+            format!(
+                "{} α {} metallic {} (conductor {f}) base ρ {} coating η {}",
+                g.model_name(),
+                g.dist.alpha,
+                g.metallic,
+                g.rho,
+                g.eta
+            )
+        }
+        other => format!("{other:?}"),
+    }
+}

@@ -404,7 +404,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 for note in &built.notes {
                     tracing::warn!(material = %name, "{note}");
                 }
-                tracing::info!(material = %name, file = %obj_path.display(), model = built.bsdf.model_name(), bsdf = ?built.bsdf, "material from the model file");
+                tracing::info!(material = %name, file = %obj_path.display(), bsdf = %super::authored::describe(&built.bsdf), "material from the model file");
                 materials.push(Material { name: name.clone(), bsdf: built.bsdf });
                 map.push((materials.len() - 1) as u32);
                 continue;

@@ -68,13 +68,16 @@ fn load(path: &Path) -> Result<ModelMesh, String> {
         Some(scene) => scene.nodes().collect(),
         None => return Err("no scene to render (the file has no `scenes`)".into()),
     };
-    let mut stack: Vec<(gltf::Node, DMat4)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY)).collect();
+    // Depth-first, each node before its children, siblings in document order: the order
+    // an exporter writes the same model's OBJ faces in, so both give the same triangles.
+    let mut stack: Vec<(gltf::Node, DMat4)> = roots.into_iter().rev().map(|n| (n, DMat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
         let m = parent * DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         if let Some(gmesh) = node.mesh() {
             append_mesh(&mut mesh, &gmesh, m, &buffers, names.len() - 1)?;
         }
-        stack.extend(node.children().map(|c| (c, m)));
+        let children: Vec<gltf::Node> = node.children().collect();
+        stack.extend(children.into_iter().rev().map(|c| (c, m)));
     }
     if mesh.indices.is_empty() {
         return Err("no triangles in its default scene".into());
