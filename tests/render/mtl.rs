@@ -112,3 +112,19 @@ fn a_pbr_mtl_material_is_ggx_and_a_bad_value_names_the_file_and_line() {
     let e = load_logged(&path).0.err().unwrap();
     assert!(e.contains("panel.mtl:4: Pm: 7 must be in [0, 1]") && e.contains("scene.toml"), "{e}");
 }
+
+#[test]
+fn a_name_two_files_define_differently_uses_the_first_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let path = write_plate(d, "newmtl panel\nKd 0.3 0.5 0.7\n", "");
+    std::fs::write(d.join("b.obj"), "mtllib b.mtl\nv 2 0 0\nv 3 0 0\nv 2 1 0\nusemtl panel\nf 1 2 3\n").unwrap();
+    std::fs::write(d.join("b.mtl"), "newmtl panel\nKd 0.9 0.9 0.9\n").unwrap();
+    let text = std::fs::read_to_string(&path).unwrap().replace("[sun]", "[[mesh]]\nobj = \"b.obj\"\n[sun]");
+    std::fs::write(&path, text).unwrap();
+    let (scene, log) = load_logged(&path);
+    let scene = scene.unwrap();
+    assert_eq!(scene.target.materials.len(), 1);
+    assert_eq!(scene.target.materials[0].bsdf.is_lambertian(), Some(0.5));
+    assert!(log.contains("b.obj differs from the one") && log.contains("panel.obj defines"), "{log}");
+}

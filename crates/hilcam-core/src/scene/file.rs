@@ -369,6 +369,9 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         });
     }
     let mut mesh = TriMesh::default();
+    // Materials built from a model file, and which file: a later file's different
+    // definition of the same name is reported.
+    let mut authored_from: Vec<(u32, PathBuf)> = Vec::new();
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
@@ -395,6 +398,19 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         for name in &loaded.material_names {
             let target = entry.material.as_ref().map(|m| m.get_ref().as_str()).unwrap_or(name);
             if let Some(i) = index_of(&materials, target) {
+                // A name two model files define differently: the first definition is used, and said.
+                if let Some((_, first)) = authored_from.iter().find(|(j, f)| *j == i && *f != obj_path)
+                    && entry.material.is_none()
+                    && let Some(Ok(mine)) = loaded.authored(name)
+                    && mine.bsdf != materials[i as usize].bsdf
+                {
+                    tracing::warn!(
+                        material = %name,
+                        "material `{name}` of {} differs from the one {} defines: the first is used (rename one, or give [materials.{name}])",
+                        obj_path.display(),
+                        first.display()
+                    );
+                }
                 map.push(i);
                 continue;
             }
@@ -407,6 +423,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 tracing::info!(material = %name, file = %obj_path.display(), bsdf = %super::authored::describe(&built.bsdf), "material from the model file");
                 materials.push(Material { name: name.clone(), bsdf: built.bsdf });
                 map.push((materials.len() - 1) as u32);
+                authored_from.push(((materials.len() - 1) as u32, obj_path.clone()));
                 continue;
             }
             let (span, what) = match &entry.material {
