@@ -265,3 +265,46 @@ fn the_shipped_satellite_files_are_what_the_script_writes() {
         assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/gltf_satellite/{f} is stale");
     }
 }
+
+/// Standard base64 with padding, for a data-URI buffer.
+fn base64(data: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in data.chunks(3) {
+        let n =
+            (u32::from(c[0]) << 16) | (u32::from(*c.get(1).unwrap_or(&0)) << 8) | u32::from(*c.get(2).unwrap_or(&0));
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+#[test]
+fn a_gltf_with_a_bin_file_or_a_data_uri_renders_as_the_glb() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let nodes = "[{\"mesh\":0}]";
+    std::fs::write(d.join("plate.glb"), glb(&plate_json(nodes, PANEL, "", ""), &plate_bin())).unwrap();
+    std::fs::write(d.join("plate.bin"), plate_bin()).unwrap();
+    let with_uri = |uri: &str| {
+        plate_json(nodes, PANEL, "", "")
+            .replace(r#""buffers":[{"byteLength":60}]"#, &format!(r#""buffers":[{{"byteLength":60,"uri":"{uri}"}}]"#))
+    };
+    std::fs::write(d.join("file.gltf"), with_uri("plate.bin")).unwrap();
+    let data = format!("data:application/octet-stream;base64,{}", base64(&plate_bin()));
+    std::fs::write(d.join("data.gltf"), with_uri(&data)).unwrap();
+    let reference = render_file(&scene_file(d, "glb.toml", "plate.glb", 1));
+    assert!(reference.iter().filter(|&&v| v > 0.0).count() > 39_000);
+    for f in ["file.gltf", "data.gltf"] {
+        assert!(render_file(&scene_file(d, "g.toml", f, 1)) == reference, "{f} differs from the GLB");
+    }
+    // A missing .bin is refused naming the glTF and the buffer's file.
+    std::fs::remove_file(d.join("plate.bin")).unwrap();
+    let e = load_error(d, "file.gltf", with_uri("plate.bin").as_bytes());
+    assert!(e.contains("file.gltf") && e.contains("plate.bin"), "{e}");
+}
