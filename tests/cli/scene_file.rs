@@ -72,8 +72,18 @@ fn bad_material_value_names_file_line_and_field() {
 
 #[test]
 fn unmapped_mtl_material_is_named() {
-    let e = error_of(&GOOD.replace("[materials.paint]", "[materials.other]"));
-    assert!(e.contains("s.toml:3:") && e.contains("`paint`") && e.contains("[materials.paint]"), "{e}");
+    // Neither a [materials.paint] table nor a `newmtl paint` in the MTL: tobj gives the
+    // face the material `default`, which has neither either.
+    let dir = fixture();
+    write(dir.path(), "p.mtl", "newmtl other\nKd 0.5 0.5 0.5\n");
+    let p = write(dir.path(), "s.toml", &GOOD.replace("[materials.paint]", "[materials.other]"));
+    let e = load(&p).err().expect("expected an error").to_string();
+    assert!(e.contains("s.toml:3:") && e.contains("`default`") && e.contains("[materials.default]"), "{e}");
+    assert!(e.contains("no definition in the model file"), "{e}");
+    // With the MTL's own `newmtl paint`, the same scene loads: the MTL's Kd is used.
+    write(dir.path(), "p.mtl", PLATE_MTL);
+    let scene = load(&p).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.mesh.indices.len(), 1);
 }
 
 #[test]

@@ -8,7 +8,9 @@
 //! rad get hundreds of nodes. A direct wi-space quadrature cross-checks the Jacobian.
 
 use glam::Vec3;
-use hilcam_core::render::bsdf::{BlinnPhong, Bsdf, CookTorrance, ImprovedBlinnPhong, Lambert};
+use hilcam_core::render::bsdf::{
+    BlinnPhong, Bsdf, ConductorFresnel, CookTorrance, Ggx, ImprovedBlinnPhong, Lambert, Metal,
+};
 use hilcam_core::render::sampling::Rng;
 use std::f64::consts::PI;
 
@@ -77,7 +79,21 @@ fn conserving() -> Vec<(&'static str, Bsdf)> {
         ),
         ("cook_torrance rough", Bsdf::CookTorrance(CookTorrance::new(0.3, 0.3, 0.5, 1.0).unwrap())),
         ("cook_torrance gold normalized", Bsdf::CookTorrance(gold_ct().normalized())),
+        ("ggx conductor Au r0.15", Bsdf::Ggx(Ggx::conductor(0.15, au()).unwrap())),
+        ("ggx conductor Al r0.6", Bsdf::Ggx(Ggx::conductor(0.6, al()).unwrap())),
+        ("ggx plastic r0.3", Bsdf::Ggx(Ggx::plastic(0.3, 0.5, 1.5).unwrap())),
+        ("ggx metallic 0.5", Bsdf::Ggx(Ggx::metallic_roughness(0.8, 0.5, 0.5).unwrap())),
     ]
+}
+
+fn au() -> ConductorFresnel {
+    let [n, k] = Metal::Au.nk();
+    ConductorFresnel::Complex { n, k }
+}
+
+fn al() -> ConductorFresnel {
+    let [n, k] = Metal::Al.nk();
+    ConductorFresnel::Complex { n, k }
 }
 
 fn gold_bp() -> BlinnPhong {
@@ -222,6 +238,8 @@ fn reciprocity_where_it_holds() {
         Bsdf::Lambert(Lambert::new(0.522).unwrap()),
         Bsdf::CookTorrance(gold_ct()),
         Bsdf::CookTorrance(CookTorrance::new(0.3, 0.3, 0.5, 1.0).unwrap()),
+        Bsdf::Ggx(Ggx::conductor(0.15, au()).unwrap()),
+        Bsdf::Ggx(Ggx::plastic(0.3, 0.5, 1.5).unwrap()),
     ];
     for _ in 0..20_000 {
         let wo = hilcam_core::render::sampling::uniform_hemisphere(rng.next_2d());
@@ -336,7 +354,8 @@ fn pdf_integrates_to_the_probability_of_a_sample() {
             let sigma = (frac * (1.0 - frac) / n as f64).sqrt();
             assert!((integral - frac).abs() < 4.0 * sigma + 3e-3, "{name} θo {th}: ∫pdf {integral} vs P(Some) {frac}");
             assert!(integral <= 1.0 + 3e-3, "{name}: {integral}");
-            if th == 0.0 {
+            // GGX's tails reflect some visible normals below the horizon even at θo = 0.
+            if th == 0.0 && !name.starts_with("ggx") {
                 assert!((integral - 1.0).abs() < 3e-3, "{name} at normal incidence: ∫pdf = {integral}");
             }
         }
@@ -358,8 +377,13 @@ fn sample_histogram_matches_pdf_chi_square() {
     const NP: usize = 12;
     const SUB: usize = 12;
     let n_samples = 200_000usize;
-    let cases: Vec<(&str, Bsdf, f64)> =
-        all_models().into_iter().flat_map(|(n, b)| [0.0, 50.0, 80.0].map(move |t| (n, b, t))).collect();
+    // GGX's tails reach the horizon, where a midpoint per sub-cell miscounts the bins the
+    // horizon cuts: ggx.rs tests those samplers with a quadrature refined there.
+    let cases: Vec<(&str, Bsdf, f64)> = all_models()
+        .into_iter()
+        .filter(|(n, _)| !n.starts_with("ggx"))
+        .flat_map(|(n, b)| [0.0, 50.0, 80.0].map(move |t| (n, b, t)))
+        .collect();
     // pbrt's bsdfs_test: 1 % overall significance, Šidák-corrected over the cases.
     let alpha = 1.0 - (1.0f64 - 0.01).powf(1.0 / cases.len() as f64);
     let z = normal_quantile(1.0 - alpha);

@@ -22,7 +22,16 @@ use std::sync::Arc;
 use std::time::Instant;
 
 const GOLDEN: &str = "tests/golden/frames.txt";
-const SCENES: [&str; 6] = ["corner", "jason_paper", "plate", "satellite", "satellite_lambert", "sphere"];
+const SCENES: [&str; 8] = [
+    "corner",
+    "gltf_satellite",
+    "gltf_satellite_obj",
+    "jason_paper",
+    "plate",
+    "satellite",
+    "satellite_lambert",
+    "sphere",
+];
 /// Small enough to run in seconds, large enough that every scene's target covers pixels.
 const WIDTH: u32 = 96;
 

@@ -44,7 +44,7 @@
 //! ```
 
 use super::limits;
-use super::obj::load_obj;
+use super::model::load_model;
 use super::{Material, Scene, SceneParts};
 use crate::pose::Pose;
 use crate::render::bsdf::BsdfSpec;
@@ -358,7 +358,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             spec.get_ref().build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
         materials.push(Material { name: name.clone(), bsdf });
     }
-    let index_of = |name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
+    let index_of = |materials: &[Material], name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
 
     // Meshes, transformed into the body frame.
     if file.mesh.is_empty() {
@@ -369,10 +369,16 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         });
     }
     let mut mesh = TriMesh::default();
+    // Materials built from a model file, and which file: a later file's different
+    // definition of the same name is reported.
+    let mut authored_from: Vec<(u32, PathBuf)> = Vec::new();
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
-        let loaded = load_obj(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
+        let loaded = load_model(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
+        for note in &loaded.notes {
+            tracing::warn!(mesh = %obj_path.display(), "{note}");
+        }
         let scale = *entry.scale.get_ref();
         limits::in_range(scale, limits::SCALE, "")
             .map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
@@ -386,29 +392,54 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             limits::in_range(v, (-limits::ROTATE_DEG, limits::ROTATE_DEG), "°")
                 .map_err(|m| field(entry.rotate_deg.span(), &format!("mesh[{k}].rotate_deg"), m))?;
         }
-        // Map each MTL name to a scene material.
+        // Map each MTL name to a scene material: its [materials.NAME] table, or else the
+        // MTL's own definition (built once, its unused keys reported once).
         let mut map = Vec::new();
         for name in &loaded.material_names {
             let target = entry.material.as_ref().map(|m| m.get_ref().as_str()).unwrap_or(name);
-            match index_of(target) {
-                Some(i) => map.push(i),
-                None => {
-                    let (span, what) = match &entry.material {
-                        Some(m) => (m.span(), format!("mesh[{k}].material")),
-                        None => (entry.obj.span(), fname.clone()),
-                    };
-                    let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
-                    return Err(field(
-                        span,
-                        &what,
-                        format!(
-                            "material `{target}` used by {} has no [materials.{target}] entry (scene has: {})",
-                            obj_path.display(),
-                            known.join(", ")
-                        ),
-                    ));
+            if let Some(i) = index_of(&materials, target) {
+                // A name two model files define differently: the first definition is used, and said.
+                if let Some((_, first)) = authored_from.iter().find(|(j, f)| *j == i && *f != obj_path)
+                    && entry.material.is_none()
+                    && let Some(Ok(mine)) = loaded.authored(name)
+                    && mine.bsdf != materials[i as usize].bsdf
+                {
+                    tracing::warn!(
+                        material = %name,
+                        "material `{name}` of {} differs from the one {} defines: the first is used (rename one, or give [materials.{name}])",
+                        obj_path.display(),
+                        first.display()
+                    );
                 }
+                map.push(i);
+                continue;
             }
+            let authored = entry.material.is_none().then(|| loaded.authored(name)).flatten();
+            if let Some(built) = authored {
+                let built = built.map_err(|m| field(entry.obj.span(), &fname, m))?;
+                for note in &built.notes {
+                    tracing::warn!(material = %name, "{note}");
+                }
+                tracing::info!(material = %name, file = %obj_path.display(), bsdf = %super::authored::describe(&built.bsdf), "material from the model file");
+                materials.push(Material { name: name.clone(), bsdf: built.bsdf });
+                map.push((materials.len() - 1) as u32);
+                authored_from.push(((materials.len() - 1) as u32, obj_path.clone()));
+                continue;
+            }
+            let (span, what) = match &entry.material {
+                Some(m) => (m.span(), format!("mesh[{k}].material")),
+                None => (entry.obj.span(), fname.clone()),
+            };
+            let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+            return Err(field(
+                span,
+                &what,
+                format!(
+                    "material `{target}` used by {} has no [materials.{target}] entry and no definition in the model file (scene has: {})",
+                    obj_path.display(),
+                    known.join(", ")
+                ),
+            ));
         }
         let [rx, ry, rz] = rotate_deg.map(f64::to_radians);
         let rot = DQuat::from_euler(EulerRot::ZYX, rz, ry, rx);
@@ -428,7 +459,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         let fail = |m: String| field(w.span(), "wrap", m);
         let edge_m = *e.edge_m.get_ref();
         let edge_span = if e.edge_m.span().is_empty() { w.span() } else { e.edge_m.span() };
-        let Some(mat) = index_of(&e.material) else {
+        let Some(mat) = index_of(&materials, &e.material) else {
             return Err(fail(format!("material `{}` is not in [materials]", e.material)));
         };
         let target = match (&e.level, e.e_plane, e.var) {

@@ -1,9 +1,15 @@
 //! A loaded scene: triangles in the render frame, materials, sun, background, and the
 //! defaults (camera, pose, render settings) that let one file render on its own.
 
+pub mod authored;
+mod base64;
 pub mod file;
 pub mod fold;
+pub mod gltf;
 pub mod limits;
+pub mod model;
+pub mod mtl;
+pub mod mtl_bsdf;
 pub mod obj;
 pub mod planet;
 

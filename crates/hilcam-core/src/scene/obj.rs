@@ -4,15 +4,12 @@ use crate::render::geometry::TriMesh;
 use glam::Vec3;
 use std::path::Path;
 
-/// Triangles of one OBJ file; `material` indexes `material_names`. Faces without a
-/// material get the name `default`.
-pub struct ObjMesh {
-    pub mesh: TriMesh,
-    pub material_names: Vec<String>,
-}
+use super::model::{AuthoredMaterials, ModelMesh};
 
-/// Load an OBJ file; the error names the file (and the line, for a bad vertex).
-pub fn load_obj(path: &Path) -> Result<ObjMesh, String> {
+/// Load an OBJ file: its triangles, each face's MTL material name (`default` for faces
+/// without one) and every material its MTL libraries define, with their keys and lines.
+/// The error names the file (and the line, for a bad vertex).
+pub fn load_obj(path: &Path) -> Result<ModelMesh, String> {
     load_obj_unnamed(path).map_err(|m| format!("{}{m}", path.display()))
 }
 
@@ -40,9 +37,33 @@ fn check_vertices(text: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
+/// A note for each `usemtl` name (first use) that no MTL library defines: tobj gives its
+/// faces the material `default` without a word.
+fn undefined_usemtl(path: &Path, text: &str, defs: &[super::mtl::MtlMaterial]) -> Vec<String> {
+    let file = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into());
+    let mut seen: Vec<&str> = Vec::new();
+    let mut notes = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let Some(name) = line.trim_start().strip_prefix("usemtl").filter(|r| r.starts_with(char::is_whitespace)) else {
+            continue;
+        };
+        let name = name.trim();
+        if !seen.contains(&name) && !defs.iter().any(|d| d.name == name) {
+            notes.push(format!(
+                "`usemtl {name}` names no material of its MTL: its faces are `default`: {file}:{}",
+                i + 1
+            ));
+        }
+        seen.push(name);
+    }
+    notes
+}
+
+fn load_obj_unnamed(path: &Path) -> Result<ModelMesh, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!(": {e}"))?;
     check_vertices(&text)?;
+    let mtl_defs = super::mtl::libraries_of_obj(path.parent().unwrap_or(Path::new(".")), &text);
+    let notes = undefined_usemtl(path, &text, &mtl_defs);
     let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| format!(": {e}"))?;
     // A missing or broken .mtl still loads the geometry; the names come from `usemtl`
     // only through the material list, so without it every face is `default`.
@@ -77,12 +98,20 @@ fn load_obj_unnamed(path: &Path) -> Result<ObjMesh, String> {
     if out.indices.is_empty() {
         return Err(": no triangles".to_string());
     }
-    Ok(ObjMesh { mesh: out, material_names: names })
+    Ok(ModelMesh { mesh: out, material_names: names, authored: AuthoredMaterials::Mtl(mtl_defs), notes })
 }
 
 #[cfg(test)]
 mod tests {
-    use super::check_vertices;
+    use super::{Path, check_vertices, undefined_usemtl};
+
+    #[test]
+    fn a_usemtl_no_library_defines_is_noted_once_with_its_line() {
+        let defs = crate::scene::mtl::parse_mtl(Path::new("p.mtl"), "newmtl paint\nKd 1 1 1\n");
+        let obj = "mtllib p.mtl\nv 0 0 0\nusemtl paint\nf 1 1 1\nusemtl gold\nf 1 1 1\nusemtl gold\n";
+        let notes = undefined_usemtl(Path::new("/m/sat.obj"), obj, &defs);
+        assert_eq!(notes, ["`usemtl gold` names no material of its MTL: its faces are `default`: sat.obj:5"]);
+    }
 
     #[test]
     fn bad_vertices_are_named_by_line_and_axis() {

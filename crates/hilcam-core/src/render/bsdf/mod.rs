@@ -1,5 +1,6 @@
 //! BRDF models: Lambert, Blinn-Phong (the paper's Eq. 4), the paper's improved
-//! Blinn-Phong (Eq. 5) and Cook-Torrance, behind one closed [`Bsdf`] enum.
+//! Blinn-Phong (Eq. 5), Cook-Torrance (Beckmann) and the GGX conductor / plastic /
+//! metallic-roughness models ([`Ggx`]), behind one closed [`Bsdf`] enum.
 //!
 //! Conventions (all models):
 //! - Vectors are unit and in the **local shading frame**, normal = +Z. `wo` points toward
@@ -17,8 +18,12 @@
 //!   solid-angle density, so `f_cos / pdf` is an unbiased weight.
 
 mod blinn_phong;
+mod coating;
 mod cook_torrance;
 mod diffuse_lobe;
+pub mod fresnel;
+mod ggx;
+mod ggx_material;
 mod improved_blinn_phong;
 mod lambert;
 pub(crate) mod lobe;
@@ -27,6 +32,9 @@ mod spec;
 pub use blinn_phong::BlinnPhong;
 pub use cook_torrance::{BeckmannLobe, CookTorrance};
 pub use diffuse_lobe::{DiffuseLobe, SpecularLobe};
+pub use fresnel::{ConductorFresnel, Metal};
+pub use ggx::GgxDistribution;
+pub use ggx_material::{GLTF_DIELECTRIC_IOR, Ggx};
 pub use improved_blinn_phong::ImprovedBlinnPhong;
 pub use lambert::Lambert;
 pub use lobe::BlinnLobe;
@@ -63,6 +71,7 @@ pub enum Bsdf {
     BlinnPhong(BlinnPhong),
     ImprovedBlinnPhong(ImprovedBlinnPhong),
     CookTorrance(CookTorrance),
+    Ggx(Ggx),
 }
 
 macro_rules! dispatch {
@@ -72,6 +81,7 @@ macro_rules! dispatch {
             Bsdf::BlinnPhong($b) => $e,
             Bsdf::ImprovedBlinnPhong($b) => $e,
             Bsdf::CookTorrance($b) => $e,
+            Bsdf::Ggx($b) => $e,
         }
     };
 }
@@ -111,6 +121,7 @@ impl Bsdf {
             Bsdf::BlinnPhong(b) => b.sample(wo, u, u_lobe),
             Bsdf::ImprovedBlinnPhong(b) => b.sample(wo, u, u_lobe),
             Bsdf::CookTorrance(b) => b.sample(wo, u, u_lobe),
+            Bsdf::Ggx(b) => b.sample(wo, u, u_lobe),
         }
     }
 
@@ -127,6 +138,8 @@ impl Bsdf {
             Bsdf::BlinnPhong(b) => b.is_black(),
             Bsdf::ImprovedBlinnPhong(b) => b.is_black(),
             Bsdf::CookTorrance(b) => b.is_black(),
+            // Every Fresnel reflectance here reaches 1 at grazing incidence.
+            Bsdf::Ggx(_) => false,
         }
     }
 
@@ -137,6 +150,7 @@ impl Bsdf {
             Bsdf::BlinnPhong(b) => b.lambertian(),
             Bsdf::ImprovedBlinnPhong(b) => b.lambertian(),
             Bsdf::CookTorrance(b) => b.lambertian(),
+            Bsdf::Ggx(_) => None,
         }
     }
 
@@ -155,6 +169,7 @@ impl Bsdf {
             Bsdf::BlinnPhong(b) => b.directional_albedo(cos_theta_o, samples),
             Bsdf::ImprovedBlinnPhong(b) => b.directional_albedo(cos_theta_o, samples),
             Bsdf::CookTorrance(b) => b.directional_albedo(cos_theta_o, samples),
+            Bsdf::Ggx(b) => b.directional_albedo(cos_theta_o, samples),
         }
     }
 
@@ -165,6 +180,7 @@ impl Bsdf {
             Bsdf::BlinnPhong(_) => "blinn_phong",
             Bsdf::ImprovedBlinnPhong(_) => "improved_blinn_phong",
             Bsdf::CookTorrance(_) => "cook_torrance",
+            Bsdf::Ggx(b) => b.model_name(),
         }
     }
 }

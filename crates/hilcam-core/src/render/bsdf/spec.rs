@@ -6,10 +6,13 @@
 //! bsdf = { model = "improved_blinn_phong", preset = "gold_polyimide", normalized = true }
 //! bsdf = { model = "blinn_phong", rho_d = 0.3, rho_s = 20.0, alpha = 200.0 }
 //! bsdf = { model = "cook_torrance", rho_d = 0.3, roughness = 0.1, f0 = 0.9 }
+//! bsdf = { model = "ggx_conductor", roughness = 0.3, metal = "Au" }    # or n, k; or f0
+//! bsdf = { model = "ggx_plastic", roughness = 0.5, rho = 0.5, ior = 1.5 }
+//! bsdf = { model = "ggx_metallic_roughness", base_color = 0.8, metallic = 1.0, roughness = 0.4 }
 //! ```
 //! Explicit fields override the preset's; without a preset every field is required.
 
-use super::{BlinnPhong, Bsdf, BsdfError, CookTorrance, ImprovedBlinnPhong, Lambert};
+use super::{BlinnPhong, Bsdf, BsdfError, ConductorFresnel, CookTorrance, Ggx, ImprovedBlinnPhong, Lambert, Metal};
 use serde::Deserialize;
 
 /// Named parameter sets.
@@ -84,6 +87,69 @@ pub enum BsdfSpec {
         #[serde(default)]
         normalized: bool,
     },
+    /// GGX conductor: `D G F / (4 cosθo cosθi)`, F from `metal`, or `n` and `k`, or `f0`.
+    GgxConductor {
+        /// α = roughness² (glTF / Disney).
+        #[serde(default)]
+        roughness: Option<f32>,
+        /// A named conductor: `Au`, `Al`, `Ag`, `Cu`.
+        #[serde(default)]
+        metal: Option<Metal>,
+        #[serde(default)]
+        n: Option<f32>,
+        #[serde(default)]
+        k: Option<f32>,
+        /// Schlick's F0 instead of a complex index.
+        #[serde(default)]
+        f0: Option<f32>,
+    },
+    /// GGX dielectric coating of index `ior` (default 1.5) over Lambert `rho`.
+    GgxPlastic {
+        #[serde(default)]
+        roughness: Option<f32>,
+        #[serde(default)]
+        rho: Option<f32>,
+        #[serde(default)]
+        ior: Option<f32>,
+    },
+    /// glTF 2.0's metallic-roughness material at one band.
+    GgxMetallicRoughness {
+        #[serde(default)]
+        base_color: Option<f32>,
+        #[serde(default)]
+        metallic: Option<f32>,
+        #[serde(default)]
+        roughness: Option<f32>,
+    },
+}
+
+/// A conductor's Fresnel term from exactly one of `metal`, `n` + `k`, `f0`.
+fn conductor_fresnel(
+    metal: Option<Metal>,
+    n: Option<f32>,
+    k: Option<f32>,
+    f0: Option<f32>,
+) -> Result<ConductorFresnel, BsdfError> {
+    const M: &str = "ggx_conductor";
+    let conflict = |field| BsdfError::Invalid {
+        model: M,
+        field,
+        value: f32::NAN,
+        reason: "conflicts with another Fresnel choice: give one of `metal`, `n` and `k`, `f0`",
+    };
+    match (metal, n, k, f0) {
+        (Some(m), None, None, None) => {
+            let [n, k] = m.nk();
+            Ok(ConductorFresnel::Complex { n, k })
+        }
+        (None, Some(n), Some(k), None) => Ok(ConductorFresnel::Complex { n, k }),
+        (None, None, None, Some(f0)) => Ok(ConductorFresnel::Schlick { f0 }),
+        (None, Some(_), None, None) => Err(BsdfError::Missing { model: M, field: "k" }),
+        (None, None, Some(_), None) => Err(BsdfError::Missing { model: M, field: "n" }),
+        (None, None, None, None) => Err(BsdfError::Missing { model: M, field: "metal" }),
+        (Some(_), ..) => Err(conflict("metal")),
+        _ => Err(conflict("f0")),
+    }
 }
 
 fn pick(
@@ -173,6 +239,28 @@ impl BsdfSpec {
                 )?;
                 Ok(Bsdf::CookTorrance(if normalized { c.normalized() } else { c }))
             }
+            BsdfSpec::GgxConductor { roughness, metal, n, k, f0 } => {
+                let r = pick("ggx_conductor", "roughness", roughness, None)?;
+                Ok(Bsdf::Ggx(Ggx::conductor(r, conductor_fresnel(metal, n, k, f0)?)?))
+            }
+            BsdfSpec::GgxPlastic { roughness, rho, ior } => {
+                const M: &str = "ggx_plastic";
+                let g = Ggx::plastic(
+                    pick(M, "roughness", roughness, None)?,
+                    pick(M, "rho", rho, None)?,
+                    ior.unwrap_or(super::GLTF_DIELECTRIC_IOR),
+                )?;
+                Ok(Bsdf::Ggx(g))
+            }
+            BsdfSpec::GgxMetallicRoughness { base_color, metallic, roughness } => {
+                const M: &str = "ggx_metallic_roughness";
+                let g = Ggx::metallic_roughness(
+                    pick(M, "base_color", base_color, None)?,
+                    pick(M, "metallic", metallic, None)?,
+                    pick(M, "roughness", roughness, None)?,
+                )?;
+                Ok(Bsdf::Ggx(g))
+            }
         }
     }
 }
@@ -213,6 +301,12 @@ mod tests {
             r#"{ model = "cook_torrance", preset = "gold_polyimide" }"#,
             r#"{ model = "cook_torrance", rho_d = 0.1, roughness = 0.2, f0 = 0.5 }"#,
             r#"{ model = "lambert", preset = "white_paint" }"#,
+            r#"{ model = "ggx_conductor", roughness = 0.3, metal = "Au" }"#,
+            r#"{ model = "ggx_conductor", roughness = 0.3, n = 1.2, k = 7.3 }"#,
+            r#"{ model = "ggx_conductor", roughness = 0.3, f0 = 0.9 }"#,
+            r#"{ model = "ggx_plastic", roughness = 0.5, rho = 0.5, ior = 1.5 }"#,
+            r#"{ model = "ggx_plastic", roughness = 0.5, rho = 0.5 }"#,
+            r#"{ model = "ggx_metallic_roughness", base_color = 0.8, metallic = 0.5, roughness = 0.4 }"#,
         ] {
             parse(s).unwrap().build().unwrap();
         }
@@ -255,6 +349,25 @@ mod tests {
         assert!(e.to_string().contains("`roughness`"), "{e}");
         let e = parse(r#"{ model = "blinn_phong", preset = "white_paint" }"#).unwrap().build().unwrap_err();
         assert!(e.to_string().contains("`preset`"), "{e}");
+        for (text, field) in [
+            (r#"{ model = "ggx_conductor", roughness = 0.3 }"#, "`metal`"),
+            (r#"{ model = "ggx_conductor", roughness = 0.3, n = 1.0 }"#, "`k`"),
+            (r#"{ model = "ggx_conductor", roughness = 0.3, metal = "Au", f0 = 0.5 }"#, "`metal`"),
+            (r#"{ model = "ggx_conductor", roughness = 0.3, n = 1.0, k = 2.0, f0 = 0.5 }"#, "`f0`"),
+            (r#"{ model = "ggx_conductor", roughness = 0.001, metal = "Al" }"#, "`roughness`"),
+            (r#"{ model = "ggx_conductor", roughness = 0.3, n = -1.0, k = 2.0 }"#, "`n`"),
+            (r#"{ model = "ggx_plastic", roughness = 0.3, rho = 0.5, ior = 0.5 }"#, "`ior`"),
+            (r#"{ model = "ggx_plastic", roughness = 0.3 }"#, "`rho`"),
+            (
+                r#"{ model = "ggx_metallic_roughness", base_color = 0.5, metallic = 2.0, roughness = 0.5 }"#,
+                "`metallic`",
+            ),
+        ] {
+            let e = parse(text).unwrap().build().unwrap_err();
+            assert!(e.to_string().contains(field), "{text}: {e}");
+        }
+        let e = parse(r#"{ model = "ggx_conductor", roughness = 0.3, metal = "Pt" }"#).unwrap_err();
+        assert!(e.to_string().contains("Pt"), "{e}");
         // Unknown fields and models are rejected by serde, naming them.
         let e = parse(r#"{ model = "lambert", rho = 0.5, roh = 1 }"#).unwrap_err();
         assert!(e.to_string().contains("roh"), "{e}");

@@ -1,0 +1,231 @@
+//! An MTL material as its author wrote it → a BRDF, for materials without a
+//! `[materials.NAME]` table (docs/scene.md, "MTL materials"). Every key is either used
+//! or named in a note with its file and line ("`Ps` ignored: panel.mtl:4").
+//!
+//! - A colour is reduced to hilcam's one band as the mean of its three values (the
+//!   camera's 450–750 nm band spans blue, green and red about equally).
+//! - With the PBR extension (`Pr` or `Pm`): GGX, roughness `Pr` (default 1, α = Pr²),
+//!   metallic `Pm` (default 0), base colour `Kd` (default 1): `Pm` 1 is a conductor with
+//!   Schlick F0 = `Kd`, `Pm` 0 a rough plastic (index `Ni`, default 1.5) over Lambert
+//!   `Kd`, between them glTF's blend. `Ks` and `Ns` are then unused.
+//! - Without it: Lambert `Kd` when `Ks` is absent or black; otherwise a rough plastic over
+//!   Lambert `Kd` whose coating reflects F0 = `Ks` at normal incidence (index
+//!   `(1 + √F0)/(1 − √F0)`, F0 at most 0.36 = index 4) with the Blinn–Phong exponent `Ns`
+//!   mapped to GGX by Walter et al. 2007's `α = √(2/(Ns + 2))` (`Ns` default 0: α = 1).
+//!   `Ni` is then MTL's refraction index of transparent materials, unused.
+//! - `Ke` is unused unless black: hilcam has no emitting surfaces yet.
+
+use super::authored::{AuthoredBsdf, MIN_ROUGHNESS, metallic_roughness};
+use super::mtl::{MtlKey, MtlMaterial};
+use crate::render::bsdf::{Bsdf, Ggx, Lambert};
+
+/// Largest dielectric F0 a `Ks` maps to: the coating's index is at most 4.
+const MAX_DIELECTRIC_F0: f32 = 0.36;
+
+/// `Kd r [g b]` → the band value (g and b default to r, as MTL says).
+fn band(m: &MtlMaterial, k: &MtlKey) -> Result<f32, String> {
+    let v: Vec<f32> = k.args.iter().map(|a| a.parse::<f32>()).collect::<Result<_, _>>().map_err(|_| {
+        format!("{}: {}: `{}` is not `{} r g b` (numbers)", m.at(k.line), k.key, k.args.join(" "), k.key)
+    })?;
+    let b = match v.as_slice() {
+        [r] => *r,
+        [r, g, b] => (r + g + b) / 3.0,
+        _ => return Err(format!("{}: {}: needs 1 or 3 numbers, got {}", m.at(k.line), k.key, v.len())),
+    };
+    unit(m, k, b)
+}
+
+fn unit(m: &MtlMaterial, k: &MtlKey, v: f32) -> Result<f32, String> {
+    if (0.0..=1.0).contains(&v) { Ok(v) } else { Err(format!("{}: {}: {v} must be in [0, 1]", m.at(k.line), k.key)) }
+}
+
+fn scalar(m: &MtlMaterial, k: &MtlKey) -> Result<f32, String> {
+    match k.args.as_slice() {
+        [a] => a
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{}: {}: `{a}` is not a finite number", m.at(k.line), k.key)),
+        _ => Err(format!("{}: {}: needs one number, got `{}`", m.at(k.line), k.key, k.args.join(" "))),
+    }
+}
+
+/// Build `m`'s BRDF from its own keys.
+///
+/// # Errors
+/// A used key whose value cannot be read or is out of range, named by `file:line`.
+pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
+    let mut notes = Vec::new();
+    let mut used: Vec<&str> = vec!["Kd"];
+    let base = m.get("Kd").map(|k| band(m, k)).transpose()?.unwrap_or(1.0);
+    let pbr = m.get("Pr").is_some() || m.get("Pm").is_some();
+    let bsdf = if pbr {
+        used.extend(["Pr", "Pm", "Ni"]);
+        let mut roughness = match m.get("Pr") {
+            Some(k) => unit(m, k, scalar(m, k)?)?,
+            None => 1.0,
+        };
+        if roughness < MIN_ROUGHNESS {
+            let k = m.get("Pr").expect("Pr below 1 was given");
+            notes.push(format!(
+                "`Pr` {roughness} raised to {MIN_ROUGHNESS}, the smoothest GGX hilcam takes: {}",
+                m.at(k.line)
+            ));
+            roughness = MIN_ROUGHNESS;
+        }
+        let metallic = match m.get("Pm") {
+            Some(k) => unit(m, k, scalar(m, k)?)?,
+            None => 0.0,
+        };
+        let mut ior = crate::render::bsdf::GLTF_DIELECTRIC_IOR;
+        if let Some(k) = m.get("Ni") {
+            let v = scalar(m, k)?;
+            if (1.0..=4.0).contains(&v) {
+                ior = v;
+            } else if metallic < 1.0 {
+                notes.push(format!("`Ni` {v} is outside [1, 4]: 1.5 used: {}", m.at(k.line)));
+            }
+        }
+        for key in ["Ks", "Ns"] {
+            if let Some(k) = m.get(key) {
+                notes.push(format!("`{key}` ignored (the material has `Pr`/`Pm`): {}", m.at(k.line)));
+            }
+        }
+        used.extend(["Ks", "Ns"]);
+        metallic_roughness(base, metallic, roughness, ior).map_err(|e| format!("{}: {e}", m.at(m.line)))?
+    } else {
+        used.extend(["Ks", "Ns"]);
+        let ks = m.get("Ks").map(|k| band(m, k)).transpose()?.unwrap_or(0.0);
+        if let Some(k) = m.get("Ni") {
+            notes.push(format!("`Ni` ignored (refraction; no `Pr`/`Pm`): {}", m.at(k.line)));
+        }
+        used.push("Ni");
+        if ks == 0.0 {
+            if let Some(k) = m.get("Ns") {
+                notes.push(format!("`Ns` ignored (`Ks` is black): {}", m.at(k.line)));
+            }
+            Bsdf::Lambert(Lambert::new(base).map_err(|e| format!("{}: {e}", m.at(m.line)))?)
+        } else {
+            let mut f0 = ks;
+            if f0 > MAX_DIELECTRIC_F0 {
+                let k = m.get("Ks").expect("Ks above 0 was given");
+                notes.push(format!(
+                    "`Ks` {ks} is above a dielectric coating's F0 ({MAX_DIELECTRIC_F0} at index 4): {MAX_DIELECTRIC_F0} used \
+                     (`Pm 1` makes a metal): {}",
+                    m.at(k.line)
+                ));
+                f0 = MAX_DIELECTRIC_F0;
+            }
+            let ns = match m.get("Ns") {
+                Some(k) => {
+                    let v = scalar(m, k)?;
+                    if v < 0.0 {
+                        return Err(format!("{}: Ns: {v} must be ≥ 0", m.at(k.line)));
+                    }
+                    v
+                }
+                None => 0.0,
+            };
+            let alpha = (2.0 / (ns + 2.0)).sqrt();
+            let roughness = alpha.sqrt().max(MIN_ROUGHNESS);
+            let ior = ((1.0 + f0.sqrt()) / (1.0 - f0.sqrt())).min(4.0); // f32 rounding at F0 0.36
+            Bsdf::Ggx(Ggx::plastic(roughness, base, ior).map_err(|e| format!("{}: {e}", m.at(m.line)))?)
+        }
+    };
+    if let Some(k) = m.get("Ke") {
+        let ke = band(m, k).or_else(|_| scalar(m, k)).unwrap_or(f32::NAN);
+        if ke != 0.0 {
+            notes.push(format!("`Ke` ignored (hilcam has no emitting surfaces yet): {}", m.at(k.line)));
+        }
+    }
+    used.push("Ke");
+    // Every other key, once per material.
+    let mut reported: Vec<&str> = Vec::new();
+    for k in &m.keys {
+        if !used.contains(&k.key.as_str()) && !reported.contains(&k.key.as_str()) {
+            reported.push(&k.key);
+            notes.push(format!("`{}` ignored: {}", k.key, m.at(k.line)));
+        }
+    }
+    Ok(AuthoredBsdf { bsdf, notes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::bsdf::ConductorFresnel;
+    use crate::scene::mtl::parse_mtl;
+    use std::path::Path;
+
+    fn one(text: &str) -> Result<AuthoredBsdf, String> {
+        let m = parse_mtl(Path::new("/x/panel.mtl"), &format!("newmtl panel\n{text}"));
+        bsdf_from_mtl(&m[0])
+    }
+
+    #[test]
+    fn kd_alone_is_lambert_of_the_band_mean() {
+        let f = one("Kd 0.2 0.5 0.8\n").unwrap();
+        assert_eq!(f.bsdf.is_lambertian(), Some(0.5));
+        assert!(f.notes.is_empty(), "{:?}", f.notes);
+        assert_eq!(one("Kd 0.3\n").unwrap().bsdf.is_lambertian(), Some(0.3));
+    }
+
+    #[test]
+    fn pbr_keys_choose_the_ggx_form() {
+        let Bsdf::Ggx(c) = one("Kd 0.9 0.9 0.9\nPr 0.5\nPm 1\n").unwrap().bsdf else { panic!() };
+        let ConductorFresnel::Schlick { f0 } = c.conductor else { panic!() };
+        assert_eq!((c.metallic, c.dist.alpha), (1.0, 0.25));
+        assert!((f0 - 0.9).abs() < 1e-6, "{f0}");
+        let Bsdf::Ggx(p) = one("Kd 0.4 0.4 0.4\nPr 0.3\nPm 0\nNi 1.6\n").unwrap().bsdf else { panic!() };
+        assert_eq!((p.metallic, p.rho, p.eta), (0.0, 0.4, 1.6));
+        assert!((p.dist.alpha - 0.09).abs() < 1e-7);
+        let Bsdf::Ggx(b) = one("Kd 0.5 0.5 0.5\nPm 0.25\n").unwrap().bsdf else { panic!() };
+        assert_eq!((b.metallic, b.dist.alpha), (0.25, 1.0));
+    }
+
+    #[test]
+    fn ks_and_ns_make_a_coating() {
+        // Ks 0.04 → η 1.5; Ns 198 → α = √(2/200) = 0.1.
+        let Bsdf::Ggx(p) = one("Kd 0.5 0.5 0.5\nKs 0.04 0.04 0.04\nNs 198\n").unwrap().bsdf else { panic!() };
+        assert!((p.eta - 1.5).abs() < 1e-5 && (p.dist.alpha - 0.1).abs() < 1e-6, "{p:?}");
+        // `Ks 1 1 1` (an exporter's default) is clamped, and said so.
+        let f = one("Kd 0.8 0.8 0.8\nKs 1 1 1\nNs 10\n").unwrap();
+        assert!(
+            f.notes.iter().any(|n| n.starts_with("`Ks` 1 is above") && n.ends_with("panel.mtl:3")),
+            "{:?}",
+            f.notes
+        );
+    }
+
+    #[test]
+    fn every_unused_key_is_named_once_with_file_and_line() {
+        let f = one("Kd 0.5 0.5 0.5\nmap_Kd cells.png\nPs 0.3\nillum 2\nd 1\nPs 0.4\nKa 0 0 0\nKe 1 1 1\n").unwrap();
+        for want in [
+            "`map_Kd` ignored: panel.mtl:3",
+            "`Ps` ignored: panel.mtl:4",
+            "`illum` ignored: panel.mtl:5",
+            "`d` ignored: panel.mtl:6",
+            "`Ka` ignored: panel.mtl:8",
+            "`Ke` ignored (hilcam has no emitting surfaces yet): panel.mtl:9",
+        ] {
+            assert!(f.notes.iter().any(|n| n == want), "missing {want}: {:?}", f.notes);
+        }
+        assert_eq!(f.notes.iter().filter(|n| n.contains("`Ps`")).count(), 1);
+        let f = one("Kd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nPr 0.5\nNi 1.45\n").unwrap();
+        assert!(f.notes.iter().any(|n| n == "`Ks` ignored (the material has `Pr`/`Pm`): panel.mtl:3"), "{:?}", f.notes);
+    }
+
+    #[test]
+    fn bad_values_are_errors_naming_file_line_and_key() {
+        for (text, want) in [
+            ("Kd 0.5 x 0.5\n", "panel.mtl:2: Kd:"),
+            ("Kd 1.5 1.5 1.5\n", "panel.mtl:2: Kd: 1.5 must be in [0, 1]"),
+            ("Kd 0.5\nPr nan\n", "panel.mtl:3: Pr:"),
+            ("Kd 0.5\nPm 2\n", "panel.mtl:3: Pm: 2 must be in [0, 1]"),
+            ("Kd 0.5\nKs 0.1\nNs -3\n", "panel.mtl:4: Ns:"),
+        ] {
+            let e = one(text).unwrap_err();
+            assert!(e.starts_with(want), "{text:?}: {e}");
+        }
+    }
+}
