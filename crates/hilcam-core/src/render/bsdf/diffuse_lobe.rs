@@ -133,14 +133,7 @@ impl<L: SpecularLobe> DiffuseLobe<L> {
     /// Probability of choosing the specular technique for this `wo`.
     #[inline]
     fn spec_probability(&self, wo: Vec3) -> f32 {
-        let ws = self.lobe.albedo_hint(wo.z).max(0.0);
-        let wd = self.rho_d.max(0.0);
-        if ws + wd <= 0.0 {
-            return 0.0;
-        }
-        // Keep both techniques alive: a tiny floor on each costs nothing and protects the
-        // estimator against a poor albedo hint (e.g. near grazing).
-        (ws / (ws + wd)).clamp(if ws > 0.0 { 0.05 } else { 0.0 }, if wd > 0.0 { 0.95 } else { 1.0 })
+        spec_share(self.lobe.albedo_hint(wo.z), self.rho_d)
     }
 
     /// The mixture density of [`DiffuseLobe::sample`].
@@ -149,9 +142,7 @@ impl<L: SpecularLobe> DiffuseLobe<L> {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let ps = self.spec_probability(wo);
-        let spec = if ps > 0.0 { self.lobe.pdf(wo, wi) } else { 0.0 };
-        ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi.z)
+        mixture_pdf(self.spec_probability(wo), || self.lobe.pdf(wo, wi), wi.z)
     }
 
     /// One-sample MIS of the lobe and the cosine warp: `u_lobe` picks the technique, `u`
@@ -175,4 +166,25 @@ impl<L: SpecularLobe> DiffuseLobe<L> {
         }
         Some(BsdfSample { wi, f_cos: self.eval_cos(wo, wi), pdf })
     }
+}
+
+/// The probability of the specular technique in a one-sample mixture of a lobe (weight
+/// `ws`) and the cosine warp (weight `wd`). Both techniques stay alive: a small floor on
+/// each costs nothing and protects the estimator against a poor weight (e.g. an albedo
+/// hint near grazing).
+#[inline]
+pub(super) fn spec_share(ws: f32, wd: f32) -> f32 {
+    let (ws, wd) = (ws.max(0.0), wd.max(0.0));
+    if ws + wd <= 0.0 {
+        return 0.0;
+    }
+    (ws / (ws + wd)).clamp(if ws > 0.0 { 0.05 } else { 0.0 }, if wd > 0.0 { 0.95 } else { 1.0 })
+}
+
+/// The mixture's density at `wi` (cosine `wi_z`), the lobe's density `spec_pdf` evaluated
+/// only when its technique can be picked (`ps` > 0).
+#[inline]
+pub(super) fn mixture_pdf(ps: f32, spec_pdf: impl FnOnce() -> f32, wi_z: f32) -> f32 {
+    let spec = if ps > 0.0 { spec_pdf() } else { 0.0 };
+    ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi_z)
 }

@@ -13,11 +13,12 @@
 //! of GGX visible-normal sampling and the cosine warp, chosen by estimated albedos.
 
 use super::coating::CoatingAlbedo;
+use super::diffuse_lobe::{mixture_pdf, spec_share};
 use super::fresnel::{ConductorFresnel, dielectric};
 use super::ggx::{GgxDistribution, MIN_ALPHA};
 use super::lobe::stratified_albedo;
 use super::{BsdfError, BsdfSample, check_unit};
-use crate::render::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
+use crate::render::sampling::cosine_hemisphere;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
@@ -193,13 +194,7 @@ impl Ggx {
     /// Probability of drawing from the GGX visible normals rather than the cosine warp.
     #[inline]
     fn spec_probability(&self, wo: Vec3) -> f32 {
-        let ws = self.fresnel(wo.z).max(0.0);
-        let wd = self.diffuse_factor(wo.z).max(0.0);
-        if ws + wd <= 0.0 {
-            return 0.0;
-        }
-        // As `DiffuseLobe`: a floor on each live technique guards against a poor hint.
-        (ws / (ws + wd)).clamp(if ws > 0.0 { 0.05 } else { 0.0 }, if wd > 0.0 { 0.95 } else { 1.0 })
+        spec_share(self.fresnel(wo.z), self.diffuse_factor(wo.z))
     }
 
     /// The mixture density of [`Ggx::sample`].
@@ -208,9 +203,7 @@ impl Ggx {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let ps = self.spec_probability(wo);
-        let spec = if ps > 0.0 { self.dist.pdf(wo, wi) } else { 0.0 };
-        ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi.z)
+        mixture_pdf(self.spec_probability(wo), || self.dist.pdf(wo, wi), wi.z)
     }
 
     /// One-sample MIS of visible-normal sampling and the cosine warp: `u_lobe` picks the
