@@ -4,5 +4,6 @@
 mod cli;
 
 fn main() -> std::process::ExitCode {
+    hilcam_core::heap::keep_frame_pages();
     cli::main()
 }

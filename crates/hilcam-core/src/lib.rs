@@ -7,6 +7,7 @@
 //! Modules in data-flow order (each imports only modules above it; `tests/architecture.rs`
 //! checks that):
 //!
+//! - [`heap`]: the C heap's tuning for frame after frame (keeps big buffers' pages).
 //! - [`metrics`]: counters, latency histograms, Prometheus text and `/metrics` HTTP.
 //! - [`pose`]: the `Pose` type (f64), the pose gate ([`pose::validate`]), wire codecs and
 //!   trajectory CSV files (pure, over bytes).
@@ -23,6 +24,7 @@
 //! - [`serve`]: the real-time scheduler, quality governor and the serving loop.
 
 pub mod frame;
+pub mod heap;
 pub mod link;
 pub mod metrics;
 pub mod pipeline;
