@@ -10,6 +10,7 @@
 
 use crate::render::camera::{PixelRect, View};
 use crate::render::target::Target;
+use rayon::prelude::*;
 
 /// Pixels per tile side: a tile's samples (64 per pixel) stay in the L1/L2 caches.
 pub const TILE: u32 = 8;
@@ -108,6 +109,8 @@ pub struct Setup {
     pub tile_tris: Vec<u32>,
     /// Ideal coordinates of the tile grid's corners, `(tiles_x + 1) × (tiles_y + 1)`.
     pub corners: Vec<[f64; 2]>,
+    /// Per chunk of triangles while binning: each one's tile count, and their tiles.
+    chunk_tiles: Vec<(Vec<u32>, Vec<u32>)>,
 }
 
 impl Setup {
@@ -115,24 +118,30 @@ impl Setup {
     /// cannot be rasterised (a vertex at or behind the camera plane).
     pub fn build(&mut self, target: &Target, view: &View, rect: PixelRect) -> bool {
         let mesh = &target.mesh;
-        self.verts.clear();
-        for p in &mesh.positions {
-            let q = view.to_camera(p.as_dvec3());
-            if !q.is_finite() || q.z <= Z_MIN {
-                return false;
-            }
-            let [x, y] = view.ideal_px(q);
-            self.verts.push([x, y, 1.0 / q.z]);
+        // Vertices and triangles in parallel, each a pure function of its inputs, collected
+        // in mesh order: the same setup for any thread count.
+        mesh.positions
+            .par_iter()
+            .map(|p| {
+                let q = view.to_camera(p.as_dvec3());
+                if !q.is_finite() || q.z <= Z_MIN {
+                    return [f64::NAN; 3]; // marks the frame as not rasterisable
+                }
+                let [x, y] = view.ideal_px(q);
+                [x, y, 1.0 / q.z]
+            })
+            .collect_into_vec(&mut self.verts);
+        if self.verts.par_iter().any(|v| v[2].is_nan()) {
+            return false;
         }
         self.rect = rect;
         self.tiles_x = (rect.col1 - rect.col0).div_ceil(TILE);
         self.tiles_y = (rect.row1 - rect.row0).div_ceil(TILE);
         self.tris.clear();
-        for (t, idx) in mesh.indices.iter().enumerate() {
-            if let Some(s) = self.triangle(t as u32, *idx, view, rect) {
-                self.tris.push(s);
-            }
-        }
+        let verts = &self.verts;
+        self.tris.par_extend(
+            mesh.indices.par_iter().enumerate().filter_map(|(t, idx)| triangle(verts, t as u32, *idx, view, rect)),
+        );
         self.bin();
         self.corners.clear();
         for ty in 0..=self.tiles_y {
@@ -143,43 +152,48 @@ impl Setup {
         }
         true
     }
+}
 
-    fn triangle(&self, tri: u32, idx: [u32; 3], view: &View, rect: PixelRect) -> Option<TriSetup> {
-        let v = idx.map(|i| self.verts[i as usize]);
-        let area2 = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[1][1] - v[0][1]) * (v[2][0] - v[0][0]);
-        if area2 == 0.0 || area2.is_nan() {
-            return None; // seen edge-on (or degenerate): it covers no area
-        }
-        let (bbox, px, bow) = pixel_box(&v, view, rect)?;
-        let orient = area2 > 0.0;
-        let edges = std::array::from_fn(|e| {
-            let (i, j) = (e, (e + 1) % 3);
-            // Canonical: from the lower mesh index to the higher.
-            let (p, q, forward) = if idx[i] < idx[j] { (v[i], v[j], true) } else { (v[j], v[i], false) };
-            // cross(q − p, s − p) = (q.x − p.x)(s.y − p.y) − (q.y − p.y)(s.x − p.x)
-            Edge { a: -(q[1] - p[1]), b: q[0] - p[0], x_r: p[0], y_r: p[1], k_pos: forward == orient }
-        });
-        // w = 1/z is linear on the ideal plane: its gradient from the three vertices.
-        let (dx1, dy1, dw1) = (v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]);
-        let (dx2, dy2, dw2) = (v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]);
-        let w_dx = (dw1 * dy2 - dw2 * dy1) / area2;
-        let w_dy = (dx1 * dw2 - dx2 * dw1) / area2;
-        let ideal = v.map(|p| [p[0], p[1]]);
-        let mut s = TriSetup { tri, edges, w0: 0.0, w_dx, w_dy, bbox, px, bow, ideal };
-        let (xr, yr) = (edges[0].x_r, edges[0].y_r);
-        s.w0 = v[0][2] + w_dx * (xr - v[0][0]) + w_dy * (yr - v[0][1]);
-        Some(s)
+/// Triangle `tri` (vertex indices `idx` into `verts`) set up, or None when it covers no
+/// area or lies outside `rect`.
+fn triangle(verts: &[[f64; 3]], tri: u32, idx: [u32; 3], view: &View, rect: PixelRect) -> Option<TriSetup> {
+    let v = idx.map(|i| verts[i as usize]);
+    let area2 = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[1][1] - v[0][1]) * (v[2][0] - v[0][0]);
+    if area2 == 0.0 || area2.is_nan() {
+        return None; // seen edge-on (or degenerate): it covers no area
     }
+    let (bbox, px, bow) = pixel_box(&v, view, rect)?;
+    let orient = area2 > 0.0;
+    let edges = std::array::from_fn(|e| {
+        let (i, j) = (e, (e + 1) % 3);
+        // Canonical: from the lower mesh index to the higher.
+        let (p, q, forward) = if idx[i] < idx[j] { (v[i], v[j], true) } else { (v[j], v[i], false) };
+        // cross(q − p, s − p) = (q.x − p.x)(s.y − p.y) − (q.y − p.y)(s.x − p.x)
+        Edge { a: -(q[1] - p[1]), b: q[0] - p[0], x_r: p[0], y_r: p[1], k_pos: forward == orient }
+    });
+    // w = 1/z is linear on the ideal plane: its gradient from the three vertices.
+    let (dx1, dy1, dw1) = (v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]);
+    let (dx2, dy2, dw2) = (v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]);
+    let w_dx = (dw1 * dy2 - dw2 * dy1) / area2;
+    let w_dy = (dx1 * dw2 - dx2 * dw1) / area2;
+    let ideal = v.map(|p| [p[0], p[1]]);
+    let mut s = TriSetup { tri, edges, w0: 0.0, w_dx, w_dy, bbox, px, bow, ideal };
+    let (xr, yr) = (edges[0].x_r, edges[0].y_r);
+    s.w0 = v[0][2] + w_dx * (xr - v[0][0]) + w_dy * (yr - v[0][1]);
+    Some(s)
+}
 
-    /// Count-sort the triangles into the tiles their pixel boxes meet.
+impl Setup {
+    /// Count-sort the triangles into the tiles their pixel boxes meet. Which tiles each
+    /// triangle meets is found in parallel, chunk by chunk of triangles; the sort then runs
+    /// over the chunks in order, so each tile lists its triangles ascending.
     fn bin(&mut self) {
+        /// Triangles per parallel chunk.
+        const CHUNK: usize = 2048;
         let n = (self.tiles_x * self.tiles_y) as usize;
-        self.tile_start.clear();
-        self.tile_start.resize(n + 1, 0);
         let (r, tx) = (self.rect, self.tiles_x);
-        // The tiles a triangle's row spans meet, each once (ascending).
-        let tiles = |s: &TriSetup, out: &mut Vec<usize>| {
-            out.clear();
+        // The tiles a triangle's rows span meet, each once (ascending).
+        let tiles = |s: &TriSetup, out: &mut Vec<u32>| {
             let (y0, y1) = ((s.bbox[1] - r.row0) / TILE, (s.bbox[3] - r.row0) / TILE);
             for ty in y0..=y1 {
                 let rows = (r.row0 + ty * TILE).max(s.bbox[1])..=(r.row0 + ty * TILE + TILE - 1).min(s.bbox[3]);
@@ -187,15 +201,27 @@ impl Setup {
                     Some(acc.map_or((a, b), |(x, y)| (x.min(a), y.max(b))))
                 });
                 if let Some((a, b)) = span {
-                    out.extend(((a - r.col0) / TILE..=(b - r.col0) / TILE).map(|x| (ty * tx + x) as usize));
+                    out.extend(((a - r.col0) / TILE..=(b - r.col0) / TILE).map(|x| ty * tx + x));
                 }
             }
         };
-        let mut scratch = Vec::new();
-        for s in &self.tris {
-            tiles(s, &mut scratch);
-            for &t in &scratch {
-                self.tile_start[t + 1] += 1;
+        // Per chunk: each triangle's tile count, then its tiles, in triangle order.
+        let chunks = self.tris.len().div_ceil(CHUNK);
+        self.chunk_tiles.resize_with(chunks, Default::default);
+        self.tris.par_chunks(CHUNK).zip(self.chunk_tiles.par_iter_mut()).for_each(|(tris, (counts, list))| {
+            counts.clear();
+            list.clear();
+            for s in tris {
+                let before = list.len();
+                tiles(s, list);
+                counts.push((list.len() - before) as u32);
+            }
+        });
+        self.tile_start.clear();
+        self.tile_start.resize(n + 1, 0);
+        for (_, list) in &self.chunk_tiles[..chunks] {
+            for &t in list {
+                self.tile_start[t as usize + 1] += 1;
             }
         }
         for t in 0..n {
@@ -204,11 +230,15 @@ impl Setup {
         self.tile_tris.clear();
         self.tile_tris.resize(self.tile_start[n] as usize, 0);
         let mut fill: Vec<u32> = self.tile_start[..n].to_vec();
-        for (i, s) in self.tris.iter().enumerate() {
-            tiles(s, &mut scratch);
-            for &t in &scratch {
-                self.tile_tris[fill[t] as usize] = i as u32;
-                fill[t] += 1;
+        for (c, (counts, list)) in self.chunk_tiles[..chunks].iter().enumerate() {
+            let mut at = 0;
+            for (k, &count) in counts.iter().enumerate() {
+                let i = (c * CHUNK + k) as u32;
+                for &t in &list[at..at + count as usize] {
+                    self.tile_tris[fill[t as usize] as usize] = i;
+                    fill[t as usize] += 1;
+                }
+                at += count as usize;
             }
         }
     }
