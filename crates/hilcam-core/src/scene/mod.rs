@@ -11,6 +11,7 @@ pub mod model;
 pub mod mtl;
 pub mod mtl_bsdf;
 pub mod obj;
+pub mod obj_faces;
 pub mod planet;
 
 use crate::pose::Pose;

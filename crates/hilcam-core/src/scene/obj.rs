@@ -63,7 +63,9 @@ fn load_obj_unnamed(path: &Path) -> Result<ModelMesh, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!(": {e}"))?;
     check_vertices(&text)?;
     let mtl_defs = super::mtl::libraries_of_obj(path.parent().unwrap_or(Path::new(".")), &text);
-    let notes = undefined_usemtl(path, &text, &mtl_defs);
+    let mut notes = undefined_usemtl(path, &text, &mtl_defs);
+    let file = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into());
+    notes.extend(super::obj_faces::folded_fan_notes(&file, &text));
     let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| format!(": {e}"))?;
     // A missing or broken .mtl still loads the geometry; the names come from `usemtl`
     // only through the material list, so without it every face is `default`.
