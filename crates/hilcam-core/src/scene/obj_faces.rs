@@ -61,7 +61,7 @@ pub fn folded_fan_notes(file: &str, text: &str) -> Vec<String> {
 fn fan_folds(p: &[DVec3]) -> bool {
     let normal: DVec3 = (0..p.len()).map(|i| p[i].cross(p[(i + 1) % p.len()])).sum();
     let scale = normal.length();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 || scale.is_infinite() {
         return false; // degenerate (or not finite): nothing to fold
     }
     (1..p.len() - 1).any(|i| (p[i] - p[0]).cross(p[i + 1] - p[0]).dot(normal) < -1e-9 * scale * scale)
