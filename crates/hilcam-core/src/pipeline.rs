@@ -13,7 +13,7 @@ use crate::render::truth::{TruthChannels, TruthImage, render_truth_with};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
 use crate::sensor::mc_noise::McNoiseStats;
-use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorError};
+use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorConfig, SensorError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -76,7 +76,15 @@ pub struct FramePipeline {
 impl FramePipeline {
     /// The scene's camera and sensor at a possibly different resolution (`camera`).
     pub fn new(scene: Arc<Scene>, camera: CameraModel) -> Result<Self, SensorError> {
-        let sensor = Sensor::new(&camera, &scene.sensor)?;
+        let sensor = scene.sensor.clone();
+        Self::with_sensor(scene, camera, &sensor)
+    }
+
+    /// The scene seen by another camera: `camera` and its optics and detector `sensor` (a
+    /// camera preset or file, `hilcam render --camera`, Python's `Renderer(scene, camera)`)
+    /// replace the scene's own.
+    pub fn with_sensor(scene: Arc<Scene>, camera: CameraModel, sensor: &SensorConfig) -> Result<Self, SensorError> {
+        let sensor = Sensor::new(&camera, sensor)?;
         let auto_exposure = sensor.auto_exposure();
         Ok(FramePipeline {
             scene,
@@ -130,7 +138,7 @@ impl FramePipeline {
     /// The view of `pose`, moving over the exposure `timing` when the camera integrates
     /// motion and the pose has rates.
     fn view(&self, pose: &Pose, timing: &ExposureTiming) -> View {
-        let view = self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion);
+        let view = self.scene.view(&self.camera, pose).with_distortion(self.sensor.config().optics.distortion);
         match timing.motion(pose) {
             Some(m) => view.with_motion(m, pose, self.scene.frame_origin_body),
             None => view,
@@ -140,7 +148,7 @@ impl FramePipeline {
     /// When the rows integrate for a frame whose integration time is `integration_s`
     /// (None: the configured or auto-exposure one).
     pub fn exposure_timing(&self, integration_s: Option<f64>) -> ExposureTiming {
-        let Some(det) = &self.scene.sensor.detector else { return ExposureTiming::default() };
+        let Some(det) = &self.sensor.config().detector else { return ExposureTiming::default() };
         let auto = self.auto_exposure.as_ref().map(AutoExposure::integration_time_s);
         ExposureTiming {
             mode: det.exposure,
@@ -160,7 +168,7 @@ impl FramePipeline {
         request: &FrameRequest,
         channels: TruthChannels,
     ) -> Result<TruthImage, SensorError> {
-        let mut view = self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion);
+        let mut view = self.scene.view(&self.camera, pose).with_distortion(self.sensor.config().optics.distortion);
         if let Some(w) = request.roi.filter(|w| !w.is_full(&self.camera)) {
             let w = w
                 .inside(&self.camera)
@@ -226,7 +234,7 @@ impl FramePipeline {
             ),
         };
         // The integration time is chosen before rendering: a moving view needs it.
-        let fixed = request.integration_s.filter(|_| self.scene.sensor.detector.is_some());
+        let fixed = request.integration_s.filter(|_| self.sensor.config().detector.is_some());
         let timing = self.exposure_timing(fixed);
         // The camera's noise at this integration time: what `quality = "sensor"` samples
         // against and every DN frame's Monte Carlo noise report measures against.
@@ -254,7 +262,7 @@ impl FramePipeline {
         let out = match fixed.or_else(|| self.auto_exposure.as_ref().map(AutoExposure::integration_time_s)) {
             Some(t) => sensor.apply_with_variance(radiance, variance, seed, t, k)?,
             None => {
-                let t = self.scene.sensor.detector.as_ref().map_or(0.0, |d| d.integration_time_s);
+                let t = self.sensor.config().detector.as_ref().map_or(0.0, |d| d.integration_time_s);
                 sensor.apply_with_variance(radiance, variance, seed, t, k)?
             }
         };

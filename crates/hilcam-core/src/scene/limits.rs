@@ -89,6 +89,28 @@ pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
     }
 }
 
+/// A pose given as numbers (`hilcam render --pose`, Python's `Renderer.render`): the
+/// position `[px, py, pz]` (m, camera frame), optionally the attitude `[qw, qx, qy, qz]`
+/// (body → camera) and the sun direction `[sx, sy, sz]`; what is not given comes from
+/// `base` (the scene's `[pose]`). The result has passed [`gate_pose`]; a refusal reads
+/// `field: reason (value)`, the same text everywhere.
+pub fn pose_from_numbers(
+    base: &Pose,
+    position: [f64; 3],
+    attitude: Option<[f64; 4]>,
+    sun: Option<[f64; 3]>,
+) -> Result<Pose, String> {
+    let mut p = *base;
+    p.position = DVec3::from_array(position);
+    if let Some([w, x, y, z]) = attitude {
+        p.attitude = glam::DQuat::from_xyzw(x, y, z, w);
+    }
+    if let Some(s) = sun {
+        p.sun_dir = DVec3::from_array(s);
+    }
+    gate_pose(&p).map_err(|e| format!("{}: {}", e.field, e.message))
+}
+
 fn fmt3(v: DVec3) -> String {
     format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
