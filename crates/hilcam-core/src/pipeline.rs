@@ -8,6 +8,7 @@ use crate::pose::Pose;
 use crate::render::camera::{CameraModel, View, Window};
 use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
+use crate::render::planet::Planet;
 use crate::render::sampling::mix64;
 use crate::render::truth::{TruthChannels, TruthImage, render_truth_with};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
@@ -71,6 +72,8 @@ pub struct FramePipeline {
     buffers: FrameBuffers,
     /// The sensor of the last ROI's grown window, kept while the ROI stays.
     windowed: Option<Sensor>,
+    /// The planet of the next frames in place of the scene's (see [`FramePipeline::set_planet`]).
+    planet: Option<Planet>,
 }
 
 impl FramePipeline {
@@ -94,6 +97,7 @@ impl FramePipeline {
             primary: PrimaryVisibility::default(),
             buffers: FrameBuffers::default(),
             windowed: None,
+            planet: None,
         })
     }
 
@@ -102,6 +106,13 @@ impl FramePipeline {
     pub fn with_primary(mut self, primary: PrimaryVisibility) -> Self {
         self.primary = primary;
         self
+    }
+
+    /// Render the next frames with `planet` (camera frame, checked by
+    /// [`crate::scene::planet::checked_planet`]) in place of the scene's `[planet]`; None:
+    /// the scene's again. A planet that moves is set before each frame.
+    pub fn set_planet(&mut self, planet: Option<Planet>) {
+        self.planet = planet;
     }
 
     pub fn camera(&self) -> &CameraModel {
@@ -180,7 +191,7 @@ impl FramePipeline {
     }
 
     fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {
-        RenderOptions::new(*settings, index).with_primary(self.primary)
+        RenderOptions::new(*settings, index).with_primary(self.primary).with_planet(self.planet)
     }
 
     /// Render the radiance only (no sensor), into a new image.

@@ -10,10 +10,12 @@ use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::film::{Pixels, RadianceImage, write_pixels, write_radiance};
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind, Spp};
+use hilcam_core::render::planet::{Planet as CorePlanet, PlanetModel};
 use hilcam_core::render::truth::{TruthChannels, TruthImage};
 use hilcam_core::scene::Scene as CoreScene;
 use hilcam_core::scene::file::{camera_by_name_or_file, camera_preset, parse_name};
 use hilcam_core::scene::limits::{checked_scaled_camera, pose_from_numbers};
+use hilcam_core::scene::planet::{body_preset, checked_planet};
 use hilcam_core::sensor::CameraPreset;
 use numpy::{AllowTypeChange, PyArray1, PyArrayLikeDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -48,7 +50,8 @@ impl Camera {
         Ok(Camera { preset: camera_preset(name).map_err(refused)? })
     }
 
-    /// A camera TOML file (`[camera]` and an optional `[sensor]`), or a preset's name.
+    /// A camera TOML file (`[camera]` and an optional `[sensor]`), as `hilcam render --camera
+    /// FILE` reads it.
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Camera> {
         let s = path.to_string_lossy();
@@ -135,6 +138,65 @@ fn pose_dict<'py>(py: Python<'py>, p: &Pose) -> PyResult<Bound<'py, PyDict>> {
     d.set_item("attitude", [p.attitude.w, p.attitude.x, p.attitude.y, p.attitude.z])?;
     d.set_item("sun", p.sun_dir.to_array())?;
     Ok(d)
+}
+
+/// A planet for `Renderer.render(planet=…)`: a sphere whose centre is given in the camera
+/// frame (m) for that frame, so that it can move from frame to frame. A `body` (`earth`,
+/// `moon`) gives the radius and albedo; `radius_m` and `albedo` override them. Checked as a
+/// scene's `[planet]` is (the same messages, keyed `planet.…`).
+#[pyclass(module = "hilcam", frozen)]
+#[derive(Clone)]
+struct Planet {
+    planet: CorePlanet,
+}
+
+#[pymethods]
+impl Planet {
+    #[new]
+    #[pyo3(signature = (center_m, *, body=None, radius_m=None, albedo=None, model="lambert"))]
+    fn new(
+        center_m: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        body: Option<&str>,
+        radius_m: Option<f64>,
+        albedo: Option<f64>,
+        model: &str,
+    ) -> PyResult<Planet> {
+        let c = numbers("planet.center_m", &center_m, &[3], "x, y, z in the camera frame, m")?;
+        let preset = body.map(body_preset).transpose().map_err(|m| refused(format!("planet.body: {m}")))?;
+        let model = parse_name::<PlanetModel>(model).map_err(|m| refused(format!("planet.model: {m}")))?;
+        let radius =
+            radius_m.or(preset.map(|p| p.0)).ok_or_else(|| refused("planet.radius_m: give radius_m or body"))?;
+        let albedo = albedo.or(preset.map(|p| p.1)).ok_or_else(|| refused("planet.albedo: give albedo or body"))?;
+        let planet = checked_planet(glam::DVec3::new(c[0], c[1], c[2]), radius, albedo, model)
+            .map_err(|(key, m)| refused(format!("planet.{key}: {m}")))?;
+        Ok(Planet { planet })
+    }
+
+    #[getter]
+    fn center_m(&self) -> [f64; 3] {
+        self.planet.centre_cam.to_array()
+    }
+
+    #[getter]
+    fn radius_m(&self) -> f64 {
+        self.planet.radius_m
+    }
+
+    #[getter]
+    fn albedo(&self) -> f64 {
+        self.planet.albedo
+    }
+
+    fn __repr__(&self) -> String {
+        let p = &self.planet;
+        format!(
+            "Planet(center_m={:?}, radius_m={}, albedo={}, {:?})",
+            p.centre_cam.to_array(),
+            p.radius_m,
+            p.albedo,
+            p.model
+        )
+    }
 }
 
 /// One rendered frame: `radiance` (H×W float32, W·sr⁻¹·m⁻², entrance pupil) and, with
@@ -310,16 +372,20 @@ impl Renderer {
     /// is left out is the scene's) with the sun toward `sun` (camera frame; default: the
     /// scene's). With `sensor` (default) the camera's optics and detector run too
     /// (`Frame.dn`). The pose passes the gate every pose passes (`HilcamError` otherwise).
-    #[pyo3(signature = (pose, sun=None, *, frame=0, sensor=true))]
+    /// `planet`: a `Planet` for this frame in place of the scene's `[planet]` (None: the
+    /// scene's).
+    #[pyo3(signature = (pose, sun=None, *, planet=None, frame=0, sensor=true))]
     fn render(
         &mut self,
         py: Python<'_>,
         pose: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
         sun: Option<PyArrayLikeDyn<'_, f64, AllowTypeChange>>,
+        planet: Option<&Planet>,
         frame: u64,
         sensor: bool,
     ) -> PyResult<Frame> {
         let pose = self.pose(&pose, sun.as_ref())?;
+        self.pipeline.set_planet(planet.map(|p| p.planet));
         let (settings, pool, pipeline) = (self.settings, &self.pool, &mut self.pipeline);
         let (w, h) = (pipeline.camera().width, pipeline.camera().height);
         let shape = [h as usize, w as usize];
@@ -473,6 +539,7 @@ fn _hilcam(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Scene>()?;
     m.add_class::<Renderer>()?;
     m.add_class::<Frame>()?;
+    m.add_class::<Planet>()?;
     m.add("HilcamError", m.py().get_type::<HilcamError>())?;
     m.add_function(wrap_pyfunction!(camera_presets, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

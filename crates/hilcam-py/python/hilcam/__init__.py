@@ -12,10 +12,11 @@ from ._hilcam import (  # noqa: F401
     Camera,
     Frame,
     HilcamError,
+    Planet,
     Renderer,
     Scene,
     __version__,
     camera_presets,
 )
 
-__all__ = ["Camera", "Frame", "HilcamError", "Renderer", "Scene", "camera_presets", "__version__"]
+__all__ = ["Camera", "Frame", "HilcamError", "Planet", "Renderer", "Scene", "camera_presets", "__version__"]

@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from . import Camera, Renderer, Scene
+from . import Camera, Renderer, Scene, camera_presets
 
 LABELS = "labels.jsonl"
 MANIFEST = "dataset.json"
@@ -195,7 +195,10 @@ def main(argv=None):
     ap.add_argument("--no-progress", action="store_true")
     a = ap.parse_args(argv)
     scene = Scene.load(a.scene)
-    cam = Camera.load(a.camera) if a.camera else scene.camera
+    if a.camera in camera_presets():
+        cam = Camera.preset(a.camera)
+    else:
+        cam = Camera.load(a.camera) if a.camera else scene.camera
     if a.width:
         cam = cam.scaled(a.width)
     r = Renderer(scene, cam, spp=a.spp, seed=a.seed, threads=a.threads)
