@@ -497,8 +497,8 @@ fn truth_dict(py: Python<'_>, t: TruthImage, channels: TruthChannels) -> PyResul
     let footprint = t.footprint();
     let planes = |p: [Vec<f32>; 3]| -> Vec<f32> {
         let mut out = Vec::with_capacity(3 * w * h);
-        for i in 0..w * h {
-            out.extend([p[0][i], p[1][i], p[2][i]]);
+        for ((x, y), z) in p[0].iter().zip(&p[1]).zip(&p[2]) {
+            out.extend([*x, *y, *z]);
         }
         out
     };
