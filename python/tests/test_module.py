@@ -197,7 +197,7 @@ def ticks_during(call):
 
 def test_the_gil_is_released_while_a_frame_renders(scene):
     # One render thread, so that a core is left for the counting thread on a busy machine.
-    r = hilcam.Renderer(scene, hilcam.Camera.preset("nav1024").scaled(256), spp=4, seed=1, threads=1)
+    r = hilcam.Renderer(scene, hilcam.Camera.preset("nav1024").scaled(512), spp=4, seed=1, threads=1)
     n, wall, f = ticks_during(lambda: r.render(POSE, SUN))
     assert f.render_s > 0.05, "the frame is too short to show anything"
     assert n >= max(10, 0.1 * wall / 0.001), (n, wall)
