@@ -61,6 +61,7 @@ def test_labels_agree_with_the_images_and_truth(root, tmp_path):
     scene = hilcam.Scene.load(str(root / "scenes/satellite.toml"))
     r = hilcam.Renderer(scene, scene.camera.scaled(64), spp=1, seed=2)
     poses = sample_poses(4, range_m=(30, 40), seed=1)
+    poses[2]["integration_s"] = 2.5e-4  # a frame's own exposure, kept in its label
     poses.append({"pose": [0.0, 0.0, 22.0], "sun": None})  # the scene's attitude and sun
     poses.append({"pose": [0.0, 500.0, 30.0], "sun": [0.0, 0.0, -1.0]})  # out of view
     assert render_dataset(r, poses, str(tmp_path), truth=("depth", "mask", "normal"), progress=False) == 6
@@ -84,6 +85,7 @@ def test_labels_agree_with_the_images_and_truth(root, tmp_path):
         assert np.allclose(x["centroid_px"], [cols.mean() + 0.5, rows.mean() + 0.5])
         assert np.all(depth[mask > 0] < x["range_m"] + 10) and np.all(depth[mask > 0] > x["range_m"] - 10)
     assert labels[-1]["pixels"] == 0 and labels[0]["pixels"] > 0
+    assert labels[2]["integration_s"] == 2.5e-4 and labels[1]["integration_s"] != 2.5e-4
     # The same frame rendered directly: the dataset's frame is the fresh renderer's.
     r2 = hilcam.Renderer(scene, scene.camera.scaled(64), spp=1, seed=2)
     f = r2.render(poses[1]["pose"], poses[1]["sun"], frame=1)
@@ -100,6 +102,10 @@ def test_labels_agree_with_the_images_and_truth(root, tmp_path):
 def test_sampled_poses_follow_the_distribution_and_a_trajectory_reads(root):
     poses = sample_poses(400, range_m=(20, 30), phase_deg=(10, 40), off_axis_deg=3, seed=9)
     assert poses == sample_poses(400, range_m=(20, 30), phase_deg=(10, 40), off_axis_deg=3, seed=9)
+    assert "integration_s" not in poses[0]
+    timed = sample_poses(400, exposure_s=(1e-5, 1e-3), seed=9)
+    t = np.array([p["integration_s"] for p in timed])
+    assert t.min() >= 1e-5 and t.max() <= 1e-3 and 0.3 < (t < 1e-4).mean() < 0.7  # log-uniform: half below 1e-4
     for p in poses:
         pos, q, sun = np.array(p["pose"][:3]), np.array(p["pose"][3:]), np.array(p["sun"])
         r = np.linalg.norm(pos)

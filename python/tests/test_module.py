@@ -226,3 +226,28 @@ def test_arrays_own_the_rust_buffers_and_reset_restores_the_first_frame(scene, c
     assert np.array_equal(a.dn, c.dn)
     assert a.integration_s == c.integration_s and b.integration_s != a.integration_s
     assert r.settings == {"spp": 2.0, "depth": 2, "seed": 1, "sampler": "brdf", "adaptive": True, "roulette": True}
+
+
+def test_a_frame_exposure_replaces_the_auto_exposure_for_that_frame_only(scene, camera):
+    r = hilcam.Renderer(scene, camera, spp=2, seed=1)
+    auto = r.render(POSE, SUN)
+    r.reset()
+    # The first automatic frame is exposed at the start value and saturates; two short ones
+    # do not, and their signal scales with the time.
+    t = auto.integration_s
+    full = auto
+    while np.percentile(full.dn, 99) >= 600:  # the 96-pixel camera's big pixels gather ~100× more light
+        t /= 2
+        full = r.render(POSE, SUN, integration_s=t)
+    half = r.render(POSE, SUN, integration_s=t / 2)
+    assert (full.integration_s, half.integration_s) == (t, t / 2)
+    lit = (full.dn > 60) & (full.dn < 950)  # above the noise, below the clip (specular glints)
+    assert lit.sum() > 50
+    signal = lambda f: (f.dn[lit].astype(float) - 32.0).mean()  # offset_dn = 32 (nav1024)
+    assert abs(signal(half) / signal(full) - 0.5) < 0.05, (signal(half), signal(full))
+    # The auto-exposure state was left alone: the next automatic frame is the first one's.
+    assert np.array_equal(r.render(POSE, SUN).dn, auto.dn)
+    with pytest.raises(hilcam.HilcamError, match=r"^integration_s: must be a finite number ≥ 0 \(got -1\)$"):
+        r.render(POSE, SUN, integration_s=-1.0)
+    with pytest.raises(hilcam.HilcamError, match=r"^integration_s: must be a finite number ≥ 0 \(got NaN\)$"):
+        r.render(POSE, SUN, integration_s=float("nan"))

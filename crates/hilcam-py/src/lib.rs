@@ -373,18 +373,27 @@ impl Renderer {
     /// scene's). With `sensor` (default) the camera's optics and detector run too
     /// (`Frame.dn`). The pose passes the gate every pose passes (`HilcamError` otherwise).
     /// `planet`: a `Planet` for this frame in place of the scene's `[planet]` (None: the
-    /// scene's).
-    #[pyo3(signature = (pose, sun=None, *, planet=None, frame=0, sensor=true))]
+    /// scene's). `integration_s`: this frame's exposure (s) in place of the configured or
+    /// auto-exposure one, the auto-exposure state left alone (as a GigE client's
+    /// ExposureTime); ignored without a detector.
+    #[pyo3(signature = (pose, sun=None, *, planet=None, integration_s=None, frame=0, sensor=true))]
+    #[allow(clippy::too_many_arguments)]
     fn render(
         &mut self,
         py: Python<'_>,
         pose: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
         sun: Option<PyArrayLikeDyn<'_, f64, AllowTypeChange>>,
         planet: Option<&Planet>,
+        integration_s: Option<f64>,
         frame: u64,
         sensor: bool,
     ) -> PyResult<Frame> {
         let pose = self.pose(&pose, sun.as_ref())?;
+        if let Some(t) = integration_s.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+            // The detector's own rule for sensor.detector.integration_time_s.
+            return Err(refused(format!("integration_s: must be a finite number ≥ 0 (got {t})")));
+        }
+        let request = FrameRequest { integration_s, ..FrameRequest::default() };
         self.pipeline.set_planet(planet.map(|p| p.planet));
         let (settings, pool, pipeline) = (self.settings, &self.pool, &mut self.pipeline);
         let (w, h) = (pipeline.camera().width, pipeline.camera().height);
@@ -411,7 +420,7 @@ impl Renderer {
         let (f, radiance) = py
             .detach(|| {
                 in_pool(pool, || {
-                    let f = pipeline.frame_requested(&pose, &settings, frame, &FrameRequest::default())?;
+                    let f = pipeline.frame_requested(&pose, &settings, frame, &request)?;
                     Ok::<_, hilcam_core::sensor::SensorError>((f, pipeline.last_render().0.data.clone()))
                 })
             })

@@ -34,11 +34,13 @@ LABELS = "labels.jsonl"
 MANIFEST = "dataset.json"
 
 
-def sample_poses(n, *, range_m=(20.0, 100.0), phase_deg=(0.0, 90.0), off_axis_deg=5.0, seed=0):
+def sample_poses(n, *, range_m=(20.0, 100.0), phase_deg=(0.0, 90.0), off_axis_deg=5.0, exposure_s=None, seed=0):
     """`n` poses of a sampled distribution: range uniform in `range_m` (m); the target's
     origin uniform over the cone of half-angle `off_axis_deg` around the boresight;
     attitude uniform over rotations (Shoemake); the sun at a phase angle (camera–target–sun) uniform in `phase_deg`, about
-    a uniformly random axis. Returns a list of {"pose": [px, py, pz, qw, qx, qy, qz], "sun": [sx, sy, sz]}."""
+    a uniformly random axis; with `exposure_s` = (lo, hi), an integration time log-uniform in
+    it (else the camera's auto-exposure chooses). Returns a list of
+    {"pose": [px, py, pz, qw, qx, qy, qz], "sun": [sx, sy, sz]} (and "integration_s")."""
     rng = np.random.default_rng(seed)
     out = []
     for _ in range(n):
@@ -59,7 +61,10 @@ def sample_poses(n, *, range_m=(20.0, 100.0), phase_deg=(0.0, 90.0), off_axis_de
         axis /= np.linalg.norm(axis)
         v = -d
         sun = v * math.cos(alpha) + np.cross(axis, v) * math.sin(alpha) + axis * np.dot(axis, v) * (1 - math.cos(alpha))
-        out.append({"pose": [*(r * d).tolist(), *q], "sun": sun.tolist()})
+        item = {"pose": [*(r * d).tolist(), *q], "sun": sun.tolist()}
+        if exposure_s is not None:
+            item["integration_s"] = math.exp(rng.uniform(math.log(exposure_s[0]), math.log(exposure_s[1])))
+        out.append(item)
     return out
 
 
@@ -147,7 +152,7 @@ def render_dataset(renderer, poses, out, *, truth=("depth", "mask"), manifest=No
                 continue
             pose, sun = p["pose"], p.get("sun")
             renderer.reset()
-            frame = renderer.render(pose, sun, frame=i)
+            frame = renderer.render(pose, sun, frame=i, integration_s=p.get("integration_s"))
             ext = "png" if frame.bits is not None else "exr"
             image = f"images/{i:06d}.{ext}"
             frame.save(os.path.join(out, image))
@@ -186,6 +191,7 @@ def main(argv=None):
     src.add_argument("--sample", type=int, metavar="N", help="N poses of a sampled distribution")
     ap.add_argument("--range", default="20,100", help="sampled range, m: LO,HI (default 20,100)")
     ap.add_argument("--phase", default="0,90", help="sampled sun phase angle, degrees: LO,HI (default 0,90)")
+    ap.add_argument("--exposure", help="sampled integration time, s: LO,HI, log-uniform (default: auto-exposure)")
     ap.add_argument("--camera", help="camera preset or TOML (default: the scene's)")
     ap.add_argument("--width", type=int, help="scale the camera to this many columns")
     ap.add_argument("--spp", type=float)
@@ -207,10 +213,11 @@ def main(argv=None):
     else:
         lo, hi = (float(v) for v in a.range.split(","))
         plo, phi = (float(v) for v in a.phase.split(","))
-        poses = sample_poses(a.sample, range_m=(lo, hi), phase_deg=(plo, phi), seed=a.seed)
+        exposure = tuple(float(v) for v in a.exposure.split(",")) if a.exposure else None
+        poses = sample_poses(a.sample, range_m=(lo, hi), phase_deg=(plo, phi), exposure_s=exposure, seed=a.seed)
     truth = [c for c in a.truth.split(",") if c]
     manifest = {"scene": a.scene, "camera": a.camera, "width": cam.width, "height": cam.height,
-                "poses": a.poses, "sample": a.sample, "range": a.range, "phase": a.phase}
+                "poses": a.poses, "sample": a.sample, "range": a.range, "phase": a.phase, "exposure": a.exposure}
     n = render_dataset(r, poses, a.out, truth=truth, manifest=manifest, progress=not a.no_progress)
     print(f"{a.out}: {n} frames rendered, {len(poses) - n} already there")
 
