@@ -741,3 +741,29 @@ pub fn parse_name<T: serde::de::DeserializeOwned>(name: &str) -> Result<T, Strin
     use serde::de::IntoDeserializer;
     T::deserialize(IntoDeserializer::<serde::de::value::Error>::into_deserializer(name)).map_err(|e| e.to_string())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_built_in_cameras_are_the_shipped_files() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/cameras");
+        let files = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "toml"));
+        assert_eq!(files.count(), CAMERA_PRESETS.len(), "a camera file of config/cameras/ is not built in");
+        for (name, _) in CAMERA_PRESETS {
+            let file = load_camera_file(&dir.join(format!("{name}.toml"))).unwrap();
+            let built_in = camera_preset(name).unwrap();
+            assert_eq!(format!("{built_in:?}"), format!("{file:?}"), "{name}");
+            assert_eq!(format!("{:?}", camera_by_name_or_file(name).unwrap()), format!("{file:?}"));
+        }
+        assert_eq!(
+            camera_preset("nav4096").unwrap_err(),
+            "unknown camera preset `nav4096` (known: nav1024, nav2048, paper)"
+        );
+        let e = camera_by_name_or_file("no/such.toml").unwrap_err();
+        assert!(e.starts_with("no/such.toml"), "{e}");
+    }
+}

@@ -170,4 +170,17 @@ mod tests {
         let p = Pose { sun_dir: DVec3::new(1e-320, 0.0, 0.0), ..Pose::ahead(10.0) };
         assert_eq!(gate_pose(&p).unwrap().sun_dir, DVec3::X);
     }
+
+    #[test]
+    fn numbers_keep_what_is_not_given_and_pass_the_gate() {
+        let base = Pose { sun_dir: DVec3::new(0.0, 0.0, -1.0), ..Pose::ahead(10.0) };
+        let p = pose_from_numbers(&base, [1.0, 2.0, 30.0], None, None).unwrap();
+        assert_eq!((p.position, p.attitude, p.sun_dir), (DVec3::new(1.0, 2.0, 30.0), base.attitude, base.sun_dir));
+        let p = pose_from_numbers(&base, [0.0, 0.0, 5.0], Some([0.0, 1.0, 0.0, 0.0]), Some([0.0, 2.0, 0.0])).unwrap();
+        assert_eq!((p.attitude, p.sun_dir), (DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0), DVec3::Y));
+        let e = pose_from_numbers(&base, [f64::NAN, 0.0, 5.0], None, None).unwrap_err();
+        assert_eq!(e, "pose.position: non-finite value ([NaN, 0, 5])");
+        let e = pose_from_numbers(&base, [0.0, 0.0, 5.0], None, Some([0.0; 3])).unwrap_err();
+        assert_eq!(e, "pose.sun: direction is zero (got [0, 0, 0])");
+    }
 }

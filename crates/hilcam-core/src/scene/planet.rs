@@ -102,3 +102,26 @@ pub fn body_preset(name: &str) -> Result<(f64, f64), String> {
         other => Err(format!("unknown body `{other}` (known: earth, moon)")),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_planet_from_code_is_checked_as_the_table_is() {
+        let au = 1.495978707e11;
+        let p = checked_planet(DVec3::new(0.0, 0.0, au), EARTH.0, EARTH.1, PlanetModel::Lambert).unwrap();
+        assert_eq!((p.centre_cam.z, p.radius_m, p.albedo), (au, 6.371e6, 0.3));
+        let inside = checked_planet(DVec3::new(0.0, 0.0, 1e6), EARTH.0, 0.3, PlanetModel::Lambert).unwrap_err();
+        assert_eq!(inside.0, "center_m");
+        assert!(inside.1.starts_with("the camera is inside the planet"), "{}", inside.1);
+        let far = checked_planet(DVec3::new(0.0, 0.0, 1e14), MOON.0, 0.1, PlanetModel::Lambert).unwrap_err();
+        assert_eq!(far.0, "center_m");
+        let nan = checked_planet(DVec3::new(f64::NAN, 0.0, au), EARTH.0, 0.3, PlanetModel::Lambert).unwrap_err();
+        assert_eq!(nan.0, "center_m");
+        assert_eq!(checked_planet(DVec3::Z * au, 0.5, 0.3, PlanetModel::Lambert).unwrap_err().0, "radius_m");
+        assert_eq!(checked_planet(DVec3::Z * au, EARTH.0, 1.5, PlanetModel::Lambert).unwrap_err().0, "albedo");
+        assert_eq!(body_preset("moon"), Ok(MOON));
+        assert_eq!(body_preset("mars"), Err("unknown body `mars` (known: earth, moon)".into()));
+    }
+}
