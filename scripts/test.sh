@@ -60,6 +60,13 @@ lap "cargo test --all-targets (build + run)"
 cargo test --test cli docs:: -- --nocapture
 lap "docs' examples (tests/cli/docs.rs)"
 
+# The Python module (issue 38): the wheel built by the project's own script (maturin, the
+# dev profile, sharing target/ with the build above), pip-installed into a fresh venv; its
+# tests compare it with the CLI binary built above (docs/python.md).
+HILCAM_PY=$(scripts/build-python.sh)
+HILCAM_BIN="$PWD/target/debug/hilcam" "$HILCAM_PY" -m pytest python/tests -q -p no:cacheprovider
+lap "Python module (wheel build + pytest)"
+
 # --- pose input (issue 4), continued --------------------------------------
 if [ "$vcan_mode" = vm ]; then
   scripts/vcan-vm.sh --prepare

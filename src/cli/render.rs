@@ -2,7 +2,6 @@
 
 use super::parse_sensor_k;
 use anyhow::{Context, bail};
-use glam::{DQuat, DVec3};
 use hilcam_core::pipeline::{FramePipeline, FrameRequest};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::PrimaryVisibility;
@@ -59,6 +58,10 @@ pub struct RenderArgs {
     /// Frame index (part of every random number's key).
     #[arg(long, default_value_t = 0)]
     pub frame: u64,
+    /// Camera: a built-in preset (nav1024, nav2048, paper: the files of config/cameras/) or
+    /// a camera TOML file; replaces the scene's camera and sensor.
+    #[arg(long)]
+    pub camera: Option<String>,
     /// Render a scaled preview this many columns wide (same field of view).
     #[arg(long)]
     pub width: Option<u32>,
@@ -119,7 +122,15 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if a.no_adaptive {
         settings.adaptive = false;
     }
-    let camera = checked_scaled_camera(&scene.camera, a.width, a.height).map_err(anyhow::Error::msg)?;
+    let (base_camera, sensor_config) = match &a.camera {
+        Some(c) => {
+            let preset =
+                hilcam_core::scene::file::camera_by_name_or_file(c).map_err(|m| anyhow::anyhow!("--camera: {m}"))?;
+            (preset.camera, preset.sensor)
+        }
+        None => (scene.camera.clone(), scene.sensor.clone()),
+    };
+    let camera = checked_scaled_camera(&base_camera, a.width, a.height).map_err(anyhow::Error::msg)?;
     if let Some(r) = a.roi {
         r.inside(&camera).map_err(|e| anyhow::anyhow!("--roi: {e}"))?;
     }
@@ -128,7 +139,8 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         None => scene.pose,
     };
     let scene = std::sync::Arc::new(scene);
-    let mut pipeline = FramePipeline::new(scene.clone(), camera.clone())?.with_primary(a.primary);
+    let mut pipeline =
+        FramePipeline::with_sensor(scene.clone(), camera.clone(), &sensor_config)?.with_primary(a.primary);
     // Warm-up through the renderer's buffers only: a sensor frame would also move the
     // auto-exposure state, and the samples map renders apart from the pipeline.
     if a.samples_map.is_none() {
@@ -159,7 +171,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         }
         (hilcam_core::render::film::WriteInfo { preview_scale: None }, f.render)
     } else if let Some(map) = &a.samples_map {
-        let view = scene.view(&camera, &pose).with_distortion(scene.sensor.optics.distortion);
+        let view = scene.view(&camera, &pose).with_distortion(sensor_config.optics.distortion);
         let mut buffers = hilcam_core::render::FrameBuffers::<()>::default();
         let options = hilcam_core::render::RenderOptions::new(settings, a.frame);
         let stats = hilcam_core::render::render_into(&mut buffers, &scene, &view, &options);
@@ -278,13 +290,7 @@ pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     if !matches!(v.len(), 3 | 7 | 10) {
         bail!("expected 3, 7 or 10 comma-separated numbers, got {}", v.len());
     }
-    let mut p = *base;
-    p.position = DVec3::new(v[0], v[1], v[2]);
-    if v.len() >= 7 {
-        p.attitude = DQuat::from_xyzw(v[4], v[5], v[6], v[3]);
-    }
-    if v.len() == 10 {
-        p.sun_dir = DVec3::new(v[7], v[8], v[9]);
-    }
-    hilcam_core::scene::limits::gate_pose(&p).map_err(|e| anyhow::anyhow!("{}: {}", e.field, e.message))
+    let attitude = (v.len() >= 7).then(|| [v[3], v[4], v[5], v[6]]);
+    let sun = (v.len() == 10).then(|| [v[7], v[8], v[9]]);
+    hilcam_core::scene::limits::pose_from_numbers(base, [v[0], v[1], v[2]], attitude, sun).map_err(anyhow::Error::msg)
 }

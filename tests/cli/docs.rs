@@ -20,7 +20,9 @@
 //! - ```` ```rust ````: compiled here (`rust_snippets`): the block must be this file's text.
 //! - other blocks: `paths` (the first word of each line is a repository path), `trajectory`
 //!   (loaded as a trajectory file), `bytes TEST` (a worked byte dump that TEST decodes and
-//!   compares byte for byte), `diagram` (a layout drawing, nothing to run), `file NAME`.
+//!   compares byte for byte), `python TEST` (a Python example that TEST, a pytest file,
+//!   runs against the installed module), `diagram` (a layout drawing, nothing to run),
+//!   `file NAME`.
 //!
 //! Besides, the serve config's defaults that docs/serve-config.md states in its tables
 //! are loaded and compared with the keys left out (`serve_config_defaults_are_the_documented_ones`).
@@ -527,8 +529,8 @@ fn check_other(b: &Block) {
             hilcam_core::pose::trajectory::Trajectory::parse(&b.text(), &b.page)
                 .unwrap_or_else(|e| panic!("{}: not a trajectory file: {e}", b.at()));
         }
-        "bytes" => {
-            let test = b.check.get(1).unwrap_or_else(|| panic!("{}: `bytes` names the test that decodes it", b.at()));
+        kind @ ("bytes" | "python") => {
+            let test = b.check.get(1).unwrap_or_else(|| panic!("{}: `{kind}` names the test that runs it", b.at()));
             let src = std::fs::read_to_string(test).unwrap_or_else(|_| panic!("{}: no test file {test}", b.at()));
             assert!(
                 src.contains(&b.page.display().to_string()),
@@ -539,7 +541,7 @@ fn check_other(b: &Block) {
         }
         "diagram" | "file" => {}
         k => panic!(
-            "{}: a ```{} block needs <!-- check: paths | trajectory | bytes TEST | diagram | file NAME --> (has `{k}`)",
+            "{}: a ```{} block needs <!-- check: paths | trajectory | bytes TEST | python TEST | diagram | file NAME --> (has `{k}`)",
             b.at(),
             b.info
         ),

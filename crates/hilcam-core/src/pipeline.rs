@@ -8,12 +8,13 @@ use crate::pose::Pose;
 use crate::render::camera::{CameraModel, View, Window};
 use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
+use crate::render::planet::Planet;
 use crate::render::sampling::mix64;
 use crate::render::truth::{TruthChannels, TruthImage, render_truth_with};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
 use crate::sensor::mc_noise::McNoiseStats;
-use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorError};
+use crate::sensor::{AutoExposure, ExposureMode, ExposureTiming, Sensor, SensorConfig, SensorError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -71,12 +72,22 @@ pub struct FramePipeline {
     buffers: FrameBuffers,
     /// The sensor of the last ROI's grown window, kept while the ROI stays.
     windowed: Option<Sensor>,
+    /// The planet of the next frames in place of the scene's (see [`FramePipeline::set_planet`]).
+    planet: Option<Planet>,
 }
 
 impl FramePipeline {
     /// The scene's camera and sensor at a possibly different resolution (`camera`).
     pub fn new(scene: Arc<Scene>, camera: CameraModel) -> Result<Self, SensorError> {
-        let sensor = Sensor::new(&camera, &scene.sensor)?;
+        let sensor = scene.sensor.clone();
+        Self::with_sensor(scene, camera, &sensor)
+    }
+
+    /// The scene seen by another camera: `camera` and its optics and detector `sensor` (a
+    /// camera preset or file, `hilcam render --camera`, Python's `Renderer(scene, camera)`)
+    /// replace the scene's own.
+    pub fn with_sensor(scene: Arc<Scene>, camera: CameraModel, sensor: &SensorConfig) -> Result<Self, SensorError> {
+        let sensor = Sensor::new(&camera, sensor)?;
         let auto_exposure = sensor.auto_exposure();
         Ok(FramePipeline {
             scene,
@@ -86,6 +97,7 @@ impl FramePipeline {
             primary: PrimaryVisibility::default(),
             buffers: FrameBuffers::default(),
             windowed: None,
+            planet: None,
         })
     }
 
@@ -94,6 +106,13 @@ impl FramePipeline {
     pub fn with_primary(mut self, primary: PrimaryVisibility) -> Self {
         self.primary = primary;
         self
+    }
+
+    /// Render the next frames with `planet` (camera frame, checked by
+    /// [`crate::scene::planet::checked_planet`]) in place of the scene's `[planet]`; None:
+    /// the scene's again. A planet that moves is set before each frame.
+    pub fn set_planet(&mut self, planet: Option<Planet>) {
+        self.planet = planet;
     }
 
     pub fn camera(&self) -> &CameraModel {
@@ -130,7 +149,7 @@ impl FramePipeline {
     /// The view of `pose`, moving over the exposure `timing` when the camera integrates
     /// motion and the pose has rates.
     fn view(&self, pose: &Pose, timing: &ExposureTiming) -> View {
-        let view = self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion);
+        let view = self.scene.view(&self.camera, pose).with_distortion(self.sensor.config().optics.distortion);
         match timing.motion(pose) {
             Some(m) => view.with_motion(m, pose, self.scene.frame_origin_body),
             None => view,
@@ -140,7 +159,7 @@ impl FramePipeline {
     /// When the rows integrate for a frame whose integration time is `integration_s`
     /// (None: the configured or auto-exposure one).
     pub fn exposure_timing(&self, integration_s: Option<f64>) -> ExposureTiming {
-        let Some(det) = &self.scene.sensor.detector else { return ExposureTiming::default() };
+        let Some(det) = &self.sensor.config().detector else { return ExposureTiming::default() };
         let auto = self.auto_exposure.as_ref().map(AutoExposure::integration_time_s);
         ExposureTiming {
             mode: det.exposure,
@@ -160,7 +179,7 @@ impl FramePipeline {
         request: &FrameRequest,
         channels: TruthChannels,
     ) -> Result<TruthImage, SensorError> {
-        let mut view = self.scene.view(&self.camera, pose).with_distortion(self.scene.sensor.optics.distortion);
+        let mut view = self.scene.view(&self.camera, pose).with_distortion(self.sensor.config().optics.distortion);
         if let Some(w) = request.roi.filter(|w| !w.is_full(&self.camera)) {
             let w = w
                 .inside(&self.camera)
@@ -172,7 +191,7 @@ impl FramePipeline {
     }
 
     fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {
-        RenderOptions::new(*settings, index).with_primary(self.primary)
+        RenderOptions::new(*settings, index).with_primary(self.primary).with_planet(self.planet)
     }
 
     /// Render the radiance only (no sensor), into a new image.
@@ -226,7 +245,7 @@ impl FramePipeline {
             ),
         };
         // The integration time is chosen before rendering: a moving view needs it.
-        let fixed = request.integration_s.filter(|_| self.scene.sensor.detector.is_some());
+        let fixed = request.integration_s.filter(|_| self.sensor.config().detector.is_some());
         let timing = self.exposure_timing(fixed);
         // The camera's noise at this integration time: what `quality = "sensor"` samples
         // against and every DN frame's Monte Carlo noise report measures against.
@@ -254,7 +273,7 @@ impl FramePipeline {
         let out = match fixed.or_else(|| self.auto_exposure.as_ref().map(AutoExposure::integration_time_s)) {
             Some(t) => sensor.apply_with_variance(radiance, variance, seed, t, k)?,
             None => {
-                let t = self.scene.sensor.detector.as_ref().map_or(0.0, |d| d.integration_time_s);
+                let t = self.sensor.config().detector.as_ref().map_or(0.0, |d| d.integration_time_s);
                 sensor.apply_with_variance(radiance, variance, seed, t, k)?
             }
         };

@@ -98,12 +98,27 @@ pub struct RenderOptions {
     pub noise: Option<NoiseBound>,
     /// Estimate every sampled pixel's Monte Carlo variance (`FrameBuffers::variance`).
     pub variance: bool,
+    /// A planet for this frame in place of the target's own (`Target::planet`): one that
+    /// moves from frame to frame (Python's `Renderer.render(planet=…)`). None: the target's.
+    pub planet: Option<planet::Planet>,
 }
 
 impl RenderOptions {
     /// Frame `frame` with `settings`, primary hits found the default way.
     pub fn new(settings: RenderSettings, frame: u64) -> RenderOptions {
-        RenderOptions { settings, frame, primary: PrimaryVisibility::default(), noise: None, variance: false }
+        RenderOptions {
+            settings,
+            frame,
+            primary: PrimaryVisibility::default(),
+            noise: None,
+            variance: false,
+            planet: None,
+        }
+    }
+
+    /// These options with `planet` in place of the target's own (None: the target's).
+    pub fn with_planet(self, planet: Option<planet::Planet>) -> RenderOptions {
+        RenderOptions { planet, ..self }
     }
 
     /// These options with the camera's noise bound (for `quality = "sensor"`) and, when
@@ -136,12 +151,12 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     view: &View,
     options: &RenderOptions,
 ) -> RenderStats {
-    let RenderOptions { settings, frame, primary, noise, variance } = options;
+    let RenderOptions { settings, frame, primary, noise, variance, planet: frame_planet } = options;
     let t0 = Instant::now();
     let (width, height) = view.size();
     buffers.reset_image(width, height, target.background);
     // A planet is the background of every pixel the tracer does not sample.
-    let planet = target.planet.map(|p| p.place(view, target.sun_irradiance));
+    let planet = frame_planet.or(target.planet).map(|p| p.place(view, target.sun_irradiance));
     if let Some(p) = &planet {
         let (img, samples, key) = (&mut buffers.image, settings.spp.floor(), (settings.seed, *frame));
         match settings.sequence {
@@ -183,7 +198,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
     // The hybrid method where it applies (an instant view, no planet): no bands, no
     // per-pixel variance (its frames carry no Monte Carlo report yet).
     let hybrid_frame = match (rect, settings.method) {
-        (Some(rect), Method::Hybrid) => {
+        (Some(rect), Method::Hybrid) if planet.is_none() => {
             crate::render::hybrid::render(img, hybrid, target, view, rect, settings, *frame)
         }
         _ => None,

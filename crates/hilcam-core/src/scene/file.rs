@@ -581,6 +581,42 @@ pub fn load_camera_file(path: &Path) -> Result<CameraPreset, String> {
     Ok(preset)
 }
 
+/// The shipped camera files (`config/cameras/`), by name: what `hilcam render --camera NAME`
+/// and Python's `Camera.preset(NAME)` load, built in so that no file is needed.
+pub const CAMERA_PRESETS: &[(&str, &str)] = &[
+    ("nav1024", include_str!("../../../../config/cameras/nav1024.toml")),
+    ("nav2048", include_str!("../../../../config/cameras/nav2048.toml")),
+    ("paper", include_str!("../../../../config/cameras/paper.toml")),
+];
+
+/// The built-in camera `name` ([`CAMERA_PRESETS`]), checked as a camera file is (camera
+/// and sensor); an unknown name is refused with the known ones.
+pub fn camera_preset(name: &str) -> Result<CameraPreset, String> {
+    let Some((_, text)) = CAMERA_PRESETS.iter().find(|(n, _)| *n == name) else {
+        let known: Vec<_> = CAMERA_PRESETS.iter().map(|(n, _)| *n).collect();
+        return Err(format!("unknown camera preset `{name}` (known: {})", known.join(", ")));
+    };
+    let preset: CameraPreset = toml::from_str(text).map_err(|e| format!("camera preset {name}: {e}"))?;
+    checked_camera_preset(preset, name)
+}
+
+/// A camera preset's name or a camera file's path (anything with a `/` or ending in
+/// `.toml`), loaded and checked (camera and sensor).
+pub fn camera_by_name_or_file(s: &str) -> Result<CameraPreset, String> {
+    if s.contains('/') || s.ends_with(".toml") {
+        let preset = load_camera_file(Path::new(s))?;
+        checked_camera_preset(preset, s)
+    } else {
+        camera_preset(s)
+    }
+}
+
+fn checked_camera_preset(preset: CameraPreset, name: &str) -> Result<CameraPreset, String> {
+    validate_camera(&preset.camera).map_err(|(f, m)| format!("{name}: camera.{f}: {m}"))?;
+    preset.sensor.validate(&preset.camera).map_err(|e| format!("{name}: sensor: {e}"))?;
+    Ok(preset)
+}
+
 /// Size within [`crate::render::camera::MAX_SIDE_PX`] per side, pitch and focal length finite and
 /// in their ranges, the principal point finite and within one image size of the centre.
 pub fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
@@ -704,4 +740,30 @@ fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
 pub fn parse_name<T: serde::de::DeserializeOwned>(name: &str) -> Result<T, String> {
     use serde::de::IntoDeserializer;
     T::deserialize(IntoDeserializer::<serde::de::value::Error>::into_deserializer(name)).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_built_in_cameras_are_the_shipped_files() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/cameras");
+        let files = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "toml"));
+        assert_eq!(files.count(), CAMERA_PRESETS.len(), "a camera file of config/cameras/ is not built in");
+        for (name, _) in CAMERA_PRESETS {
+            let file = load_camera_file(&dir.join(format!("{name}.toml"))).unwrap();
+            let built_in = camera_preset(name).unwrap();
+            assert_eq!(format!("{built_in:?}"), format!("{file:?}"), "{name}");
+            assert_eq!(format!("{:?}", camera_by_name_or_file(name).unwrap()), format!("{file:?}"));
+        }
+        assert_eq!(
+            camera_preset("nav4096").unwrap_err(),
+            "unknown camera preset `nav4096` (known: nav1024, nav2048, paper)"
+        );
+        let e = camera_by_name_or_file("no/such.toml").unwrap_err();
+        assert!(e.starts_with("no/such.toml"), "{e}");
+    }
 }

@@ -89,6 +89,28 @@ pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
     }
 }
 
+/// A pose given as numbers (`hilcam render --pose`, Python's `Renderer.render`): the
+/// position `[px, py, pz]` (m, camera frame), optionally the attitude `[qw, qx, qy, qz]`
+/// (body → camera) and the sun direction `[sx, sy, sz]`; what is not given comes from
+/// `base` (the scene's `[pose]`). The result has passed [`gate_pose`]; a refusal reads
+/// `field: reason (value)`, the same text everywhere.
+pub fn pose_from_numbers(
+    base: &Pose,
+    position: [f64; 3],
+    attitude: Option<[f64; 4]>,
+    sun: Option<[f64; 3]>,
+) -> Result<Pose, String> {
+    let mut p = *base;
+    p.position = DVec3::from_array(position);
+    if let Some([w, x, y, z]) = attitude {
+        p.attitude = glam::DQuat::from_xyzw(x, y, z, w);
+    }
+    if let Some(s) = sun {
+        p.sun_dir = DVec3::from_array(s);
+    }
+    gate_pose(&p).map_err(|e| format!("{}: {}", e.field, e.message))
+}
+
 fn fmt3(v: DVec3) -> String {
     format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
@@ -147,5 +169,18 @@ mod tests {
         assert!((g.sun_dir - DVec3::new(1.0, 0.0, -1.0).normalize()).length() < 1e-15, "{}", g.sun_dir);
         let p = Pose { sun_dir: DVec3::new(1e-320, 0.0, 0.0), ..Pose::ahead(10.0) };
         assert_eq!(gate_pose(&p).unwrap().sun_dir, DVec3::X);
+    }
+
+    #[test]
+    fn numbers_keep_what_is_not_given_and_pass_the_gate() {
+        let base = Pose { sun_dir: DVec3::new(0.0, 0.0, -1.0), ..Pose::ahead(10.0) };
+        let p = pose_from_numbers(&base, [1.0, 2.0, 30.0], None, None).unwrap();
+        assert_eq!((p.position, p.attitude, p.sun_dir), (DVec3::new(1.0, 2.0, 30.0), base.attitude, base.sun_dir));
+        let p = pose_from_numbers(&base, [0.0, 0.0, 5.0], Some([0.0, 1.0, 0.0, 0.0]), Some([0.0, 2.0, 0.0])).unwrap();
+        assert_eq!((p.attitude, p.sun_dir), (DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0), DVec3::Y));
+        let e = pose_from_numbers(&base, [f64::NAN, 0.0, 5.0], None, None).unwrap_err();
+        assert_eq!(e, "pose.position: non-finite value ([NaN, 0, 5])");
+        let e = pose_from_numbers(&base, [0.0, 0.0, 5.0], None, Some([0.0; 3])).unwrap_err();
+        assert_eq!(e, "pose.sun: direction is zero (got [0, 0, 0])");
     }
 }
