@@ -37,6 +37,13 @@ pub struct TargetBounds {
     pub max: DVec3,
 }
 
+/// The bounding sphere of one spatially separate part of the target (render frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PartSphere {
+    pub centre: DVec3,
+    pub radius: f64,
+}
+
 /// One camera, one pose: everything needed to make primary rays.
 #[derive(Clone, Debug)]
 pub struct View {
@@ -50,6 +57,10 @@ pub struct View {
     /// Camera frame → render frame.
     pub(in crate::render) cam_to_render: DMat3,
     pub(in crate::render) bounds: TargetBounds,
+    /// The target's separate parts, when it has several: a camera ray starts where it
+    /// first enters one of their spheres instead of the whole target's (so a far body does
+    /// not move the start, nor round the ray, of a near one). None: `bounds`.
+    pub(in crate::render) parts: Option<std::sync::Arc<[PartSphere]>>,
     /// Lens distortion: sample positions on the (distorted) focal plane are mapped to the
     /// ideal pinhole directions that a real lens would image there.
     pub(in crate::render) distortion: Option<Distortion>,
@@ -92,6 +103,7 @@ impl View {
             origin,
             cam_to_render: cam_to_body,
             bounds,
+            parts: None,
             distortion: None,
             sun,
             keys: PixelKeys::full(cam.width),
@@ -110,6 +122,13 @@ impl View {
         let mut moving = MovingPose::new(motion, pose.position, pose.attitude, frame_origin_body);
         moving.first_row = self.keys.first_row();
         self.motion = Some(moving);
+        self
+    }
+
+    /// The same view with the target's separate parts (camera rays start on the first
+    /// part sphere they enter; none or empty: on the whole target's).
+    pub fn with_parts(mut self, parts: Option<std::sync::Arc<[PartSphere]>>) -> View {
+        self.parts = parts.filter(|p| !p.is_empty());
         self
     }
 
@@ -152,6 +171,7 @@ impl View {
             && (self.origin, self.cam_to_render, self.distortion, self.keys)
                 == (other.origin, other.cam_to_render, other.distortion, other.keys)
             && b(self) == b(other)
+            && self.parts == other.parts
             && self.motion.is_none()
             && other.motion.is_none()
     }
@@ -288,15 +308,24 @@ impl View {
     #[inline(always)]
     fn ray_from(&self, origin: DVec3, cam_to_render: DMat3, dir_cam: DVec3) -> Option<Ray> {
         let d = cam_to_render * dir_cam;
-        let oc = origin - self.bounds.centre;
+        if let Some(parts) = &self.parts {
+            return self.ray_from_parts(parts, origin, d);
+        }
+        self.ray_into(origin, d, self.bounds.centre, self.bounds.radius)
+    }
+
+    /// The ray from `origin` along `d` starting where it enters the sphere (`centre`, `r`).
+    #[inline(always)]
+    fn ray_into(&self, origin: DVec3, d: DVec3, centre: DVec3, r: f64) -> Option<Ray> {
+        let oc = origin - centre;
         let a = d.length_squared();
         let b = oc.dot(d);
-        let c = oc.length_squared() - self.bounds.radius * self.bounds.radius;
+        let c = oc.length_squared() - r * r;
         let disc = b * b - a * c;
         // Finite `disc` means `a`, `b²` and `a·c` are finite (any inf or NaN among them
         // makes it inf or NaN).
         if !disc.is_finite() {
-            return self.ray_along_scaled(origin, d, oc);
+            return self.ray_along_scaled(origin, d, oc, r);
         }
         if disc < 0.0 {
             return None;
@@ -309,13 +338,28 @@ impl View {
         finite_ray(origin + d * start, d)
     }
 
-    /// [`View::ray_along`] for lines whose squares overflow: `oc` and the radius scaled by
+    /// [`View::ray_into`] the part sphere the line enters first: each part's own sphere
+    /// gives the same f32 ray as a target of that part alone would.
+    #[inline(never)]
+    fn ray_from_parts(&self, parts: &[PartSphere], origin: DVec3, d: DVec3) -> Option<Ray> {
+        let mut best: Option<(f64, Ray)> = None;
+        for s in parts {
+            let Some(ray) = self.ray_into(origin, d, s.centre, s.radius) else { continue };
+            // Distance of the start from the camera along the line (f64, only to order).
+            let along = (ray.origin.as_dvec3() - origin).dot(d);
+            if best.is_none_or(|(b, _)| along < b) {
+                best = Some((along, ray));
+            }
+        }
+        best.map(|(_, r)| r)
+    }
+
+    /// [`View::ray_into`] for lines whose squares overflow: `oc` and the radius scaled by
     /// the largest of their magnitudes, `d` by its own (the entry parameter scales back),
     /// so nothing squared exceeds 3. A non-finite input is a miss.
     #[cold]
     #[inline(never)]
-    fn ray_along_scaled(&self, origin: DVec3, d: DVec3, oc: DVec3) -> Option<Ray> {
-        let r = self.bounds.radius;
+    fn ray_along_scaled(&self, origin: DVec3, d: DVec3, oc: DVec3, r: f64) -> Option<Ray> {
         if !(d.is_finite() && oc.is_finite() && r.is_finite()) {
             return None;
         }
