@@ -13,7 +13,7 @@ use crate::common;
 use common::scenes::*;
 use glam::{DVec3, Vec3};
 use hilcam_core::pose::Pose;
-use hilcam_core::render::camera::CameraModel;
+use hilcam_core::render::camera::{CameraModel, PixelRect};
 use hilcam_core::render::film::RadianceImage;
 use hilcam_core::render::geometry::{BvhLayout, TriMesh};
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind, Spp};
@@ -78,6 +78,11 @@ fn grooved_scene(mesh: TriMesh, cam: &CameraModel, range: f64, settings: RenderS
 
 fn frame(s: &Scene, cam: &CameraModel, settings: RenderSettings) -> RadianceImage {
     render(s, &s.view(cam, &s.pose), &RenderOptions::new(settings, 0)).0
+}
+
+/// The pixel rectangle a frame traces.
+fn rect(s: &Scene, cam: &CameraModel, settings: RenderSettings) -> Option<PixelRect> {
+    render(s, &s.view(cam, &s.pose), &RenderOptions::new(settings, 0)).1.rect
 }
 
 /// The mean of the pixels inside the plate's image (`half_px` its half width), 4 px in.
@@ -167,8 +172,8 @@ fn crease_shadows_match_the_analytic_lit_fraction() {
 /// coordinates are the same bits, so is its bounding sphere (the camera rays' start).
 #[test]
 fn far_geometry_does_not_move_the_render_frame() {
-    let cam = camera(64, 64, 20.0, 40.0);
-    let settings = RenderSettings::default();
+    let cam = camera(256, 256, 20.0, 40.0);
+    let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..Default::default() };
     let alone = grooved_scene(grooved_plate(), &cam, 10.0, settings, BvhLayout::Bvh8);
     let mut mesh = grooved_plate();
     mesh.append(&far_triangle(1e5));
@@ -182,4 +187,61 @@ fn far_geometry_does_not_move_the_render_frame() {
     assert_eq!((plate.centre, plate.radius), (DVec3::ZERO, alone.bounds.radius));
     // Each triangle's spawn scale is its own: the plate's stay about 0.5 m.
     assert_eq!(alone.planes[..], with.planes[..alone.planes.len()]);
+    // The far part is off the image: the frame traces the plate's pixels only, though the
+    // whole target's bounding sphere holds the camera.
+    assert_eq!(rect(&with, &cam, settings), rect(&alone, &cam, settings));
+    assert!(rect(&alone, &cam, settings).is_some_and(|r| r.area() < 220 * 220));
+}
+
+/// A ray spawned from any point of a triangle, leaving on either side in any direction
+/// (down to 0.06° above the surface), never hits that triangle again — at coordinates from
+/// a millimetre to 100 km from the render origin, and whatever error the hit point had
+/// along the normal (up to a thousand ulps: a long ray's rounding).
+#[test]
+fn spawned_rays_do_not_hit_their_own_triangle() {
+    use hilcam_core::render::geometry::Ray;
+    use hilcam_core::render::geometry::bvh::brute_force;
+    use hilcam_core::render::geometry::spawn::TrianglePlane;
+    use hilcam_core::render::sampling::Rng;
+    let mut rng = Rng::from_state(44);
+    let unit = |rng: &mut Rng| Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5) * 2.0;
+    let mut tested = 0;
+    for scale in [1e-3f32, 1.0, 1e3, 1e5] {
+        for _ in 0..200 {
+            let centre = unit(&mut rng) * scale;
+            let size = scale * (0.01 + rng.next_f32());
+            let positions =
+                vec![centre + unit(&mut rng) * size, centre + unit(&mut rng) * size, centre + unit(&mut rng) * size];
+            let mesh = TriMesh { positions, indices: vec![[0, 1, 2]], material: vec![0] };
+            let face = mesh.face_normal_area2(0).normalize_or_zero();
+            if face == Vec3::ZERO {
+                continue;
+            }
+            let plane = TrianglePlane::of(&mesh, 0, face);
+            let [a, b, c] = mesh.triangle(0);
+            for _ in 0..20 {
+                let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
+                if u + v > 1.0 {
+                    (u, v) = (1.0 - u, 1.0 - v);
+                }
+                let ulps = plane.scale * f32::EPSILON * 1000.0 * (rng.next_f32() - 0.5);
+                let p = a + (b - a) * u + (c - a) * v + face * ulps;
+                let out = if rng.next_f32() < 0.5 { face } else { -face };
+                let dir = loop {
+                    let d = unit(&mut rng).normalize_or_zero();
+                    if d.dot(out) > 1e-3 {
+                        break d;
+                    }
+                };
+                let ray = Ray { origin: plane.spawn(p, face, out), dir, tmax: f32::INFINITY };
+                assert!(
+                    !brute_force::occluded(&mesh, &ray),
+                    "scale {scale}: {ray:?} hits its own triangle {:?}",
+                    mesh.positions
+                );
+                tested += 1;
+            }
+        }
+    }
+    assert!(tested > 15_000, "{tested} rays");
 }

@@ -29,7 +29,12 @@ fn part_sphere(mesh: &TriMesh, part: &Part, origin: DVec3) -> PartSphere {
         .flat_map(|&t| mesh.indices[t as usize])
         .map(|v| (mesh.positions[v as usize].as_dvec3() - centre).length())
         .fold(0.0, f64::max);
-    PartSphere { centre, radius: radius * (1.0 + 1e-4) + 1e-6 }
+    PartSphere {
+        centre,
+        radius: radius * (1.0 + 1e-4) + 1e-6,
+        min: part.lo - origin - 1e-6,
+        max: part.hi - origin + 1e-6,
+    }
 }
 
 /// Everything the renderer needs that does not change from frame to frame.

@@ -119,7 +119,7 @@ mod tests {
         assert_eq!(parts.len(), 2, "{parts:?}");
         let near = parts.iter().find(|p| p.triangles.len() == 10).expect("the near part");
         assert_eq!(near.triangles, (0..10).collect::<Vec<u32>>());
-        assert_eq!((near.lo, near.hi), (DVec3::ZERO, DVec3::new(1.0, 0.1, 0.0)));
+        assert_eq!((near.lo, near.hi), (DVec3::ZERO, DVec3::new(1.0, f64::from(0.1f32), 0.0)));
     }
 
     /// Two bodies whose gap is smaller than the larger body stay one part.
