@@ -24,6 +24,7 @@ mod mc_variance;
 mod mis;
 mod motion;
 mod mtl;
+mod numerics;
 mod obj_faces;
 mod planet;
 mod primary_raster;

@@ -9,6 +9,7 @@ use glam::{DVec3, Vec3};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::camera::CameraModel;
 use hilcam_core::render::geometry::bvh::brute_force;
+use hilcam_core::render::geometry::spawn::TrianglePlane;
 use hilcam_core::render::geometry::{Ray, TriMesh};
 use hilcam_core::render::integrator::Spp;
 use hilcam_core::render::integrator::{RecordedRays, RenderSettings, SamplerKind};
@@ -171,7 +172,6 @@ fn random_soups_at_millimetre_and_10_km_scales_match_brute_force() {
                 }
             };
             let mesh = soup(&mut rng, scale, s, 1500);
-            let r_max = mesh.positions.iter().map(|p| p.abs().max_element()).fold(0.0, f32::max);
             // Origins on triangles, offset off the surface as `PathContext` offsets them, to
             // either side.
             let rays: Vec<Ray> = (0..3000)
@@ -183,12 +183,10 @@ fn random_soups_at_millimetre_and_10_km_scales_match_brute_force() {
                         (u, v) = (1.0 - u, 1.0 - v);
                     }
                     let p = a + (b - a) * u + (c - a) * v;
-                    let mut nrm = mesh.face_normal_area2(i).normalize_or_zero();
-                    if rng.next_f32() < 0.5 {
-                        nrm = -nrm;
-                    }
-                    let offset = 2e-5 * (p.abs().max_element() + r_max * 0.1);
-                    Ray { origin: p + nrm * offset, dir: s, tmax: f32::INFINITY }
+                    let face = mesh.face_normal_area2(i).normalize_or_zero();
+                    let nrm = if rng.next_f32() < 0.5 { -face } else { face };
+                    let origin = TrianglePlane::of(&mesh, i, face).spawn(p, face, nrm);
+                    Ray { origin, dir: s, tmax: f32::INFINITY }
                 })
                 .collect();
             let grid = SunShadow::build(&mesh, s);

@@ -76,7 +76,8 @@ impl PlaneCase {
             stars: None,
             planet: None,
         });
-        let view = View::new(&camera, &pose, scene.frame_origin_body, scene.bounds);
+        let view =
+            View::new(&camera, &pose, scene.frame_origin_body, scene.bounds).with_parts(Some(scene.parts.clone()));
         let mask = (0..size)
             .flat_map(|row| (0..size).map(move |col| (col, row)))
             .map(|(col, row)| {

@@ -12,7 +12,7 @@ pub mod window;
 
 pub use motion::Motion;
 use serde::Deserialize;
-pub use view::{PixelRect, TargetBounds, View};
+pub use view::{PartSphere, PixelRect, TargetBounds, View};
 pub use window::{PixelKeys, Window};
 
 /// Intrinsics of a pinhole camera, as read from `[camera]` in a scene or config file.

@@ -37,6 +37,16 @@ pub struct TargetBounds {
     pub max: DVec3,
 }
 
+/// The bounds of one spatially separate part of the target (render frame): its sphere
+/// and its box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PartSphere {
+    pub centre: DVec3,
+    pub radius: f64,
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
 /// One camera, one pose: everything needed to make primary rays.
 #[derive(Clone, Debug)]
 pub struct View {
@@ -50,6 +60,10 @@ pub struct View {
     /// Camera frame → render frame.
     pub(in crate::render) cam_to_render: DMat3,
     pub(in crate::render) bounds: TargetBounds,
+    /// The target's separate parts, when it has several: a camera ray starts where it
+    /// first enters one of their spheres instead of the whole target's (so a far body does
+    /// not move the start, nor round the ray, of a near one). None: `bounds`.
+    pub(in crate::render) parts: Option<std::sync::Arc<[PartSphere]>>,
     /// Lens distortion: sample positions on the (distorted) focal plane are mapped to the
     /// ideal pinhole directions that a real lens would image there.
     pub(in crate::render) distortion: Option<Distortion>,
@@ -92,6 +106,7 @@ impl View {
             origin,
             cam_to_render: cam_to_body,
             bounds,
+            parts: None,
             distortion: None,
             sun,
             keys: PixelKeys::full(cam.width),
@@ -110,6 +125,13 @@ impl View {
         let mut moving = MovingPose::new(motion, pose.position, pose.attitude, frame_origin_body);
         moving.first_row = self.keys.first_row();
         self.motion = Some(moving);
+        self
+    }
+
+    /// The same view with the target's separate parts (camera rays start on the first
+    /// part sphere they enter; none or empty: on the whole target's).
+    pub fn with_parts(mut self, parts: Option<std::sync::Arc<[PartSphere]>>) -> View {
+        self.parts = parts.filter(|p| !p.is_empty());
         self
     }
 
@@ -152,6 +174,7 @@ impl View {
             && (self.origin, self.cam_to_render, self.distortion, self.keys)
                 == (other.origin, other.cam_to_render, other.distortion, other.keys)
             && b(self) == b(other)
+            && self.parts == other.parts
             && self.motion.is_none()
             && other.motion.is_none()
     }
@@ -288,15 +311,24 @@ impl View {
     #[inline(always)]
     fn ray_from(&self, origin: DVec3, cam_to_render: DMat3, dir_cam: DVec3) -> Option<Ray> {
         let d = cam_to_render * dir_cam;
-        let oc = origin - self.bounds.centre;
+        if let Some(parts) = &self.parts {
+            return self.ray_from_parts(parts, origin, d);
+        }
+        self.ray_into(origin, d, self.bounds.centre, self.bounds.radius)
+    }
+
+    /// The ray from `origin` along `d` starting where it enters the sphere (`centre`, `r`).
+    #[inline(always)]
+    fn ray_into(&self, origin: DVec3, d: DVec3, centre: DVec3, r: f64) -> Option<Ray> {
+        let oc = origin - centre;
         let a = d.length_squared();
         let b = oc.dot(d);
-        let c = oc.length_squared() - self.bounds.radius * self.bounds.radius;
+        let c = oc.length_squared() - r * r;
         let disc = b * b - a * c;
         // Finite `disc` means `a`, `b²` and `a·c` are finite (any inf or NaN among them
         // makes it inf or NaN).
         if !disc.is_finite() {
-            return self.ray_along_scaled(origin, d, oc);
+            return self.ray_along_scaled(origin, d, oc, r);
         }
         if disc < 0.0 {
             return None;
@@ -309,13 +341,28 @@ impl View {
         finite_ray(origin + d * start, d)
     }
 
-    /// [`View::ray_along`] for lines whose squares overflow: `oc` and the radius scaled by
+    /// [`View::ray_into`] the part sphere the line enters first: each part's own sphere
+    /// gives the same f32 ray as a target of that part alone would.
+    #[inline(never)]
+    fn ray_from_parts(&self, parts: &[PartSphere], origin: DVec3, d: DVec3) -> Option<Ray> {
+        let mut best: Option<(f64, Ray)> = None;
+        for s in parts {
+            let Some(ray) = self.ray_into(origin, d, s.centre, s.radius) else { continue };
+            // Distance of the start from the camera along the line (f64, only to order).
+            let along = (ray.origin.as_dvec3() - origin).dot(d);
+            if best.is_none_or(|(b, _)| along < b) {
+                best = Some((along, ray));
+            }
+        }
+        best.map(|(_, r)| r)
+    }
+
+    /// [`View::ray_into`] for lines whose squares overflow: `oc` and the radius scaled by
     /// the largest of their magnitudes, `d` by its own (the entry parameter scales back),
     /// so nothing squared exceeds 3. A non-finite input is a miss.
     #[cold]
     #[inline(never)]
-    fn ray_along_scaled(&self, origin: DVec3, d: DVec3, oc: DVec3) -> Option<Ray> {
-        let r = self.bounds.radius;
+    fn ray_along_scaled(&self, origin: DVec3, d: DVec3, oc: DVec3, r: f64) -> Option<Ray> {
         if !(d.is_finite() && oc.is_finite() && r.is_finite()) {
             return None;
         }
@@ -345,23 +392,14 @@ impl View {
         self.box_corners_from(self.origin, self.cam_to_render.transpose())
     }
 
+    /// [`View::box_corners_image`] of the box `min`–`max` (render frame).
+    fn corners_of(&self, min: DVec3, max: DVec3) -> Option<[(f64, f64); 8]> {
+        box_corners(min, max, self.origin, self.cam_to_render.transpose())
+    }
+
     /// [`View::box_corners_image`] seen from a camera at `origin` turned by `render_to_cam`.
     fn box_corners_from(&self, origin: DVec3, render_to_cam: DMat3) -> Option<[(f64, f64); 8]> {
-        let b = &self.bounds;
-        let mut corners = [(0.0, 0.0); 8];
-        for (i, out) in corners.iter_mut().enumerate() {
-            let p = DVec3::new(
-                if i & 1 == 0 { b.min.x } else { b.max.x },
-                if i & 2 == 0 { b.min.y } else { b.max.y },
-                if i & 4 == 0 { b.min.z } else { b.max.z },
-            );
-            let q = render_to_cam * (p - origin);
-            if q.z <= 0.0 || q.z.is_nan() {
-                return None;
-            }
-            *out = (q.x / q.z, q.y / q.z);
-        }
-        Some(corners)
+        box_corners(self.bounds.min, self.bounds.max, origin, render_to_cam)
     }
 
     /// Where the camera is across the exposure, as the culling bounds it: camera centre and
@@ -453,20 +491,11 @@ impl View {
         })
     }
 
-    /// [`View::pixel_rect`] of the view's pose (ignoring motion).
-    fn instant_rect(&self) -> Option<PixelRect> {
-        if !self.origin.is_finite() {
-            return None; // a blind view (see `View::new`)
-        }
-        let full = PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height };
-        if self.distortion.is_some() {
-            return Some(full); // the pinhole bound does not hold through a distorting lens
-        }
-        let render_to_cam = self.cam_to_render.transpose();
-        let c = render_to_cam * (self.bounds.centre - self.origin);
-        let r = self.bounds.radius;
+    /// Where the sphere (`centre`, `r`, render frame) lies on the ideal image plane.
+    fn sphere_image(&self, centre: DVec3, r: f64) -> SphereImage {
+        let c = self.cam_to_render.transpose() * (centre - self.origin);
         if c.length() <= r * 1.000001 {
-            return Some(full); // camera inside the bounds
+            return SphereImage::Inside;
         }
         // Exact extent of x/z (and y/z) over the sphere: tangent lines in the XZ (YZ) plane.
         let extent = |a: f64| -> Option<(f64, f64)> {
@@ -483,10 +512,57 @@ impl View {
             }
             Some((if lo <= -q { f64::NEG_INFINITY } else { lo.tan() }, if hi >= q { f64::INFINITY } else { hi.tan() }))
         };
-        let (mut x0, mut x1) = extent(c.x)?;
-        let (mut y0, mut y1) = extent(c.y)?;
+        match (extent(c.x), extent(c.y)) {
+            (Some((x0, x1)), Some((y0, y1))) => SphereImage::Box((x0, x1, y0, y1)),
+            _ => SphereImage::Behind,
+        }
+    }
+
+    /// [`View::pixel_rect`] of the view's pose (ignoring motion).
+    fn instant_rect(&self) -> Option<PixelRect> {
+        if !self.origin.is_finite() {
+            return None; // a blind view (see `View::new`)
+        }
+        let full = PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height };
+        if self.distortion.is_some() {
+            return Some(full); // the pinhole bound does not hold through a distorting lens
+        }
+        let Some(parts) = &self.parts else {
+            let corners = self.box_corners_image();
+            return self.sphere_rect(self.sphere_image(self.bounds.centre, self.bounds.radius), corners.as_ref());
+        };
+        // A target of several parts: the union of the rectangles of their spheres in the
+        // image (a far part off the image does not widen the near one's).
+        let mut union: Option<PixelRect> = None;
+        for s in parts.iter() {
+            match self.sphere_image(s.centre, s.radius) {
+                SphereImage::Inside => return Some(full),
+                SphereImage::Behind => {}
+                image => {
+                    if let Some(r) = self.sphere_rect(image, self.corners_of(s.min, s.max).as_ref()) {
+                        union = Some(union.map_or(r, |u| PixelRect {
+                            col0: u.col0.min(r.col0),
+                            col1: u.col1.max(r.col1),
+                            row0: u.row0.min(r.row0),
+                            row1: u.row1.max(r.row1),
+                        }));
+                    }
+                }
+            }
+        }
+        union
+    }
+
+    /// The pixel rectangle of a sphere's image (1 px margin), cut to the target box's
+    /// `corners` when they are all in front of the camera; `None` when it is empty.
+    fn sphere_rect(&self, image: SphereImage, corners: Option<&[(f64, f64); 8]>) -> Option<PixelRect> {
+        let (mut x0, mut x1, mut y0, mut y1) = match image {
+            SphereImage::Inside => return Some(PixelRect { col0: 0, col1: self.width, row0: 0, row1: self.height }),
+            SphereImage::Behind => return None,
+            SphereImage::Box(b) => b,
+        };
         // The AABB's corners give a tighter box for elongated targets when all are in front.
-        if let Some(corners) = self.box_corners_image() {
+        if let Some(corners) = corners {
             let xs = corners.iter().map(|p| p.0);
             let ys = corners.iter().map(|p| p.1);
             x0 = x0.max(xs.clone().fold(f64::INFINITY, f64::min));
@@ -508,6 +584,34 @@ impl View {
         };
         (rect.col0 < rect.col1 && rect.row0 < rect.row1).then_some(rect)
     }
+}
+
+/// The eight corners of the box `min`–`max` (render frame) on the ideal image plane of a
+/// camera at `origin` turned by `render_to_cam`, or `None` unless all lie in front of it.
+fn box_corners(min: DVec3, max: DVec3, origin: DVec3, render_to_cam: DMat3) -> Option<[(f64, f64); 8]> {
+    let mut corners = [(0.0, 0.0); 8];
+    for (i, out) in corners.iter_mut().enumerate() {
+        let p = DVec3::new(
+            if i & 1 == 0 { min.x } else { max.x },
+            if i & 2 == 0 { min.y } else { max.y },
+            if i & 4 == 0 { min.z } else { max.z },
+        );
+        let q = render_to_cam * (p - origin);
+        if q.z <= 0.0 || q.z.is_nan() {
+            return None;
+        }
+        *out = (q.x / q.z, q.y / q.z);
+    }
+    Some(corners)
+}
+
+/// A sphere's image: the camera inside it, wholly behind the camera, or a box
+/// `(x0, x1, y0, y1)` on the ideal image plane (`x/z`, `y/z`).
+#[derive(Clone, Copy)]
+enum SphereImage {
+    Inside,
+    Behind,
+    Box((f64, f64, f64, f64)),
 }
 
 /// Instants across a moving view's exposure at which its pixel rectangle and coverage

@@ -10,7 +10,9 @@ pub mod bvh8;
 pub mod closest_packet;
 mod lane_triangle;
 pub mod mesh;
+pub mod parts;
 pub mod shadow_packet;
+pub mod spawn;
 mod wide;
 
 pub use bvh::{Accel, BvhLayout, Hit, Ray, TestRay};

@@ -146,9 +146,10 @@ impl Shader<'_> {
             *lit += rays.len() as u32 - blocked.count_ones();
         };
         let (n, _) = self.facing(mean);
+        let n_face = self.ctx.scene.normals[tri as usize];
         for k in (0..SAMPLES).filter(|&k| px.ids[k] == setup) {
             let Some(s) = self.surface(tri, px.ideal(px.sx[k], px.sy[k])) else { continue };
-            rays[n_rays].origin = s.p + n * self.ctx.offset(s.p);
+            rays[n_rays].origin = self.ctx.spawn(s.p, tri, n_face, n);
             n_rays += 1;
             if n_rays == PACKET {
                 flush(&rays, &mut tested, &mut lit);
@@ -159,7 +160,7 @@ impl Shader<'_> {
             flush(&rays[..n_rays], &mut tested, &mut lit);
         }
         if tested == 0 {
-            let ray = Ray { origin: mean.p + n * self.ctx.offset(mean.p), dir: self.ctx.sun, tmax: f32::INFINITY };
+            let ray = Ray { origin: self.ctx.spawn(mean.p, tri, n_face, n), dir: self.ctx.sun, tmax: f32::INFINITY };
             counts.shadow += 1;
             return if self.ctx.occluded(&ray) { 0.0 } else { 1.0 };
         }

@@ -23,7 +23,7 @@ pub enum Class {
     Partial,
 }
 
-/// Cell edge as a fraction of the target's bounding radius.
+/// Cell edge as a fraction of the bounding radius of the target's largest part.
 pub const CELL_FRACTION: f32 = 0.005;
 
 /// The classes of every cell for one sun direction, kept between frames.
@@ -43,7 +43,7 @@ impl ShadowMemo {
         if self.key == Some(key) {
             return 0;
         }
-        let size = CELL_FRACTION * ctx.scene.bounds.radius as f32;
+        let size = CELL_FRACTION * ctx.scene.detail_radius as f32;
         if self.key.is_none_or(|k| (k.1, k.2) != (key.1, key.2)) || self.cells.size != size {
             self.cells = Cells::new(mesh, size);
         }
@@ -80,7 +80,8 @@ fn classify(ctx: &PathContext, t: u32, [a, b, c]: [Vec3; 3]) -> Class {
     // Just inside each corner (1 % of the way to the centroid).
     let near = |v: Vec3| v + (g - v) * 0.01;
     let points = [g, near(a), near(b), near(c)];
-    let rays = points.map(|p| Ray { origin: p + n * ctx.offset(p), dir: ctx.sun, tmax: f32::INFINITY });
+    let n_face = ctx.scene.normals[t as usize];
+    let rays = points.map(|p| Ray { origin: ctx.spawn(p, t, n_face, n), dir: ctx.sun, tmax: f32::INFINITY });
     match ctx.occluded_packet(&rays) {
         0 => Class::Lit,
         0b1111 => Class::Dark,

@@ -295,11 +295,13 @@ impl<'a> PathContext<'a> {
         self.scene.accel.occluded_packet(rays)
     }
 
-    /// Offset that moves a hit point off its surface: scaled to the coordinates' magnitude
-    /// (f32 intersection error grows with it) and to the target's size.
+    /// Where a ray leaving point `p` of triangle `tri` starts, on the side of `n_out`
+    /// (`±` the triangle's normal): on the triangle's plane, moved off it by a few ulps of
+    /// the triangle's own coordinates (`geometry::spawn`) — nothing else in the scene and
+    /// nothing of the ray that found `p` enters.
     #[inline]
-    pub(in crate::render) fn offset(&self, p: Vec3) -> f32 {
-        2e-5 * (p.abs().max_element() + self.scene.bounds.radius as f32 * 0.1)
+    pub(in crate::render) fn spawn(&self, p: Vec3, tri: u32, n_face: Vec3, n_out: Vec3) -> Vec3 {
+        self.scene.planes[tri as usize].spawn(p, n_face, n_out)
     }
 
     /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻²: one path, traced to
@@ -355,7 +357,7 @@ impl<'a> PathContext<'a> {
         }
         let bsdf = &self.scene.materials[hit.material as usize].bsdf;
         let p = ray.origin + ray.dir * hit.t;
-        let origin = p + n * self.offset(p);
+        let origin = self.spawn(p, hit.tri, hit.normal, n);
         let basis = ShadingBasis::from_normal(n);
         let wo_l = basis.to_local(wo);
 
