@@ -85,10 +85,8 @@ lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # ---------------------------------------------------------------------------
 
 # The bench build: the binary without the lab (--no-default-features) builds, and its
-# command line has no lab subcommand. tokio's test-util (a dev-dependency feature, no
-# change to the binary's behaviour) makes its dependency graph the test build's, so
-# hilcam-core is reused rather than compiled a second time (≈ 150 s of a cold run).
-cargo build --quiet --no-default-features --features tokio/test-util --bin hilcam
+# command line has no lab subcommand.
+cargo build --quiet --no-default-features --bin hilcam
 if target/debug/hilcam bench --help >/dev/null 2>&1; then
   echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
   exit 1
