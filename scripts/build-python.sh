@@ -20,17 +20,8 @@ case "${1:-}" in
 esac
 build_venv=${HILCAM_PY_BUILD_VENV:-$HOME/.cache/hilcam/py-build}
 test_venv=${HILCAM_PY_VENV:-$HOME/.cache/hilcam/py-hilcam}
-# Prefer a real interpreter over a pyenv shim (as scripts/setup-python.sh does).
-base=$(command -v pyenv >/dev/null 2>&1 && pyenv which python3 2>/dev/null || command -v python3)
-if ! "$base" -m venv --help >/dev/null 2>&1; then
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-    echo "build-python: installing python3-venv (apt-get)" >&2
-    apt-get install -y --no-install-recommends python3-venv >&2 || { apt-get update >&2 && apt-get install -y --no-install-recommends python3-venv >&2; }
-    base=/usr/bin/python3
-  else
-    echo "build-python: python3 has no venv module and cannot install python3-venv" >&2; exit 1
-  fi
-fi
+source "$(dirname "$0")/python-base.sh"
+base=$(python_base build-python)
 if ! "$build_venv/bin/python" -c "import maturin, numpy" 2>/dev/null; then
   echo "build-python: creating $build_venv with maturin, numpy" >&2
   "$base" -m venv "$build_venv" >&2

@@ -19,18 +19,8 @@ if [ -x "$py" ]; then
   "$py" -c "$imports" >&2
   echo "$py"; exit 0
 fi
-# Prefer a real interpreter over a pyenv shim: shims fork bash scripts, which is
-# slow inside the vcan VM.
-base=$(command -v pyenv >/dev/null 2>&1 && pyenv which python3 2>/dev/null || command -v python3)
-if ! "$base" -m venv --help >/dev/null 2>&1; then
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-    echo "setup-python: installing python3-venv (apt-get)" >&2
-    apt-get install -y --no-install-recommends python3-venv >&2 || { apt-get update >&2 && apt-get install -y --no-install-recommends python3-venv >&2; }
-    base=/usr/bin/python3
-  else
-    echo "setup-python: python3 has no venv module and cannot install python3-venv" >&2; exit 1
-  fi
-fi
+source "$(dirname "$0")/python-base.sh"
+base=$(python_base setup-python)
 echo "setup-python: creating $venv with ${pkgs[*]}" >&2
 "$base" -m venv "$venv" >&2
 "$py" -m pip install --quiet "${pkgs[@]}" >&2

@@ -97,3 +97,19 @@ pub fn sun_at_incidence(deg: f64) -> DVec3 {
 pub fn mean(v: &[f32]) -> f64 {
     v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64
 }
+
+/// The pixels of a centred square image of half width `half_px` (pixels) lying `margin`
+/// pixels or more inside its edges.
+pub fn inner_pixels(img: &hilcam_core::render::film::RadianceImage, half_px: f64, margin: f64) -> Vec<f32> {
+    let (cx, cy) = (img.width as f64 / 2.0, img.height as f64 / 2.0);
+    let mut v = Vec::new();
+    for row in 0..img.height {
+        for col in 0..img.width {
+            let (x, y) = (col as f64 + 0.5 - cx, row as f64 + 0.5 - cy);
+            if x.abs() < half_px - margin && y.abs() < half_px - margin {
+                v.push(img.get(col, row));
+            }
+        }
+    }
+    v
+}

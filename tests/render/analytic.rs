@@ -15,21 +15,6 @@ fn plate_pose(range: f64, incidence_deg: f64) -> Pose {
     Pose { sun_dir: sun_at_incidence(incidence_deg), ..Pose::ahead(range) }
 }
 
-/// Pixels fully inside the plate's image (2 px away from its edges).
-fn inner_pixels(img: &hilcam_core::render::film::RadianceImage, half_px: f64) -> Vec<f32> {
-    let (cx, cy) = (img.width as f64 / 2.0, img.height as f64 / 2.0);
-    let mut v = Vec::new();
-    for row in 0..img.height {
-        for col in 0..img.width {
-            let (x, y) = (col as f64 + 0.5 - cx, row as f64 + 0.5 - cy);
-            if x.abs() < half_px - 2.0 && y.abs() < half_px - 2.0 {
-                v.push(img.get(col, row));
-            }
-        }
-    }
-    v
-}
-
 #[test]
 fn lambert_plate_radiance_is_rho_e_cos_over_pi() {
     // 1 m plate at 10 m; 256 px, 20 µm, 40 mm: 1 m spans 200 px.
@@ -45,7 +30,7 @@ fn lambert_plate_radiance_is_rho_e_cos_over_pi() {
         );
         let (img, stats) = render(&s, &s.view(&cam, &s.pose), &RenderOptions::new(settings, 0));
         let expected = 0.522 * E * incidence.to_radians().cos() / std::f64::consts::PI;
-        let inner = inner_pixels(&img, 100.0);
+        let inner = inner_pixels(&img, 100.0, 2.0);
         let m = mean(&inner);
         assert!(((m - expected) / expected).abs() < 0.005, "incidence {incidence}: mean {m}, expected {expected}");
         // Direct light on a flat plate has no variance: every inner pixel is exact.

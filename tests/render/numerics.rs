@@ -87,17 +87,7 @@ fn rect(s: &Scene, cam: &CameraModel, settings: RenderSettings) -> Option<PixelR
 
 /// The mean of the pixels inside the plate's image (`half_px` its half width), 4 px in.
 fn plate_mean(img: &RadianceImage, half_px: f64) -> f64 {
-    let (cx, cy) = (img.width as f64 / 2.0, img.height as f64 / 2.0);
-    let mut v = Vec::new();
-    for row in 0..img.height {
-        for col in 0..img.width {
-            let (x, y) = (col as f64 + 0.5 - cx, row as f64 + 0.5 - cy);
-            if x.abs() < half_px - 4.0 && y.abs() < half_px - 4.0 {
-                v.push(img.get(col, row));
-            }
-        }
-    }
-    mean(&v)
+    mean(&common::scenes::inner_pixels(img, half_px, 4.0))
 }
 
 /// A far triangle at 1e3 m and at 1e5 m changes no pixel of the grooved plate beyond
