@@ -17,7 +17,8 @@ use hilcam_lab::cli::{bench, brdf, fold, model};
 #[derive(Parser, Debug)]
 #[command(name = "hilcam", version, about = "Hardware-in-the-loop camera simulator for spacecraft navigation")]
 pub struct Cli {
-    /// Log filter (tracing env-filter syntax), e.g. `info`, `hilcam_core=debug`.
+    /// Log filter (tracing env-filter syntax), e.g. `info`, `hilcam_core=debug`. Lines are
+    /// coloured only on a terminal, never with NO_COLOR set.
     #[arg(long, global = true, default_value = "info", env = "HILCAM_LOG")]
     pub log: String,
     #[command(subcommand)]
@@ -56,11 +57,19 @@ pub enum Command {
     Replay(replay::ReplayArgs),
 }
 
+/// Colour in log lines only on a terminal, and never with `NO_COLOR` set (no-color.org):
+/// a log redirected to a file or a pipe stays plain text.
+fn log_colour() -> bool {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
+}
+
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::new(&cli.log))
         .with_writer(std::io::stderr)
+        .with_ansi(log_colour())
         .init();
     if writes_for_a_pipe(&cli.command) {
         die_quietly_on_closed_pipe();
