@@ -17,6 +17,7 @@
 pub mod area;
 pub mod cells;
 pub mod pattern;
+mod sample_loops;
 pub mod setup;
 mod shade;
 pub mod shadow;

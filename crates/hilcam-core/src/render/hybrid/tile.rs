@@ -4,6 +4,9 @@
 //! how many samples see it and where they are on average.
 
 use super::pattern::{self, SAMPLES};
+use super::sample_loops::{PixelSamples, Triangle, depth_portable, edges_portable};
+#[cfg(target_arch = "x86_64")]
+use super::sample_loops::{depth_avx2, edges_avx2};
 use super::setup::{Setup, TILE, TriSetup};
 
 /// No triangle: the sample sees the background.
@@ -110,7 +113,7 @@ pub fn rasterise(
         unsafe { rasterise_avx2(setup, tx, ty, seed, frame, key, depth_key, buf) };
         return;
     }
-    rasterise_body(setup, tx, ty, seed, frame, key, depth_key, buf);
+    rasterise_body::<false>(setup, tx, ty, seed, frame, key, depth_key, buf);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -126,12 +129,13 @@ unsafe fn rasterise_avx2(
     depth_key: (f64, f64),
     buf: &mut TileBuffers,
 ) {
-    rasterise_body(setup, tx, ty, seed, frame, key, depth_key, buf);
+    rasterise_body::<true>(setup, tx, ty, seed, frame, key, depth_key, buf);
 }
 
+/// `AVX2`: the sample loops in AVX2 (the caller runs with it), else portable; the same bits.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn rasterise_body(
+fn rasterise_body<const AVX2: bool>(
     setup: &Setup,
     tx: u32,
     ty: u32,
@@ -169,8 +173,8 @@ fn rasterise_body(
                     buf.id[p] = [NONE; SAMPLES];
                     buf.inside[p] = Some(InsideList::default());
                 }
-                let n =
-                    pixel(s, i, &buf.map[p], (w_ref, scale), &buf.sx[p], &buf.sy[p], &mut buf.depth[p], &mut buf.id[p]);
+                let px = PixelSamples { sx: &buf.sx[p], sy: &buf.sy[p], depth: &mut buf.depth[p], ids: &mut buf.id[p] };
+                let n = pixel::<AVX2>(s, i, &buf.map[p], (w_ref, scale), px);
                 // In place: the list is a few hundred bytes, visited per triangle.
                 if let (Some(n), Some(l)) = (n, &mut buf.inside[p]) {
                     let k = l.len as usize;
@@ -188,17 +192,13 @@ fn rasterise_body(
 
 /// The samples of one pixel against one triangle; returns how many lie inside it, or None
 /// when the pixel's square lies wholly outside the triangle.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn pixel(
+fn pixel<const AVX2: bool>(
     s: &TriSetup,
     id: u32,
     m: &[f64; 6],
     (w_ref, scale): (f64, f64),
-    sx: &[f32; SAMPLES],
-    sy: &[f32; SAMPLES],
-    depth: &mut [f32; SAMPLES],
-    ids: &mut [u32; SAMPLES],
+    px: PixelSamples,
 ) -> Option<u32> {
     // Each edge as e + α·sx + β·sy over the pixel; the same numbers for both triangles
     // of a shared edge (canonical edge, same pixel map).
@@ -224,66 +224,23 @@ fn pixel(
         ((s.w_dx * m[2] + s.w_dy * m[3]) * scale) as f32,
         ((s.w_dx * m[4] + s.w_dy * m[5]) * scale) as f32,
     ];
-    Some(if all_inside {
-        depth_only(wd, id, sx, sy, depth, ids);
-        SAMPLES as u32
-    } else {
-        samples(&e, pos, wd, id, sx, sy, depth, ids)
+    let t = Triangle { e, pos, wd, id };
+    Some(match (AVX2, all_inside) {
+        #[cfg(target_arch = "x86_64")]
+        (true, true) => {
+            // SAFETY: AVX2 is only true inside `rasterise_avx2`, run on an AVX2 CPU.
+            unsafe { depth_avx2(&t, px) };
+            SAMPLES as u32
+        }
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        (true, false) => unsafe { edges_avx2(&t, px) },
+        (_, true) => {
+            depth_portable(&t, px);
+            SAMPLES as u32
+        }
+        (_, false) => edges_portable(&t, px),
     })
-}
-
-/// Keep `w` and `id` where `hit`, branch-free (the loops below vectorise).
-#[inline(always)]
-fn keep(hit: bool, w: f32, id: u32, depth: &mut f32, ids: &mut u32) {
-    let m = 0u32.wrapping_sub(u32::from(hit));
-    *depth = f32::from_bits((w.to_bits() & m) | (depth.to_bits() & !m));
-    *ids = (id & m) | (*ids & !m);
-}
-
-/// The inner loop over a pixel's samples.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn samples(
-    e: &[[f32; 3]; 3],
-    pos: [bool; 3],
-    wd: [f32; 3],
-    id: u32,
-    sx: &[f32; SAMPLES],
-    sy: &[f32; SAMPLES],
-    depth: &mut [f32; SAMPLES],
-    ids: &mut [u32; SAMPLES],
-) -> u32 {
-    // An inside test per edge: k·E > 0, ties to the edge's positive side (`v ≥ 0` for
-    // k > 0, `v < 0` for k < 0).
-    let inside = |k: usize, x: f32, y: f32| {
-        let v = e[k][0] + e[k][1] * x + e[k][2] * y;
-        (v >= 0.0) == pos[k]
-    };
-    let mut n = 0;
-    for j in 0..SAMPLES {
-        let (x, y) = (sx[j], sy[j]);
-        let w = wd[0] + wd[1] * x + wd[2] * y;
-        let ins = inside(0, x, y) & inside(1, x, y) & inside(2, x, y);
-        n += u32::from(ins);
-        keep(ins & (w > depth[j]), w, id, &mut depth[j], &mut ids[j]);
-    }
-    n
-}
-
-/// [`samples`] for a pixel wholly inside the triangle: the depth test alone.
-#[inline(always)]
-fn depth_only(
-    wd: [f32; 3],
-    id: u32,
-    sx: &[f32; SAMPLES],
-    sy: &[f32; SAMPLES],
-    depth: &mut [f32; SAMPLES],
-    ids: &mut [u32; SAMPLES],
-) {
-    for j in 0..SAMPLES {
-        let w = wd[0] + wd[1] * sx[j] + wd[2] * sy[j];
-        keep(w > depth[j], w, id, &mut depth[j], &mut ids[j]);
-    }
 }
 
 /// Resolve one pixel's samples into fragments (in order of first appearance), appended
