@@ -323,12 +323,39 @@ def ggx_conductor(name: str, spec: dict) -> dict:
     }
 
 
+def ggx_plastic(name: str, spec: dict) -> dict:
+    """A `ggx_plastic` with `coupling = "mitsuba"` as Mitsuba's `roughplastic` (GGX,
+    visible normals, `nonlinear = false`, α = roughness², int_ior = ior, ext_ior = 1).
+    hilcam's default coupling returns all the light a white base receives and Mitsuba's
+    does not (docs/brdf.md, "Plastic"): exporting it would compare two different models."""
+    if spec.get("coupling", "energy") != "mitsuba":
+        raise ExportError(
+            f"material `{name}` (ggx_plastic): only `coupling = \"mitsuba\"` matches Mitsuba's roughplastic "
+            f"(the default energy coupling differs by design, docs/brdf.md)"
+        )
+    r, rho, ior = float(spec["roughness"]), float(spec["rho"]), float(spec.get("ior", 1.5))
+    return {
+        "hilcam": {"model": "ggx_plastic", "roughness": r, "rho": rho, "ior": ior, "coupling": "mitsuba"},
+        "mitsuba": {
+            "type": "roughplastic",
+            "distribution": "ggx",
+            "alpha": r * r,
+            "int_ior": ior,
+            "ext_ior": 1.0,
+            "nonlinear": False,
+            "diffuse_reflectance": {"type": "rgb", "value": [rho, rho, rho]},
+        },
+    }
+
+
 def export_material(name: str, spec: dict, lambertize: bool, overrides: dict[str, float]):
     """A material both renderers render alike: a Lambert ρ, or a GGX conductor's dict; any
     other model only with --lambertize (→ a Lambert of its stated albedo)."""
     model = spec.get("model")
     if model == "ggx_conductor":
         return ggx_conductor(name, spec), None
+    if model == "ggx_plastic":
+        return ggx_plastic(name, spec), None
     if "preset" in spec:
         if (model, spec["preset"]) not in PRESETS:
             raise ExportError(f"material `{name}`: preset `{spec['preset']}` of model `{model}` unknown to the exporter")

@@ -9,7 +9,7 @@
 
 use glam::Vec3;
 use hilcam_core::render::bsdf::{
-    BlinnPhong, Bsdf, ConductorFresnel, CookTorrance, Ggx, ImprovedBlinnPhong, Lambert, Metal,
+    BlinnPhong, Bsdf, ConductorFresnel, CookTorrance, Coupling, Ggx, ImprovedBlinnPhong, Lambert, Metal,
 };
 use hilcam_core::render::sampling::Rng;
 use std::f64::consts::PI;
@@ -82,6 +82,7 @@ fn conserving() -> Vec<(&'static str, Bsdf)> {
         ("ggx conductor Au r0.15", Bsdf::Ggx(Ggx::conductor(0.15, au()).unwrap())),
         ("ggx conductor Al r0.6", Bsdf::Ggx(Ggx::conductor(0.6, al()).unwrap())),
         ("ggx plastic r0.3", Bsdf::Ggx(Ggx::plastic(0.3, 0.5, 1.5).unwrap())),
+        ("ggx plastic r0.5 mitsuba", Bsdf::Ggx(Ggx::plastic_coupled(0.5, 0.8, 1.5, Coupling::Mitsuba).unwrap())),
         ("ggx metallic 0.5", Bsdf::Ggx(Ggx::metallic_roughness(0.8, 0.5, 0.5).unwrap())),
     ]
 }
@@ -240,6 +241,7 @@ fn reciprocity_where_it_holds() {
         Bsdf::CookTorrance(CookTorrance::new(0.3, 0.3, 0.5, 1.0).unwrap()),
         Bsdf::Ggx(Ggx::conductor(0.15, au()).unwrap()),
         Bsdf::Ggx(Ggx::plastic(0.3, 0.5, 1.5).unwrap()),
+        Bsdf::Ggx(Ggx::plastic_coupled(0.5, 0.8, 1.5, Coupling::Mitsuba).unwrap()),
     ];
     for _ in 0..20_000 {
         let wo = hilcam_core::render::sampling::uniform_hemisphere(rng.next_2d());

@@ -8,7 +8,7 @@ use crate::common;
 use common::scenes::*;
 use glam::{DVec3, Vec3};
 use hilcam_core::pose::Pose;
-use hilcam_core::render::bsdf::{Bsdf, ConductorFresnel, Ggx, Metal};
+use hilcam_core::render::bsdf::{Bsdf, ConductorFresnel, Coupling, Ggx, Metal};
 use hilcam_core::render::geometry::TriMesh;
 use hilcam_core::render::integrator::{RenderSettings, SamplerKind, Spp};
 use hilcam_core::render::sampling::Rng;
@@ -391,6 +391,16 @@ fn reciprocal_and_never_more_than_one() {
         let a = white.directional_albedo(th.to_radians().cos() as f32, 65_536);
         assert!((a - 1.0).abs() < 2e-3, "white plastic θo {th}: {a}");
     }
+    // In Mitsuba's coupling the same white plastic returns what Mitsuba 3.9.1's
+    // roughplastic returns under a white furnace (α 0.25, η 1.5): its own `eval` over a
+    // 512² cosine-stratified grid, 0.7407 / 0.7338 / 0.7049 at θo = 0° / 45° / 75°
+    // (docs/brdf.md, "Plastic").
+    let mitsuba = Bsdf::Ggx(Ggx::plastic_coupled(0.5, 1.0, 1.5, Coupling::Mitsuba).unwrap());
+    for (th, want) in [(0.0f64, 0.7407f32), (45.0, 0.7338), (75.0, 0.7049)] {
+        let a = mitsuba.directional_albedo(th.to_radians().cos() as f32, 65_536);
+        eprintln!("white plastic, Mitsuba's coupling, θo {th}: albedo {a:.4} (Mitsuba {want})");
+        assert!((a - want).abs() < 3e-3, "white plastic (Mitsuba's coupling) θo {th}: {a} vs {want}");
+    }
 }
 
 #[test]
@@ -424,12 +434,20 @@ fn ggx_matches_mitsuba_pointwise() {
             "conductor_al_a0.5" => c(0.5f32.sqrt(), Metal::Al),
             "conductor_ag_a1" => c(1.0, Metal::Ag),
             "plastic_spec_a0.25" => Bsdf::Ggx(Ggx::plastic(0.5, 0.0, 1.5).unwrap()),
-            "plastic_rho0.5_a0.25" => Bsdf::Ggx(Ggx::plastic(0.5, 0.5, 1.5).unwrap()),
+            // Mitsuba's diffuse coupling (docs/brdf.md, "Plastic"): compared in full.
+            "plastic_rho0.5_a0.25" => Bsdf::Ggx(Ggx::plastic_coupled(0.5, 0.5, 1.5, Coupling::Mitsuba).unwrap()),
+            // hilcam's default coupling at the same points: the difference is printed.
+            "plastic_rho0.5_a0.25 (energy coupling)" => Bsdf::Ggx(Ggx::plastic(0.5, 0.5, 1.5).unwrap()),
             _ => panic!("unknown case {case}"),
         }
     };
     let mut worst: Vec<(String, f64, f64)> = Vec::new();
-    for line in csv.lines().skip(1) {
+    let energy = |l: &str| {
+        l.strip_prefix("plastic_rho0.5_a0.25,").map(|r| format!("plastic_rho0.5_a0.25 (energy coupling),{r}"))
+    };
+    let lines: Vec<String> =
+        csv.lines().skip(1).flat_map(|l| std::iter::once(l.to_string()).chain(energy(l))).collect();
+    for line in &lines {
         let w: Vec<&str> = line.split(',').collect();
         let v: Vec<f64> = w[1..].iter().map(|x| x.parse().unwrap()).collect();
         let wo = DVec3::new(v[0], v[1], v[2]).as_vec3();
@@ -450,11 +468,16 @@ fn ggx_matches_mitsuba_pointwise() {
     for (case, ef, ep) in &worst {
         eprintln!("vs Mitsuba {case:<22}: largest relative difference f·cos {ef:.2e}, pdf {ep:.2e}");
     }
-    // The plastic's diffuse term is not Mitsuba's (docs/brdf.md: Mitsuba's is 25–43 % lower
-    // here and returns ~74 % of a white furnace); only its specular part is compared.
+    // The default (energy) coupling's diffuse term is not Mitsuba's (docs/brdf.md:
+    // Mitsuba's is 25–43 % lower here and returns ~73 % of a white furnace): printed only.
+    // With `coupling = "mitsuba"` the whole plastic is compared; its tables are computed
+    // by a different quadrature than Mitsuba's (hence the looser bound).
     for (case, ef, ep) in &worst {
         if case.starts_with("conductor") || case == "plastic_spec_a0.25" {
             assert!(*ef < 1e-4, "{case}: f·cos differs from Mitsuba by {ef:e}");
+        }
+        if case == "plastic_rho0.5_a0.25" {
+            assert!(*ef < 2e-3, "{case}: f·cos differs from Mitsuba by {ef:e}");
         }
         if case.starts_with("conductor") {
             assert!(*ep < 1e-4, "{case}: pdf differs from Mitsuba by {ep:e}");

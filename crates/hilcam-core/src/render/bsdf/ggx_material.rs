@@ -7,12 +7,13 @@
 //! conductor, 0: a plastic). `E` is the coating's directional albedo and `Ē` its mean
 //! ([`CoatingAlbedo`]): the base receives `1 − E(cosθi)` of the light, scatters it as
 //! Lambert ρ, and `1 − E(cosθo)` leaves toward the viewer, normalised so that a white base
-//! under a white furnace returns exactly 1. Both terms are reciprocal.
+//! under a white furnace returns exactly 1. Both terms are reciprocal. A plastic may instead
+//! take Mitsuba 3's `roughplastic` coupling ([`Coupling::Mitsuba`], in `coating`).
 //!
 //! Sampled like the other lobe models (`diffuse_lobe`): one-sample MIS (balance heuristic)
 //! of GGX visible-normal sampling and the cosine warp, chosen by estimated albedos.
 
-use super::coating::CoatingAlbedo;
+use super::coating::{CoatingAlbedo, Coupling};
 use super::diffuse_lobe::{mixture_pdf, spec_share};
 use super::fresnel::{ConductorFresnel, dielectric};
 use super::ggx::{GgxDistribution, MIN_ALPHA};
@@ -97,10 +98,24 @@ impl Ggx {
     /// # Errors
     /// [`BsdfError::Invalid`] naming `roughness`, `rho` ∈ [0, 1] or `ior` ∈ [1, 4].
     pub fn plastic(roughness: f32, rho: f32, ior: f32) -> Result<Self, BsdfError> {
+        Ggx::plastic_coupled(roughness, rho, ior, Coupling::Energy)
+    }
+
+    /// [`Ggx::plastic`] with the base coupled to the coating as `coupling` says
+    /// ([`Coupling::Mitsuba`]: Mitsuba 3's `roughplastic`).
+    ///
+    /// # Errors
+    /// As [`Ggx::plastic`].
+    pub fn plastic_coupled(roughness: f32, rho: f32, ior: f32, coupling: Coupling) -> Result<Self, BsdfError> {
         const M: &str = "ggx_plastic";
         check_unit(M, "rho", rho)?;
         let eta = check_eta(M, ior)?;
-        Ggx::build(check_roughness(M, roughness)?, 0.0, ConductorFresnel::Schlick { f0: 0.0 }, rho, eta)
+        let dist = check_roughness(M, roughness)?;
+        let mut g = Ggx::build(dist, 0.0, ConductorFresnel::Schlick { f0: 0.0 }, rho, eta)?;
+        if coupling != Coupling::Energy && rho > 0.0 {
+            g.coating = CoatingAlbedo::coupled(dist, eta, coupling);
+        }
+        Ok(g)
     }
 
     /// glTF 2.0's metallic-roughness material at one band: the conductor with Schlick
@@ -164,7 +179,7 @@ impl Ggx {
         if self.metallic >= 1.0 || self.rho == 0.0 {
             return 0.0;
         }
-        (1.0 - self.metallic) * self.rho * (1.0 - self.coating.at(cos_o)) / (1.0 - self.coating.mean)
+        (1.0 - self.metallic) * self.rho * self.coating.transmitted(cos_o) / self.coating.norm
     }
 
     /// The specular term `D G F / (4 cosθo cosθi) · cosθi`.
@@ -179,7 +194,7 @@ impl Ggx {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let diffuse = self.diffuse_factor(wo.z) * (1.0 - self.coating.at(wi.z)) * FRAC_1_PI * wi.z;
+        let diffuse = self.diffuse_factor(wo.z) * self.coating.transmitted(wi.z) * FRAC_1_PI * wi.z;
         self.spec_cos(wo, wi) + diffuse
     }
 
@@ -239,6 +254,6 @@ impl Ggx {
             |o, i| self.spec_cos(o, i),
             |o, i| d.pdf(o, i),
         );
-        spec + self.diffuse_factor(cos_theta_o) * (1.0 - self.coating.mean)
+        spec + self.diffuse_factor(cos_theta_o) * self.coating.t_mean
     }
 }

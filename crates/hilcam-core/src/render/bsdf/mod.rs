@@ -30,6 +30,7 @@ pub(crate) mod lobe;
 mod spec;
 
 pub use blinn_phong::BlinnPhong;
+pub use coating::Coupling;
 pub use cook_torrance::{BeckmannLobe, CookTorrance};
 pub use diffuse_lobe::{DiffuseLobe, SpecularLobe};
 pub use fresnel::{ConductorFresnel, Metal};

@@ -8,11 +8,14 @@
 //! bsdf = { model = "cook_torrance", rho_d = 0.3, roughness = 0.1, f0 = 0.9 }
 //! bsdf = { model = "ggx_conductor", roughness = 0.3, metal = "Au" }    # or n, k; or f0
 //! bsdf = { model = "ggx_plastic", roughness = 0.5, rho = 0.5, ior = 1.5 }
+//! bsdf = { model = "ggx_plastic", roughness = 0.5, rho = 0.5, coupling = "mitsuba" }
 //! bsdf = { model = "ggx_metallic_roughness", base_color = 0.8, metallic = 1.0, roughness = 0.4 }
 //! ```
 //! Explicit fields override the preset's; without a preset every field is required.
 
-use super::{BlinnPhong, Bsdf, BsdfError, ConductorFresnel, CookTorrance, Ggx, ImprovedBlinnPhong, Lambert, Metal};
+use super::{
+    BlinnPhong, Bsdf, BsdfError, ConductorFresnel, CookTorrance, Coupling, Ggx, ImprovedBlinnPhong, Lambert, Metal,
+};
 use serde::Deserialize;
 
 /// Named parameter sets.
@@ -111,6 +114,9 @@ pub enum BsdfSpec {
         rho: Option<f32>,
         #[serde(default)]
         ior: Option<f32>,
+        /// How the base is coupled to the coating: `energy` (default) or `mitsuba`.
+        #[serde(default)]
+        coupling: Coupling,
     },
     /// glTF 2.0's metallic-roughness material at one band.
     GgxMetallicRoughness {
@@ -243,12 +249,13 @@ impl BsdfSpec {
                 let r = pick("ggx_conductor", "roughness", roughness, None)?;
                 Ok(Bsdf::Ggx(Ggx::conductor(r, conductor_fresnel(metal, n, k, f0)?)?))
             }
-            BsdfSpec::GgxPlastic { roughness, rho, ior } => {
+            BsdfSpec::GgxPlastic { roughness, rho, ior, coupling } => {
                 const M: &str = "ggx_plastic";
-                let g = Ggx::plastic(
+                let g = Ggx::plastic_coupled(
                     pick(M, "roughness", roughness, None)?,
                     pick(M, "rho", rho, None)?,
                     ior.unwrap_or(super::GLTF_DIELECTRIC_IOR),
+                    coupling,
                 )?;
                 Ok(Bsdf::Ggx(g))
             }

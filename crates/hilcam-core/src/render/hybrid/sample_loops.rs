@@ -102,9 +102,9 @@ mod avx {
                 let x = _mm256_loadu_ps(px.sx.as_ptr().add(j));
                 let y = _mm256_loadu_ps(px.sy.as_ptr().add(j));
                 let mut ins = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-                for k in 0..3 {
-                    let ge = _mm256_cmp_ps::<_CMP_GE_OQ>(plane(t.e[k], x, y), zero);
-                    ins = _mm256_and_ps(ins, _mm256_xor_ps(ge, flip[k]));
+                for (e, flip) in t.e.iter().zip(flip) {
+                    let ge = _mm256_cmp_ps::<_CMP_GE_OQ>(plane(*e, x, y), zero);
+                    ins = _mm256_and_ps(ins, _mm256_xor_ps(ge, flip));
                 }
                 n += (_mm256_movemask_ps(ins) as u32).count_ones();
                 let w = plane(t.wd, x, y);
