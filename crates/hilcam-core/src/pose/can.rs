@@ -206,6 +206,7 @@ fn read_block(seq: u32, b: &[u8]) -> Pose {
         velocity,
         angular_rate,
         camera_to_inertial: None,
+        planet_centre: None,
     }
 }
 

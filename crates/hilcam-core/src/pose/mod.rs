@@ -28,6 +28,9 @@ pub struct Pose {
     /// Optional inertial attitude of the camera: the rotation taking camera-frame vectors
     /// into the inertial (J2000 equatorial) frame. Places a scene's star field.
     pub camera_to_inertial: Option<DQuat>,
+    /// Optional centre of the scene's planet, camera frame, metres: moves the scene's
+    /// `[planet]` for this pose (a featureless sphere, so its attitude does not show).
+    pub planet_centre: Option<DVec3>,
 }
 
 impl Pose {
@@ -43,6 +46,7 @@ impl Pose {
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         }
     }
 }

@@ -53,6 +53,9 @@ pub struct PoseFields {
     /// (w, x, y, z), camera → inertial.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera_to_inertial: Option<[f64; 4]>,
+    /// The planet's centre, camera frame, m (a pose that moves the scene's planet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planet_centre: Option<[f64; 3]>,
 }
 
 impl From<&Pose> for PoseFields {
@@ -67,6 +70,7 @@ impl From<&Pose> for PoseFields {
             velocity: p.velocity.map(|v| v.to_array()),
             angular_rate: p.angular_rate.map(|v| v.to_array()),
             camera_to_inertial: p.camera_to_inertial.map(|q| [q.w, q.x, q.y, q.z]),
+            planet_centre: p.planet_centre.map(|c| c.to_array()),
         }
     }
 }
@@ -83,6 +87,7 @@ impl PoseFields {
             velocity: self.velocity.map(DVec3::from_array),
             angular_rate: self.angular_rate.map(DVec3::from_array),
             camera_to_inertial: self.camera_to_inertial.map(|[w, x, y, z]| DQuat::from_xyzw(x, y, z, w)),
+            planet_centre: self.planet_centre.map(DVec3::from_array),
         }
     }
 }
@@ -428,6 +433,7 @@ mod tests {
             velocity: Some(DVec3::new(f64::MIN_POSITIVE, 5e-324, -7.25)),
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         }
     }
 
