@@ -65,6 +65,9 @@ mod wire;
 /// Fields a link does not carry are documented per link in `docs/protocol.md`
 /// (e.g. a CAN trigger has no sequence number, so `seq` is 0 there).
 #[derive(Clone, Copy, Debug, PartialEq)]
+// A pose (232 bytes with its optional planet centre) moves by value: boxing it would
+// allocate per message on the allocation-free input path.
+#[allow(clippy::large_enum_variant)]
 pub enum Message {
     /// A relative pose (not yet validated: see [`validate::PoseValidator`]).
     Pose(Pose),

@@ -277,6 +277,9 @@ pub fn encode_frame(msg: &Message) -> Vec<u8> {
 
 /// What [`SerialDecoder::next_event`] found.
 #[derive(Clone, Copy, Debug, PartialEq)]
+// A pose (232 bytes with its optional planet centre) moves by value: boxing it would
+// allocate per message on the allocation-free input path.
+#[allow(clippy::large_enum_variant)]
 pub enum DecodeEvent {
     /// A frame with a valid CRC and layout.
     Message(Message),
