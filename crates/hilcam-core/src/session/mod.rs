@@ -478,6 +478,7 @@ mod tests {
         v.extend(p.attitude.to_array());
         v.extend(p.sun_dir.to_array());
         v.extend(p.velocity.map_or([0.0; 3], |x| x.to_array()));
+        v.extend(p.planet_centre.map_or([0.0; 3], |x| x.to_array()));
         v.iter().map(|x| x.to_bits()).collect()
     }
 
@@ -521,6 +522,7 @@ mod tests {
                 attitude: DQuat::from_xyzw(f(), f(), f(), f()),
                 sun_dir: DVec3::new(f(), f(), f()),
                 velocity: Some(DVec3::new(f(), f(), f())),
+                planet_centre: Some(DVec3::new(f(), f(), f())),
                 ..pose()
             };
             let t = SessionLine::Pose(PoseLine { mono_ns: 0, unix_ns: 0, source: String::new(), pose: (&p).into() });
