@@ -1,6 +1,6 @@
-//! A planet moved per pose (issue 38): over the serial link into `hilcam serve`, where its
-//! disc lands where the pinhole puts its centre; a planet the gate refuses and a corrupted
-//! planet block are counted, never rendered; a trajectory's `plx,ply,plz` replayed offline
+//! A planet moved per pose (issue 38): over the serial link and from a served trajectory
+//! into `hilcam serve`, where its disc lands where the pinhole puts its centre; a planet
+//! the gate refuses and a corrupted planet block are counted, never rendered; a trajectory's `plx,ply,plz` replayed offline
 //! gives the bytes of `hilcam render --planet` and of a scene whose `[planet]` sits there.
 
 use crate::serve_common;
@@ -8,7 +8,7 @@ use glam::DVec3;
 use hilcam_core::link::send::{MessageWriter, SerialWriter};
 use hilcam_core::pose::Message;
 use hilcam_core::pose::serial::encode_frame;
-use hilcam_core::serve::config::{GovernorConfig, InputConfig, SerialInput, TriggerConfig};
+use hilcam_core::serve::config::{GovernorConfig, InputConfig, SerialInput, TrajectoryInput, TriggerConfig};
 use serialport::SerialPort;
 use serve_common::*;
 use std::io::Write;
@@ -153,6 +153,42 @@ async fn a_planet_sent_over_serial_lands_where_the_pinhole_puts_it_and_bad_plane
     let report = server.finish().await;
     assert_eq!((report.poses_accepted, report.poses_rejected, report.scheduler.frames), (3, 1, 3));
     drop(slave);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_served_trajectory_moves_the_planet_and_counts_a_planet_row_the_gate_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let places = [DVec3::new(-56.0, 56.0, 400.0), DVec3::new(0.0, 0.0, 5.0), DVec3::new(-40.0, 60.0, 420.0)];
+    let mut text = String::from("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,plx,ply,plz\n");
+    for (k, c) in places.iter().enumerate() {
+        let s = -c.normalize();
+        text.push_str(&format!(
+            "{},0.8,-0.5,10,1,0,0,0,{},{},{},{},{},{}\n",
+            k as f64 * 0.3,
+            s.x,
+            s.y,
+            s.z,
+            c.x,
+            c.y,
+            c.z
+        ));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let input = InputConfig::Trajectory(TrajectoryInput { file: csv, speed: 1.0 });
+    let scene = sphere_scene_with(dir.path(), W as u32, 4, PLANET);
+    let server = start(config(scene, input, TriggerConfig::default(), GovernorConfig::default()), None).await;
+    let mut reader = Reader::connect(server.info.stream).await;
+    // Rows 0 and 2 render with their planets; row 1 (the camera inside the planet) does not.
+    for k in [0usize, 2] {
+        let f = reader.next().await;
+        assert_eq!(f.meta.pose_seq, k as u32);
+        let want = pinhole(places[k]);
+        let (x, y, _) = centroid_near(radiance(&f), want, 18.0);
+        assert!((x - want.0).abs() < 0.5 && (y - want.1).abs() < 0.5, "row {k}: ({x:.3}, {y:.3}) vs {want:?}");
+    }
+    let report = server.finish().await;
+    assert_eq!((report.poses_accepted, report.poses_rejected, report.scheduler.frames), (2, 1, 2));
 }
 
 /// `hilcam …`: (exit success, stderr).
