@@ -54,23 +54,31 @@ def load_trajectory(path):
 
 
 def pose_of(row, seq):
-    """(seq, t_ns, position, quaternion wxyz, sun, velocity|None, rate|None)."""
+    """(seq, t_ns, position, quaternion wxyz, sun, velocity|None, rate|None, planet|None)."""
     g = lambda *k: tuple(row[x] for x in k)
     vel = g("vx", "vy", "vz") if "vx" in row else None
     rate = g("wx", "wy", "wz") if "wx" in row else None
+    planet = g("plx", "ply", "plz") if "plx" in row else None
     t_ns = int(round(row["time_s"] * 1e9))
-    return (seq, t_ns, g("px", "py", "pz"), g("qw", "qx", "qy", "qz"), g("sx", "sy", "sz"), vel, rate)
+    return (seq, t_ns, g("px", "py", "pz"), g("qw", "qx", "qy", "qz"), g("sx", "sy", "sz"), vel, rate, planet)
 
 
 def serial_frame(pose) -> bytes:
     """One serial pose frame: sync, header, f64 payload, CRC-32C."""
-    seq, t_ns, pos, q, sun, vel, rate = pose
-    flags = (1 if vel else 0) | (2 if rate else 0)
+    seq, t_ns, pos, q, sun, vel, rate = pose[:7]
+    planet = pose[7] if len(pose) > 7 else None
+    flags = (1 if vel else 0) | (2 if rate else 0) | (4 if planet else 0)
     payload = struct.pack("<B3x", flags) + struct.pack("<10d", *pos, *q, *sun)
-    for opt in (vel, rate):
+    for opt in (vel, rate, planet):
         if opt:
             payload += struct.pack("<3d", *opt)
     body = struct.pack("<BBHIQ", VERSION, TYPE_POSE, len(payload), seq & 0xFFFFFFFF, t_ns) + payload
+    return SYNC + body + struct.pack("<I", crc32c(body))
+
+
+def heartbeat_frame(seq, t_ns=0, status=0) -> bytes:
+    """One serial heartbeat frame (type 3): liveness, no render."""
+    body = struct.pack("<BBHIQI", VERSION, 3, 4, seq & 0xFFFFFFFF, t_ns, status)
     return SYNC + body + struct.pack("<I", crc32c(body))
 
 
@@ -82,7 +90,9 @@ def _q(v, scale):
 
 def compact_block(pose) -> bytes:
     """The CAN compact pose block: flags, t_ns, f32 position, Q23 quaternion, Q15 sun, options."""
-    _, t_ns, pos, q, sun, vel, rate = pose
+    _, t_ns, pos, q, sun, vel, rate = pose[:7]
+    if len(pose) > 7 and pose[7]:
+        raise ValueError("the CAN pose block has no planet field (docs/protocol.md)")
     flags = (1 if vel else 0) | (2 if rate else 0)
     b = struct.pack("<BQ3f", flags, t_ns, *pos)
     for c in q:

@@ -63,9 +63,13 @@ lap "docs' examples (tests/cli/docs.rs)"
 # The Python module (issue 38): the wheel built by the project's own script (maturin, the
 # dev profile, sharing target/ with the build above), pip-installed into a fresh venv; its
 # tests compare it with the CLI binary built above (docs/python.md).
+# The Basilisk closed-loop examples run in their own cached venv (bsk, bsk-opnav 2.12.1)
+# with the same wheel installed (python/tests/test_basilisk.py).
 HILCAM_PY=$(scripts/build-python.sh)
-HILCAM_BIN="$PWD/target/debug/hilcam" "$HILCAM_PY" -m pytest python/tests -q -p no:cacheprovider
-lap "Python module (wheel build + pytest)"
+HILCAM_BSK_PY=$(scripts/setup-basilisk.sh target/wheels/hilcam-*.whl)
+HILCAM_BSK_PY="$HILCAM_BSK_PY" HILCAM_BIN="$PWD/target/debug/hilcam" \
+  "$HILCAM_PY" -m pytest python/tests -q -p no:cacheprovider
+lap "Python module (wheel build + pytest, Basilisk loops)"
 
 # --- pose input (issue 4), continued --------------------------------------
 if [ "$vcan_mode" = vm ]; then

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import hilcam
+from pngpfm import read_pfm
 
 AU = 1.495978707e11
 EARTH_R = 6.371e6
@@ -97,3 +98,27 @@ def test_a_planet_is_checked_as_a_scene_planet_is(root, cli, tmp_path):
         hilcam.Planet([0.0, 0.0, AU], body="earth", albedo=1.5)
     p = hilcam.Planet([0.0, 0.0, AU], body="moon", model="lommel-seeliger")
     assert p.radius_m == 1.7374e6 and p.albedo == 0.11 and p.center_m == [0.0, 0.0, AU]
+
+
+def test_a_trajectory_row_with_a_planet_replays_to_the_module_frame_with_that_planet(root, cli, tmp_path):
+    # The same planet from the two ends: `hilcam replay` of trajectory rows whose
+    # plx,ply,plz move the scene's [planet], and Renderer.render(planet=…) at each row.
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        "[camera]\nwidth = 64\nheight = 64\npitch_um = 10.0\nfocal_mm = 2.0\n"
+        f'[[mesh]]\nobj = "{root}/scenes/meshes/sphere.obj"\n'
+        '[materials.white_paint]\nmodel = "lambert"\nrho = 0.5\n[render]\nspp = 2\ndepth = 2\n'
+        '[planet]\nbody = "moon"\ncenter_m = [0.0, 0.0, 4.0e8]\n'
+    )
+    rows = [([0.5, 0.0, 12.0], [-3.0e6, 2.5e6, 2.0e7]), ([0.4, 0.1, 12.0], [-2.5e6, 3.0e6, 2.1e7])]
+    sun = [0.6, 0.0, -0.8]
+    csv = tmp_path / "t.csv"
+    csv.write_text("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,plx,ply,plz\n" + "".join(
+        ",".join(str(v) for v in [k, *p, 1, 0, 0, 0, *sun, *c]) + "\n" for k, (p, c) in enumerate(rows)))
+    cli("replay", "--trajectory", str(csv), "--scene", str(scene), "--format", "pfm", "--out", str(tmp_path / "out"))
+    r = hilcam.Renderer(hilcam.Scene.load(str(scene)))
+    for k, (p, c) in enumerate(rows):
+        img = r.render(p, sun, planet=hilcam.Planet(c, body="moon"), frame=k, sensor=False).radiance
+        replayed = read_pfm(tmp_path / "out" / f"frame_{k:010}.pfm")
+        assert replayed[:, :20].max() > 0, "the Moon is not in the left part of the frame"
+        assert np.array_equal(img, replayed), k

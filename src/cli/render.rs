@@ -4,6 +4,7 @@ use super::parse_sensor_k;
 use anyhow::{Context, bail};
 use hilcam_core::pipeline::{FramePipeline, FrameRequest};
 use hilcam_core::pose::Pose;
+use hilcam_core::pose::validate::PoseLimits;
 use hilcam_core::render::PrimaryVisibility;
 use hilcam_core::render::camera::Window;
 use hilcam_core::render::film::write_radiance;
@@ -72,6 +73,10 @@ pub struct RenderArgs {
     /// (camera frame; metres; quaternion body→camera, scalar first; sun direction).
     #[arg(long, allow_hyphen_values = true)]
     pub pose: Option<String>,
+    /// Move the scene's `[planet]` to this centre for the frame: `x,y,z` (camera frame,
+    /// metres), as a trajectory's `plx,ply,plz` or a serial pose's planet block do.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    pub planet: Option<String>,
     /// Write 16-bit PNG previews instead of 8-bit.
     #[arg(long)]
     pub png16: bool,
@@ -134,10 +139,13 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     if let Some(r) = a.roi {
         r.inside(&camera).map_err(|e| anyhow::anyhow!("--roi: {e}"))?;
     }
-    let pose = match &a.pose {
-        Some(s) => parse_pose(s, &scene.pose).context("--pose")?,
+    let mut pose = match &a.pose {
+        Some(s) => parse_pose(s, &scene.pose, &scene.pose_limits()).context("--pose")?,
         None => scene.pose,
     };
+    if let Some(s) = &a.planet {
+        pose = with_planet(pose, s, &scene.pose_limits()).context("--planet")?;
+    }
     let scene = std::sync::Arc::new(scene);
     let mut pipeline =
         FramePipeline::with_sensor(scene.clone(), camera.clone(), &sensor_config)?.with_primary(a.primary);
@@ -282,7 +290,7 @@ fn parse_roi(s: &str) -> Result<Window, String> {
     }
 }
 
-pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
+pub fn parse_pose(s: &str, base: &Pose, limits: &PoseLimits) -> anyhow::Result<Pose> {
     let v: Vec<f64> = s
         .split(',')
         .map(|t| t.trim().parse::<f64>().with_context(|| format!("`{t}` is not a number")))
@@ -292,5 +300,18 @@ pub fn parse_pose(s: &str, base: &Pose) -> anyhow::Result<Pose> {
     }
     let attitude = (v.len() >= 7).then(|| [v[3], v[4], v[5], v[6]]);
     let sun = (v.len() == 10).then(|| [v[7], v[8], v[9]]);
-    hilcam_core::scene::limits::pose_from_numbers(base, [v[0], v[1], v[2]], attitude, sun).map_err(anyhow::Error::msg)
+    hilcam_core::scene::limits::pose_from_numbers(limits, base, [v[0], v[1], v[2]], attitude, sun)
+        .map_err(anyhow::Error::msg)
+}
+
+/// `pose` with the planet's centre `x,y,z`, through the scene's pose gate (refused: no
+/// `[planet]`, the camera inside it, beyond 100 AU).
+fn with_planet(pose: Pose, s: &str, limits: &PoseLimits) -> anyhow::Result<Pose> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().with_context(|| format!("`{t}` is not a number")))
+        .collect::<Result<_, _>>()?;
+    let [x, y, z] = v[..] else { bail!("expected 3 comma-separated numbers, got {}", v.len()) };
+    let p = Pose { planet_centre: Some(glam::DVec3::new(x, y, z)), ..pose };
+    hilcam_core::scene::limits::gate_pose(&p, limits).map_err(|e| anyhow::anyhow!("{}: {}", e.field, e.message))
 }

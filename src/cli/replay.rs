@@ -11,7 +11,7 @@ use anyhow::{Context, bail};
 use hilcam_core::frame::FrameFlags;
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::trajectory::Trajectory;
-use hilcam_core::pose::validate::{PoseLimits, check_pose, describe};
+use hilcam_core::pose::validate::{check_pose, describe};
 use hilcam_core::render::integrator::{QualityMode, SamplerKind};
 use hilcam_core::render::truth::TruthChannels;
 use hilcam_core::replay::session_jobs;
@@ -121,8 +121,9 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
         bail!("--trajectory and --scene are required")
     };
-    let mut samples = Trajectory::load_gated(traj, &PoseLimits::default())?;
+    // The scene first: its [limits] and planet set the gate every row passes.
     let mut scene = hilcam_core::scene::load(scene_path)?;
+    let mut samples = Trajectory::load_gated(traj, &scene.pose_limits())?;
     if let Some(t) = a.integration_s {
         pin_integration_time(&mut scene, t)?;
     }
@@ -167,20 +168,6 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
     let session = Session::load(path)?;
     let h = &session.header;
     let jobs = session_jobs(&session, !a.no_verify);
-    // The recorded poses passed the gate when they arrived; a file edited since must pass
-    // it again (rendered as recorded, so the streamed CRCs still check).
-    let limits = PoseLimits::default();
-    for j in &jobs {
-        if let Err(r) = check_pose(&j.pose, &limits) {
-            bail!(
-                "{}: frame {} (pose seq {}): pose refused: {r} ({})",
-                path.display(),
-                j.index,
-                j.pose.seq,
-                describe(&j.pose, r, &limits)
-            );
-        }
-    }
     match &session.end {
         None => tracing::warn!("{}: no end line (the server did not stop cleanly)", path.display()),
         Some(e) if e.records_dropped > 0 => tracing::warn!(
@@ -202,6 +189,20 @@ fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyho
         None => PathBuf::from(&h.scene),
     };
     let scene = hilcam_core::scene::load(&scene_path)?;
+    // The recorded poses passed the gate when they arrived; a file edited since must pass
+    // it again (rendered as recorded, so the streamed CRCs still check).
+    let limits = scene.pose_limits();
+    for j in &jobs {
+        if let Err(r) = check_pose(&j.pose, &limits) {
+            bail!(
+                "{}: frame {} (pose seq {}): pose refused: {r} ({})",
+                path.display(),
+                j.index,
+                j.pose.seq,
+                describe(&j.pose, r, &limits)
+            );
+        }
+    }
     let camera = scene.camera.scaled(h.width_setting, None);
     if (camera.width, camera.height) != (h.width, h.height) {
         bail!(

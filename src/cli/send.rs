@@ -66,6 +66,15 @@ pub fn run(args: SendArgs) -> anyhow::Result<()> {
         (_, _, Some(p)) => SendTarget::Slcan { path: p.clone(), baud: args.baud, bitrate: Some(args.bitrate) },
         _ => unreachable!("clap requires one target"),
     };
+    // The CAN encodings have no room for the planet (an FD frame would need 76 of its 64
+    // bytes): refuse rather than send poses whose planet silently stays behind.
+    if !matches!(target, SendTarget::Serial { .. }) && samples.iter().any(|s| s.planet_centre.is_some()) {
+        anyhow::bail!(
+            "{}: columns `plx,ply,plz` (the planet's centre) go on the serial link only; \
+             the CAN pose block has no field for them (docs/protocol.md)",
+            args.trajectory.display()
+        );
+    }
     let writer = open_target(&target, ids, args.can_fd)?;
     let opts = SendOptions { rate_hz: args.rate, speed: args.speed };
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("tokio runtime")?;

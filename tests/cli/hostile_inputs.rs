@@ -79,6 +79,7 @@ fn any_pose() -> impl Strategy<Value = Pose> {
             velocity,
             angular_rate,
             camera_to_inertial: None,
+            planet_centre: None,
         },
     )
 }

@@ -101,6 +101,62 @@ fn decoder_resyncs_and_counts_garbage() {
     assert_eq!(d.buffered(), 1);
 }
 
+#[test]
+fn a_planet_block_appends_24_bytes_and_a_corrupted_or_inconsistent_one_is_malformed() {
+    let plain = unhex(POSE_FRAME);
+    let moon = Pose { planet_centre: Some(DVec3::new(-1.5e3, 2.0e7, 3.844e8)), ..literal_pose() };
+    let b = serial::encode_frame(&Message::Pose(moon));
+    // Built here from the layout: flags 0x04, N = 108, the planet's f64s after the sun.
+    let mut want = plain[..plain.len() - 4].to_vec();
+    want[4] = 108;
+    want[18] = 0x04;
+    for c in [-1.5e3f64, 2.0e7, 3.844e8] {
+        want.extend_from_slice(&c.to_le_bytes());
+    }
+    let crc = hilcam_core::pose::crc::crc32c(&want[2..]);
+    want.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(b, want);
+    assert_eq!(serial::decode_frame(&b), Ok((Message::Pose(moon), 130)));
+    let m = |b: &[u8]| match serial::decode_frame(b) {
+        Err(FrameError::Malformed(k)) => k,
+        other => panic!("expected malformed, got {other:?}"),
+    };
+    // One bit of plz flipped on the line: the CRC catches it.
+    let mut bad = b.clone();
+    bad[18 + 84 + 20] ^= 0x01;
+    assert!(matches!(m(&bad), Malformed::Crc { .. }));
+    // A valid CRC over an inconsistent frame (flag without the block, block without the
+    // flag, an unknown flag): a sender bug, malformed.
+    let recrc = |mut v: Vec<u8>| {
+        let n = v.len();
+        let crc = hilcam_core::pose::crc::crc32c(&v[2..n - 4]);
+        v[n - 4..].copy_from_slice(&crc.to_le_bytes());
+        v
+    };
+    let mut flag_only = plain.clone();
+    flag_only[18] = 0x04;
+    assert_eq!(m(&recrc(flag_only)), Malformed::BadFlags(0x04));
+    let mut block_only = b.clone();
+    block_only[18] = 0x00;
+    assert_eq!(m(&recrc(block_only)), Malformed::BadFlags(0x00));
+    let mut unknown = b.clone();
+    unknown[18] = 0x0C;
+    assert_eq!(m(&recrc(unknown)), Malformed::BadFlags(0x0C));
+    // In a stream: the corrupted frame is counted as a CRC failure and skipped, the next
+    // frame decodes.
+    let mut d = SerialDecoder::new();
+    d.push(&bad);
+    d.push(&b);
+    let mut msgs = vec![];
+    while let Some(ev) = d.next_event() {
+        if let DecodeEvent::Message(msg) = ev {
+            msgs.push(msg);
+        }
+    }
+    assert_eq!(msgs, vec![Message::Pose(moon)]);
+    assert_eq!(d.stats().crc_failures, 1);
+}
+
 const GROUP: [(u32, &str); 6] = [
     (0x300, "010015cd5b070000"),
     (0x301, "0100000000000000"),
@@ -253,7 +309,7 @@ prop_compose! {
     fn any_pose()(seq in any::<u32>(), t_ns in any::<u64>(),
                   r in 0.1..1.0e6f64, dir in unit_vec(), q in unit_quat(), sun in unit_vec(),
                   v in opt_vec(100.0), w in opt_vec(1.0)) -> Pose {
-        Pose { seq, t_ns, position: dir * r, attitude: q, sun_dir: sun, velocity: v, angular_rate: w, camera_to_inertial: None }
+        Pose { seq, t_ns, position: dir * r, attitude: q, sun_dir: sun, velocity: v, angular_rate: w, camera_to_inertial: None, planet_centre: None }
     }
 }
 
@@ -269,6 +325,14 @@ proptest! {
         d.push(&bytes[k..]);
         prop_assert_eq!(d.next_event(), Some(DecodeEvent::Message(msg)));
         prop_assert_eq!(d.next_event(), None);
+    }
+
+    #[test]
+    fn serial_round_trip_with_a_planet_is_exact(p in any_pose(), c in opt_vec(1.5e13)) {
+        let msg = Message::Pose(Pose { planet_centre: c, ..p });
+        let bytes = serial::encode_frame(&msg);
+        prop_assert_eq!(bytes.len(), 106 + 24 * [p.velocity.is_some(), p.angular_rate.is_some(), c.is_some()].iter().filter(|x| **x).count());
+        prop_assert_eq!(serial::decode_frame(&bytes), Ok((msg, bytes.len())));
     }
 
     #[test]

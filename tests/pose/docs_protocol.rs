@@ -47,6 +47,21 @@ fn serial_pose_example_is_the_encoders_bytes_and_its_stated_length() {
 }
 
 #[test]
+fn serial_planet_example_is_the_encoders_bytes_and_decodes_to_its_planet() {
+    let p = page();
+    let lines = block_after(&p, "the Moon behind the\ntarget");
+    let doc: Vec<u8> = lines.iter().flat_map(|l| hex_bytes(l)).collect();
+    let pose = Pose { planet_centre: Some(glam::DVec3::new(0.0, 0.0, 3.844e8)), ..example_pose() };
+    assert_eq!(doc.len(), 130, "the example says 130 bytes");
+    assert_eq!(doc, serial::encode_frame(&Message::Pose(pose)));
+    assert_eq!(serial::decode_frame(&doc), Ok((Message::Pose(pose), 130)));
+    // Without the planet it is the 106-byte example: the block only appends.
+    let plain = serial::encode_frame(&Message::Pose(example_pose()));
+    assert_eq!((doc[18], plain[18]), (0x04, 0x00));
+    assert_eq!(doc[19..102], plain[19..102]);
+}
+
+#[test]
 fn serial_heartbeat_and_trigger_examples_are_the_encoders_bytes() {
     let p = page();
     let hb = hex_bytes(&quoted_after(&p, "Heartbeat, seq 7, t = 1 s, status 42:"));
@@ -122,11 +137,16 @@ fn three_poses() -> [Pose; 3] {
 #[test]
 fn stated_lengths_are_the_encoders() {
     let p = page();
-    let serial_len: Vec<usize> = three_poses().iter().map(|q| serial::encode_frame(&Message::Pose(*q)).len()).collect();
+    // Serial: the three CAN poses and the last with the planet block too.
+    let [a, b, c] = three_poses();
+    let planet = Pose { planet_centre: Some(glam::DVec3::new(0.0, 0.0, 3.844e8)), ..c };
+    let serial_len: Vec<usize> =
+        [a, b, c, planet].iter().map(|q| serial::encode_frame(&Message::Pose(*q)).len()).collect();
     let n: Vec<usize> = serial_len.iter().map(|l| l - serial::HEADER_LEN - 4).collect();
-    assert_eq!(numbers_after(&p, "**Pose payload** (type 1), N = ", 3), n, "pose payload lengths");
-    assert_eq!(numbers_after(&p, "Bandwidth: a pose frame is ", 2), vec![serial_len[0], serial_len[2]]);
-    assert_eq!(numbers_after(&p, "for more than one maximum frame (", 1), vec![serial_len[2]]);
+    assert_eq!(numbers_after(&p, "**Pose payload** (type 1), N = ", 4), n, "pose payload lengths");
+    assert_eq!(numbers_after(&p, "Bandwidth: a pose frame is ", 3), vec![serial_len[0], serial_len[2], serial_len[3]]);
+    assert_eq!(numbers_after(&p, "for more than one maximum frame (", 1), vec![serial_len[3]]);
+    assert_eq!(serial_len[3], serial::MAX_FRAME_LEN);
     let flags = [0, can::FLAG_VELOCITY, can::FLAG_VELOCITY | can::FLAG_ANGULAR_RATE];
     let block: Vec<usize> = flags.iter().map(|&f| can::block_len(f).unwrap()).collect();
     assert_eq!(numbers_after(&p, "Length ", 3), block, "compact block lengths");

@@ -34,6 +34,7 @@ fn pose(r: &mut R, seq: u32, t_ns: u64) -> Pose {
         velocity: (r.f() < 0.5).then(|| DVec3::new(r.f(), r.f(), r.f())),
         angular_rate: (r.f() < 0.5).then(|| DVec3::new(r.f(), r.f(), r.f()) * 0.1),
         camera_to_inertial: None,
+        planet_centre: None,
     }
 }
 

@@ -8,7 +8,7 @@ use glam::DVec3;
 use hilcam_core::link::serial::{SerialConfig, open_port, run_serial};
 use hilcam_core::pose::serial::encode_frame;
 use hilcam_core::pose::trajectory::Trajectory;
-use hilcam_core::pose::validate::Rejection;
+use hilcam_core::pose::validate::{PoseLimits, Rejection};
 use hilcam_core::pose::{Message, Pose};
 use pose_common::*;
 use serialport::{DataBits, Parity, SerialPort, StopBits, TTYPort};
@@ -169,11 +169,21 @@ async fn receive_trajectory_from(
     sender: impl FnOnce(&str) -> std::process::Child,
     n: usize,
 ) -> (Vec<Pose>, std::process::Output) {
+    receive_trajectory_with(PoseLimits::default(), sender, n).await
+}
+
+/// [`receive_trajectory_from`] through a gate with `limits`.
+async fn receive_trajectory_with(
+    limits: PoseLimits,
+    sender: impl FnOnce(&str) -> std::process::Child,
+    n: usize,
+) -> (Vec<Pose>, std::process::Output) {
     let cable = NullModem::new();
     let (tx, mut rx) = mpsc::channel(8192);
     let c = counters();
     let (stop_tx, stop_rx) = oneshot::channel::<()>();
-    let task = tokio::spawn(run_serial(SerialConfig::new(cable.b.clone(), 115_200), tx, c.clone(), stop_rx));
+    let cfg = SerialConfig { limits, ..SerialConfig::new(cable.b.clone(), 115_200) };
+    let task = tokio::spawn(run_serial(cfg, tx, c.clone(), stop_rx));
     // Let the receiver open its end before the sender starts writing.
     assert!(wait_for(|| std::fs::metadata(&cable.b).is_ok()).await);
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -257,4 +267,51 @@ async fn hilcam_send_serial_replays_at_fixed_rate() {
         assert_eq!(p.seq, k as u32);
         assert_eq!(p.position, want[k / 2].position, "send {k} holds sample {}", k / 2);
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn hilcam_send_serial_puts_the_planet_on_the_wire_as_the_python_encoder_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("moon.csv");
+    std::fs::write(
+        &traj,
+        "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,plx,ply,plz\n\
+         0,0,0,40,1,0,0,0,0,0,-1,-1.25e7,3.5e6,3.844e8\n\
+         0.5,0,0,39.5,1,0,0,0,0,0,-1,-1.2500001e7,3.4999e6,3.8440001e8\n",
+    )
+    .unwrap();
+    let want = Trajectory::load(&traj).unwrap();
+    let limits = PoseLimits { planet_radius_m: Some(1.7374e6), ..PoseLimits::default() };
+    let (got, out) = receive_trajectory_with(
+        limits,
+        |port| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
+                .args(["send", "--serial", port, "--speed", "inf", "--trajectory"])
+                .arg(&traj)
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        },
+        2,
+    )
+    .await;
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let centres: Vec<_> = got.iter().map(|p| p.planet_centre).collect();
+    assert_eq!(centres, want.iter().map(|s| s.planet_centre).collect::<Vec<_>>());
+    assert!(centres.iter().all(Option::is_some));
+    // The Python encoder (examples/hilcam_proto.py, its own CRC-32C) writes the same bytes.
+    let Some(py) = python() else { return };
+    let hex = std::process::Command::new(&py)
+        .arg(root().join("examples/send_serial.py"))
+        .args(["--hex", "--trajectory"])
+        .arg(&traj)
+        .output()
+        .unwrap();
+    let rust: Vec<String> = want
+        .iter()
+        .enumerate()
+        .map(|(k, s)| encode_frame(&Message::Pose(s.to_pose(k as u32))).iter().map(|b| format!("{b:02x}")).collect())
+        .collect();
+    assert_eq!(String::from_utf8_lossy(&hex.stdout).lines().collect::<Vec<_>>(), rust);
 }

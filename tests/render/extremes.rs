@@ -177,6 +177,7 @@ fn pose_at_10_khz(k: u32) -> Pose {
         velocity: Some(v),
         angular_rate: Some(w),
         camera_to_inertial: None,
+        planet_centre: None,
     }
 }
 

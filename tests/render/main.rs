@@ -17,6 +17,7 @@ mod fold;
 mod ggx;
 mod gltf;
 mod hybrid;
+mod limits;
 mod mc_noise;
 mod mc_ptc;
 mod mc_sensor;

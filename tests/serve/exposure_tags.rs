@@ -51,6 +51,7 @@ fn replayed(sensor: &str) -> Vec<FrameRecord> {
             velocity: Some(DVec3::new(1.0, 0.0, 0.0)),
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         })
         .collect();
     let dir = tempfile::tempdir().unwrap();

@@ -66,6 +66,7 @@ fn session_frame_line_is_pinned_byte_for_byte() {
             velocity: Some([0.1, -0.2, 0.3]),
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         },
         settings: SettingsFields {
             spp: Spp::from_milli(2_250),
@@ -185,6 +186,7 @@ fn mc_noise_object_is_pinned_in_both_lines() {
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         },
         settings: SettingsFields::from(&hilcam_core::render::integrator::RenderSettings::default()),
         flags: 0,

@@ -28,6 +28,7 @@ mod line_formats;
 mod live;
 mod mask_order;
 mod metrics;
+mod moving_planet;
 mod netns;
 mod replay;
 mod replay_truth;

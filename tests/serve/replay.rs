@@ -50,6 +50,7 @@ fn samples(n: usize) -> Vec<TrajectorySample> {
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         })
         .collect()
 }
@@ -322,7 +323,10 @@ fn replay_refuses_a_trajectory_row_the_pose_gate_refuses_naming_file_line_and_re
         ("1,0,0,5,2,0,0,0,0,0,-1", "quaternion norm outside tolerance (attitude norm 2e0, must be within 1e-3 of 1)"),
         ("1,0,0,5,0,0,0,0,0,0,-1", "quaternion norm outside tolerance (attitude norm 0e0"),
         ("1,0,0,5,1,0,0,0,0,0,0", "sun direction not a unit vector (sun norm 0e0"),
-        ("1,0,0,1e200,1,0,0,0,0,0,-1", "range above maximum (range 1e200 m, above the 1e7 m limit)"),
+        (
+            "1,0,0,1e200,1,0,0,0,0,0,-1",
+            "range above maximum (range 1e200 m, above the 1e7 m limit (the scene's [limits] max_range_m))",
+        ),
         ("1,0,0,1e-310,1,0,0,0,0,0,-1", "range below minimum"),
     ] {
         std::fs::write(&csv, format!("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz\n0,0,0,5,1,0,0,0,0,0,-1\n{row}\n")).unwrap();

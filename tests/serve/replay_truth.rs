@@ -37,6 +37,7 @@ fn samples() -> Vec<TrajectorySample> {
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         })
         .collect()
 }

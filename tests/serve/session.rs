@@ -68,6 +68,7 @@ fn moving_pose(seq: u32) -> Pose {
         velocity: Some(DVec3::new(0.5, 0.0, -2.0)),
         angular_rate: Some(DVec3::new(0.0, 0.8, 0.0)),
         camera_to_inertial: None,
+        planet_centre: None,
     }
 }
 

@@ -190,14 +190,17 @@ impl FramePipeline {
         Ok(render_truth_with(&self.scene, &view, channels, self.buffers.coverage_for(&view)))
     }
 
-    fn options(&self, settings: &RenderSettings, index: u64) -> RenderOptions {
-        RenderOptions::new(*settings, index).with_primary(self.primary).with_planet(self.planet)
+    /// The render options of frame `index` at `pose`: the planet is the one set by
+    /// [`FramePipeline::set_planet`], else the scene's moved to the pose's planet centre.
+    fn options(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> RenderOptions {
+        let planet = self.planet.or_else(|| self.scene.planet_at(pose));
+        RenderOptions::new(*settings, index).with_primary(self.primary).with_planet(planet)
     }
 
     /// Render the radiance only (no sensor), into a new image.
     pub fn radiance(&self, pose: &Pose, settings: &RenderSettings, index: u64) -> (RadianceImage, RenderStats) {
         let view = self.view(pose, &self.exposure_timing(None));
-        render(&self.scene, &view, &self.options(settings, index))
+        render(&self.scene, &view, &self.options(pose, settings, index))
     }
 
     /// [`FramePipeline::radiance`] into the pipeline's own buffers: after the first frame
@@ -208,7 +211,7 @@ impl FramePipeline {
         settings: &RenderSettings,
         index: u64,
     ) -> (&RadianceImage, RenderStats) {
-        let (view, options) = (self.view(pose, &self.exposure_timing(None)), self.options(settings, index));
+        let (view, options) = (self.view(pose, &self.exposure_timing(None)), self.options(pose, settings, index));
         let stats = render_into(&mut self.buffers, &self.scene, &view, &options);
         (self.buffers.image(), stats)
     }
@@ -255,7 +258,7 @@ impl FramePipeline {
                 .map_err(|message| SensorError::Invalid { field: "render.quality".into(), message })?;
         }
         let (mut view, options) =
-            (self.view(pose, &timing), self.options(settings, index).with_noise(noise, noise.is_some()));
+            (self.view(pose, &timing), self.options(pose, settings, index).with_noise(noise, noise.is_some()));
         if let Some(roi) = &roi {
             let (mx, my) = self.sensor.psf_margin();
             let area = roi.grown(mx, my, &self.camera);

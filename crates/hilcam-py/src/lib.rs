@@ -488,7 +488,8 @@ impl Renderer {
                 Some([s[0], s[1], s[2]])
             }
         };
-        pose_from_numbers(&self.pipeline.scene().pose, [p[0], p[1], p[2]], attitude, sun).map_err(refused)
+        let scene = self.pipeline.scene();
+        pose_from_numbers(&scene.pose_limits(), &scene.pose, [p[0], p[1], p[2]], attitude, sun).map_err(refused)
     }
 }
 

@@ -10,6 +10,9 @@ use tokio::sync::mpsc;
 /// One validated input, stamped with its wall-clock arrival time (when the
 /// transport had the complete message, before validation).
 #[derive(Clone, Copy, Debug, PartialEq)]
+// A pose (232 bytes with its optional planet centre) moves by value: boxing it would
+// allocate per message on the allocation-free input path.
+#[allow(clippy::large_enum_variant)]
 pub enum InputEvent {
     /// A pose that passed validation (quaternion and sun renormalised).
     Pose {

@@ -206,6 +206,7 @@ fn read_block(seq: u32, b: &[u8]) -> Pose {
         velocity,
         angular_rate,
         camera_to_inertial: None,
+        planet_centre: None,
     }
 }
 
@@ -315,6 +316,9 @@ impl GroupDrop {
 
 /// What one frame did to the assembler.
 #[derive(Clone, Copy, Debug, PartialEq)]
+// A pose (232 bytes with its optional planet centre) moves by value: boxing it would
+// allocate per message on the allocation-free input path.
+#[allow(clippy::large_enum_variant)]
 pub enum CanEvent {
     /// A complete message.
     Message(Message),

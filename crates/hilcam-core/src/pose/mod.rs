@@ -28,6 +28,9 @@ pub struct Pose {
     /// Optional inertial attitude of the camera: the rotation taking camera-frame vectors
     /// into the inertial (J2000 equatorial) frame. Places a scene's star field.
     pub camera_to_inertial: Option<DQuat>,
+    /// Optional centre of the scene's planet, camera frame, metres: moves the scene's
+    /// `[planet]` for this pose (a featureless sphere, so its attitude does not show).
+    pub planet_centre: Option<DVec3>,
 }
 
 impl Pose {
@@ -43,6 +46,7 @@ impl Pose {
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         }
     }
 }
@@ -61,6 +65,9 @@ mod wire;
 /// Fields a link does not carry are documented per link in `docs/protocol.md`
 /// (e.g. a CAN trigger has no sequence number, so `seq` is 0 there).
 #[derive(Clone, Copy, Debug, PartialEq)]
+// A pose (232 bytes with its optional planet centre) moves by value: boxing it would
+// allocate per message on the allocation-free input path.
+#[allow(clippy::large_enum_variant)]
 pub enum Message {
     /// A relative pose (not yet validated: see [`validate::PoseValidator`]).
     Pose(Pose),

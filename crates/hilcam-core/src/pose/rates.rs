@@ -46,6 +46,7 @@ mod tests {
             velocity: None,
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         }
     }
 

@@ -36,12 +36,16 @@ pub const TYPE_HEARTBEAT: u8 = 3;
 pub const FLAG_VELOCITY: u8 = 0x01;
 /// Pose payload flag: angular rate present.
 pub const FLAG_ANGULAR_RATE: u8 = 0x02;
+/// Pose payload flag: the planet's centre present (moves the scene's `[planet]`; after
+/// the rates). Without it a frame is byte for byte what it always was.
+pub const FLAG_PLANET: u8 = 0x04;
+const KNOWN_FLAGS: u8 = FLAG_VELOCITY | FLAG_ANGULAR_RATE | FLAG_PLANET;
 /// Pose payload without optional blocks: flags, 3 reserved, 10 × f64.
 pub const POSE_BASE_LEN: usize = 4 + 10 * 8;
 /// One optional 3 × f64 block.
 pub const POSE_OPT_LEN: usize = 3 * 8;
-/// Longest frame this version can produce (pose with both optional blocks).
-pub const MAX_FRAME_LEN: usize = HEADER_LEN + POSE_BASE_LEN + 2 * POSE_OPT_LEN + CRC_LEN;
+/// Longest frame this version can produce (pose with all three optional blocks).
+pub const MAX_FRAME_LEN: usize = HEADER_LEN + POSE_BASE_LEN + 3 * POSE_OPT_LEN + CRC_LEN;
 
 /// Why bytes at the start of a buffer are not a valid frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, thiserror::Error)]
@@ -113,13 +117,16 @@ fn expected_pose_len(flags: u8) -> usize {
     if flags & FLAG_ANGULAR_RATE != 0 {
         n += POSE_OPT_LEN;
     }
+    if flags & FLAG_PLANET != 0 {
+        n += POSE_OPT_LEN;
+    }
     n
 }
 
 fn length_ok(ty: u8, len: u16) -> bool {
     let len = len as usize;
     match ty {
-        TYPE_POSE => [0, 1, 2].iter().any(|k| len == POSE_BASE_LEN + k * POSE_OPT_LEN),
+        TYPE_POSE => [0, 1, 2, 3].iter().any(|k| len == POSE_BASE_LEN + k * POSE_OPT_LEN),
         TYPE_TRIGGER => len == 0,
         TYPE_HEARTBEAT => len == 4,
         _ => false,
@@ -188,10 +195,7 @@ pub fn decode_frame(buf: &[u8]) -> Result<(Message, usize), FrameError> {
         TYPE_POSE => {
             let flags = r.u8();
             let reserved = [r.u8(), r.u8(), r.u8()];
-            if flags & !(FLAG_VELOCITY | FLAG_ANGULAR_RATE) != 0
-                || reserved != [0; 3]
-                || expected_pose_len(flags) != len as usize
-            {
+            if flags & !KNOWN_FLAGS != 0 || reserved != [0; 3] || expected_pose_len(flags) != len as usize {
                 return Err(M(Malformed::BadFlags(flags)));
             }
             let position = r.dvec3_f64();
@@ -199,6 +203,7 @@ pub fn decode_frame(buf: &[u8]) -> Result<(Message, usize), FrameError> {
             let sun_dir = r.dvec3_f64();
             let velocity = (flags & FLAG_VELOCITY != 0).then(|| r.dvec3_f64());
             let angular_rate = (flags & FLAG_ANGULAR_RATE != 0).then(|| r.dvec3_f64());
+            let planet_centre = (flags & FLAG_PLANET != 0).then(|| r.dvec3_f64());
             Message::Pose(Pose {
                 seq,
                 t_ns,
@@ -208,6 +213,7 @@ pub fn decode_frame(buf: &[u8]) -> Result<(Message, usize), FrameError> {
                 velocity,
                 angular_rate,
                 camera_to_inertial: None,
+                planet_centre,
             })
         }
         TYPE_TRIGGER => Message::Trigger { seq, t_ns },
@@ -236,7 +242,8 @@ pub fn encode_frame_into(msg: &Message, out: &mut Vec<u8>) {
     match *msg {
         Message::Pose(p) => {
             let flags = if p.velocity.is_some() { FLAG_VELOCITY } else { 0 }
-                | if p.angular_rate.is_some() { FLAG_ANGULAR_RATE } else { 0 };
+                | if p.angular_rate.is_some() { FLAG_ANGULAR_RATE } else { 0 }
+                | if p.planet_centre.is_some() { FLAG_PLANET } else { 0 };
             w.u8(flags);
             w.0.extend_from_slice(&[0; 3]);
             w.dvec3_f64(p.position);
@@ -247,6 +254,9 @@ pub fn encode_frame_into(msg: &Message, out: &mut Vec<u8>) {
             }
             if let Some(v) = p.angular_rate {
                 w.dvec3_f64(v);
+            }
+            if let Some(c) = p.planet_centre {
+                w.dvec3_f64(c);
             }
         }
         Message::Trigger { .. } => {}
@@ -267,6 +277,9 @@ pub fn encode_frame(msg: &Message) -> Vec<u8> {
 
 /// What [`SerialDecoder::next_event`] found.
 #[derive(Clone, Copy, Debug, PartialEq)]
+// A pose (232 bytes with its optional planet centre) moves by value: boxing it would
+// allocate per message on the allocation-free input path.
+#[allow(clippy::large_enum_variant)]
 pub enum DecodeEvent {
     /// A frame with a valid CRC and layout.
     Message(Message),

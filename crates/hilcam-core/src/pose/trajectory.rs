@@ -3,12 +3,13 @@
 //!
 //! ```text
 //! # comments and blank lines are ignored
-//! time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz[,vx,vy,vz][,wx,wy,wz][,iw,ix,iy,iz]
+//! time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz[,vx,vy,vz][,wx,wy,wz][,iw,ix,iy,iz][,plx,ply,plz]
 //! 0.0,0,0,1000,1,0,0,0,0,0,-1
 //! ```
 //!
-//! Columns may come in any order; `vx,vy,vz`, `wx,wy,wz` and the camera's inertial
-//! attitude `iw,ix,iy,iz` are optional, as complete groups. Time must strictly increase. [`Trajectory::load`] returns
+//! Columns may come in any order; `vx,vy,vz`, `wx,wy,wz`, the camera's inertial
+//! attitude `iw,ix,iy,iz` and the planet's centre `plx,ply,plz` are optional, as
+//! complete groups. Time must strictly increase. [`Trajectory::load`] returns
 //! the samples exactly as written (what `hilcam send` puts on the wire, so a
 //! receiver's pose gate can be exercised); [`Trajectory::load_gated`] passes
 //! every row through the pose gate ([`crate::pose::validate`]), as offline
@@ -37,6 +38,8 @@ pub struct TrajectorySample {
     pub angular_rate: Option<DVec3>,
     /// Camera → inertial rotation (places a star field).
     pub camera_to_inertial: Option<DQuat>,
+    /// The scene's planet's centre, camera frame, m (moves its `[planet]`).
+    pub planet_centre: Option<DVec3>,
 }
 
 impl TrajectorySample {
@@ -51,6 +54,7 @@ impl TrajectorySample {
             velocity: self.velocity,
             angular_rate: self.angular_rate,
             camera_to_inertial: self.camera_to_inertial,
+            planet_centre: self.planet_centre,
         }
     }
 }
@@ -83,10 +87,14 @@ pub enum TrajectoryError {
 
 /// The required columns, in the order `save` writes them.
 pub const REQUIRED_COLUMNS: [&str; 11] = ["time_s", "px", "py", "pz", "qw", "qx", "qy", "qz", "sx", "sy", "sz"];
-/// Optional columns (each group all or nothing): velocity, angular rate, camera → inertial.
-pub const OPTIONAL_COLUMNS: [&str; 10] = ["vx", "vy", "vz", "wx", "wy", "wz", "iw", "ix", "iy", "iz"];
+/// Optional columns (each group all or nothing): velocity, angular rate, camera → inertial,
+/// planet centre.
+pub const OPTIONAL_COLUMNS: [&str; 13] =
+    ["vx", "vy", "vz", "wx", "wy", "wz", "iw", "ix", "iy", "iz", "plx", "ply", "plz"];
 /// (first index, length) of each optional group among all columns.
-const OPTIONAL_GROUPS: [(usize, usize); 3] = [(11, 3), (14, 3), (17, 4)];
+const OPTIONAL_GROUPS: [(usize, usize); 4] = [(11, 3), (14, 3), (17, 4), (21, 3)];
+/// Number of known columns.
+const ALL_COLUMNS: usize = REQUIRED_COLUMNS.len() + OPTIONAL_COLUMNS.len();
 
 /// How far from 1 the norm of a row's `iw,ix,iy,iz` may be (as the pose gate's attitude).
 const INERTIAL_NORM_TOLERANCE: f64 = 1e-3;
@@ -159,7 +167,7 @@ impl Trajectory {
             return Err(err(1, 0, "empty file: no header line".into()));
         };
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        let mut col = [usize::MAX; 21];
+        let mut col = [usize::MAX; ALL_COLUMNS];
         let all: Vec<&str> = REQUIRED_COLUMNS.iter().chain(&OPTIONAL_COLUMNS).copied().collect();
         for (i, n) in names.iter().enumerate() {
             let Some(k) = all.iter().position(|a| a == n) else {
@@ -191,7 +199,7 @@ impl Trajectory {
             if fields.len() != names.len() {
                 return Err(err(line, 0, format!("{} fields, header has {}", fields.len(), names.len())));
             }
-            let mut v = [0.0f64; 21];
+            let mut v = [0.0f64; ALL_COLUMNS];
             for (k, slot) in v.iter_mut().enumerate() {
                 if !has(k) {
                     continue;
@@ -232,6 +240,7 @@ impl Trajectory {
                     velocity: has(11).then(|| tri(11)),
                     angular_rate: has(14).then(|| tri(14)),
                     camera_to_inertial: has(17).then(|| DQuat::from_xyzw(v[18], v[19], v[20], v[17])),
+                    planet_centre: has(21).then(|| tri(21)),
                 },
             ));
         }
@@ -250,6 +259,7 @@ impl Trajectory {
         let has_v = samples.first().is_some_and(|s| s.velocity.is_some());
         let has_w = samples.first().is_some_and(|s| s.angular_rate.is_some());
         let has_i = samples.first().is_some_and(|s| s.camera_to_inertial.is_some());
+        let has_p = samples.first().is_some_and(|s| s.planet_centre.is_some());
         let mut s = REQUIRED_COLUMNS.join(",");
         if has_v {
             s.push_str(",vx,vy,vz");
@@ -259,6 +269,9 @@ impl Trajectory {
         }
         if has_i {
             s.push_str(",iw,ix,iy,iz");
+        }
+        if has_p {
+            s.push_str(",plx,ply,plz");
         }
         s.push('\n');
         for x in samples {
@@ -273,6 +286,8 @@ impl Trajectory {
             vals.extend(x.angular_rate.map(|v| v.to_array()).into_iter().flatten());
             assert_eq!(x.camera_to_inertial.is_some(), has_i, "inertial attitude present in some samples only");
             vals.extend(x.camera_to_inertial.map(|q| [q.w, q.x, q.y, q.z]).into_iter().flatten());
+            assert_eq!(x.planet_centre.is_some(), has_p, "planet centre present in some samples only");
+            vals.extend(x.planet_centre.map(|c| c.to_array()).into_iter().flatten());
             for (i, v) in vals.iter().enumerate() {
                 let _ = write!(s, "{}{v:?}", if i == 0 { "" } else { "," });
             }
@@ -331,6 +346,21 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("`iw,ix,iy,iz` must come as a complete group"), "{e}");
+    }
+
+    #[test]
+    fn planet_centre_columns_round_trip_and_come_as_a_group() {
+        let text = "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,plx,ply,plz\n0,0,0,5,1,0,0,0,0,0,-1,1e3,-2.5e7,1.5e11\n";
+        let s = Trajectory::parse(text, Path::new("t.csv")).unwrap();
+        assert_eq!(s[0].planet_centre, Some(DVec3::new(1e3, -2.5e7, 1.5e11)));
+        assert_eq!(s[0].to_pose(3).planet_centre, s[0].planet_centre);
+        assert_eq!(Trajectory::parse(&Trajectory::to_csv(&s), Path::new("t.csv")).unwrap(), s);
+        let e = Trajectory::parse(&text.replace(",1e3,", ",nan,"), Path::new("t.csv")).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:2:12: `plx`: `nan` is not a finite number");
+        let e = Trajectory::parse("time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,plx,plz\n", Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`plx,ply,plz` must come as a complete group"), "{e}");
     }
 
     #[test]

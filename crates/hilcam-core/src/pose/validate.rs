@@ -3,10 +3,15 @@
 //! Checks, in order: all values finite; attitude quaternion norm within
 //! [`PoseLimits::norm_tolerance`] of 1 (then renormalised) else rejected; the
 //! same for the sun direction; range within `[min_range_m, max_range_m]`;
-//! optional speed / angular-rate limits; simulation time not before the last
-//! accepted pose. Every rejection is a [`Rejection`] the caller logs and counts.
+//! optional speed / angular-rate limits; a planet centre, when the pose carries one,
+//! finite, outside the scene's planet and within 100 AU; simulation time not before the
+//! last accepted pose. Every rejection is a [`Rejection`] the caller logs and counts.
 
 use super::Pose;
+
+/// Farthest accepted planet centre from the camera, metres: 100 AU (a scene's `[planet]`
+/// table and a pose's planet centre alike).
+pub const MAX_PLANET_DISTANCE_M: f64 = 1.5e13;
 
 /// Configured limits (defaults suit a rendezvous camera: 0.1 m … 10 000 km).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,6 +26,9 @@ pub struct PoseLimits {
     pub max_speed_mps: f64,
     /// Largest accepted |angular rate|, rad/s.
     pub max_angular_rate_rps: f64,
+    /// The radius (m) of the scene's planet that a pose's `planet_centre` moves; `None`:
+    /// the scene has no planet, and a pose that carries a centre is refused.
+    pub planet_radius_m: Option<f64>,
 }
 
 impl Default for PoseLimits {
@@ -32,6 +40,7 @@ impl Default for PoseLimits {
             norm_tolerance: 1.0e-3,
             max_speed_mps: 1.0e4,
             max_angular_rate_rps: 10.0,
+            planet_radius_m: None,
         }
     }
 }
@@ -60,11 +69,15 @@ pub enum Rejection {
     /// Simulation time earlier than the last accepted pose.
     #[error("timestamp went backwards")]
     TimeBackwards,
+    /// A planet centre the scene cannot render: no `[planet]` to move, the camera inside
+    /// the sphere, or farther than [`MAX_PLANET_DISTANCE_M`].
+    #[error("planet centre refused")]
+    Planet,
 }
 
 impl Rejection {
     /// Every reason, for exporting zero-valued counters.
-    pub const ALL: [Rejection; 7] = [
+    pub const ALL: [Rejection; 8] = [
         Rejection::NonFinite,
         Rejection::QuaternionNorm,
         Rejection::SunNorm,
@@ -72,6 +85,7 @@ impl Rejection {
         Rejection::TooFar,
         Rejection::RateLimit,
         Rejection::TimeBackwards,
+        Rejection::Planet,
     ];
 
     /// Stable snake_case name for logs and metric labels.
@@ -84,6 +98,7 @@ impl Rejection {
             Rejection::TooFar => "too_far",
             Rejection::RateLimit => "rate_limit",
             Rejection::TimeBackwards => "time_backwards",
+            Rejection::Planet => "planet",
         }
     }
 }
@@ -113,7 +128,8 @@ pub fn check_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, Rejection> {
         && q.is_finite()
         && p.sun_dir.is_finite()
         && p.velocity.is_none_or(|v| v.is_finite())
-        && p.angular_rate.is_none_or(|v| v.is_finite());
+        && p.angular_rate.is_none_or(|v| v.is_finite())
+        && p.planet_centre.is_none_or(|v| v.is_finite());
     if !finite {
         return Err(Rejection::NonFinite);
     }
@@ -137,6 +153,12 @@ pub fn check_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, Rejection> {
     {
         return Err(Rejection::RateLimit);
     }
+    if let Some(c) = p.planet_centre {
+        let d = norm(c.to_array());
+        if lim.planet_radius_m.is_none_or(|r| d <= r) || d > MAX_PLANET_DISTANCE_M {
+            return Err(Rejection::Planet);
+        }
+    }
     Ok(Pose { attitude: q / qn, sun_dir: p.sun_dir / sn, ..*p })
 }
 
@@ -150,6 +172,7 @@ pub fn describe(p: &Pose, r: Rejection, lim: &PoseLimits) -> String {
                 ("sun", p.sun_dir.is_finite()),
                 ("velocity", p.velocity.is_none_or(|v| v.is_finite())),
                 ("angular rate", p.angular_rate.is_none_or(|v| v.is_finite())),
+                ("planet centre", p.planet_centre.is_none_or(|v| v.is_finite())),
             ];
             let bad: Vec<&str> = fields.iter().filter(|(_, ok)| !ok).map(|(n, _)| *n).collect();
             format!("NaN or infinity in {}", bad.join(", "))
@@ -168,7 +191,8 @@ pub fn describe(p: &Pose, r: Rejection, lim: &PoseLimits) -> String {
             format!("range {:e} m, below the {:e} m limit", norm(p.position.to_array()), lim.min_range_m)
         }
         Rejection::TooFar => {
-            format!("range {:e} m, above the {:e} m limit", norm(p.position.to_array()), lim.max_range_m)
+            let r = norm(p.position.to_array());
+            format!("range {r:e} m, above the {:e} m limit (the scene's [limits] max_range_m)", lim.max_range_m)
         }
         Rejection::RateLimit => format!(
             "speed {:e} m/s (limit {:e}), angular rate {:e} rad/s (limit {:e})",
@@ -178,6 +202,16 @@ pub fn describe(p: &Pose, r: Rejection, lim: &PoseLimits) -> String {
             lim.max_angular_rate_rps
         ),
         Rejection::TimeBackwards => format!("t_ns {} is earlier than the last accepted pose", p.t_ns),
+        Rejection::Planet => {
+            let d = p.planet_centre.map_or(0.0, |c| norm(c.to_array()));
+            match lim.planet_radius_m {
+                None => "the pose moves a planet but the scene has no [planet]".into(),
+                Some(r) if d <= r => {
+                    format!("|planet centre| {d:e} m ≤ the planet's radius {r:e} m: the camera is inside it")
+                }
+                Some(_) => format!("|planet centre| {d:e} m, above the {:e} m limit", MAX_PLANET_DISTANCE_M),
+            }
+        }
     }
 }
 

@@ -30,6 +30,10 @@
 //! body = "earth"
 //! center_m = [0.0, 6.771e6, 0.0]
 //!
+//! [limits]                     # optional: raise the pose range and mesh scale gates
+//! max_range_m = 1.0e7          # default 1e7 m, at most 1.5e13 (100 AU)
+//! max_scale = 1.0e6            # default 1e6, at most 1e9
+//!
 //! [[wrap]]                     # optional: wrinkle a material's faces (MLI folds)
 //! material = "mli_gold"
 //! level = "medium"             # or e_plane = 0.968, var = 0.0077
@@ -104,6 +108,32 @@ struct SceneFile {
     stars: Option<Spanned<StarsSection>>,
     /// A sphere behind the target (`scene::planet`).
     planet: Option<Spanned<super::planet::PlanetSection>>,
+    /// The largest pose range and mesh scale (`limits::SceneLimits`).
+    #[serde(default)]
+    limits: LimitsSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LimitsSection {
+    #[serde(default = "default_max_range")]
+    max_range_m: Spanned<f64>,
+    #[serde(default = "default_max_scale")]
+    max_scale: Spanned<f64>,
+}
+
+fn default_max_range() -> Spanned<f64> {
+    Spanned::new(0..0, limits::MAX_RANGE_M)
+}
+
+fn default_max_scale() -> Spanned<f64> {
+    Spanned::new(0..0, limits::SCALE.1)
+}
+
+impl Default for LimitsSection {
+    fn default() -> Self {
+        LimitsSection { max_range_m: default_max_range(), max_scale: default_max_scale() }
+    }
 }
 
 #[derive(Deserialize)]
@@ -351,6 +381,13 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         message,
     };
 
+    let l = &file.limits;
+    let scene_limits =
+        limits::SceneLimits::checked(*l.max_range_m.get_ref(), *l.max_scale.get_ref()).map_err(|(key, m)| {
+            let span = if key == "max_range_m" { l.max_range_m.span() } else { l.max_scale.span() };
+            field(span, &format!("limits.{key}"), m)
+        })?;
+
     // Materials, in name order (BTreeMap) so indices are stable.
     let mut materials = Vec::new();
     for (name, spec) in &file.materials {
@@ -380,8 +417,10 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             tracing::warn!(mesh = %obj_path.display(), "{note}");
         }
         let scale = *entry.scale.get_ref();
-        limits::in_range(scale, limits::SCALE, "")
-            .map_err(|m| field(entry.scale.span(), &format!("mesh[{k}].scale"), m))?;
+        limits::in_range(scale, (limits::SCALE.0, scene_limits.max_scale), "").map_err(|m| {
+            let hint = if scale > scene_limits.max_scale { LIMITS_HINT } else { "" };
+            field(entry.scale.span(), &format!("mesh[{k}].scale"), m + hint)
+        })?;
         let translate = *entry.translate.get_ref();
         for v in translate {
             limits::in_range(v, (-limits::TRANSLATE_M, limits::TRANSLATE_M), " m")
@@ -517,7 +556,12 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         None => SceneError::Missing { path: path.to_path_buf(), field: format!("camera.{f}"), message: m },
     })?;
 
-    let pose = pose_from(&file.pose).map_err(|(span, f, m)| field(span, &f, m))?;
+    let planet = match &file.planet {
+        None => None,
+        Some(p) => Some(p.get_ref().build(p.span()).map_err(|(span, f, m)| field(span, &f, m))?),
+    };
+    let pose_limits = scene_limits.pose_limits(planet.map(|p| p.radius_m));
+    let pose = pose_from(&file.pose, &pose_limits).map_err(|(span, f, m)| field(span, &f, m))?;
     let irradiance = *file.sun.irradiance.get_ref();
     limits::in_range(irradiance, limits::IRRADIANCE_W_M2, " W/m²")
         .map_err(|m| field(file.sun.irradiance.span(), "sun.irradiance", m))?;
@@ -555,10 +599,6 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         None => None,
         Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor, camera.focal_px())?),
     };
-    let planet = match &file.planet {
-        None => None,
-        Some(p) => Some(p.get_ref().build(p.span()).map_err(|(span, f, m)| field(span, &f, m))?),
-    };
     Ok(SceneParts {
         mesh,
         materials,
@@ -571,8 +611,12 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         layout,
         stars,
         planet,
+        limits: scene_limits,
     })
 }
+
+/// Added to a range or scale refusal: where the limit is set.
+const LIMITS_HINT: &str = " (raise it with [limits] max_scale, docs/scene.md)";
 
 /// Read a camera file: its `[camera]` table and optional `[sensor]` table.
 pub fn load_camera_file(path: &Path) -> Result<CameraPreset, String> {
@@ -699,7 +743,7 @@ fn stars_from(
 
 type FieldErr = (std::ops::Range<usize>, String, String);
 
-fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
+fn pose_from(p: &PoseSection, lim: &crate::pose::validate::PoseLimits) -> Result<Pose, FieldErr> {
     let [w, x, y, z] = *p.attitude.get_ref();
     let pose = Pose {
         position: DVec3::from_array(*p.position.get_ref()),
@@ -722,7 +766,7 @@ fn pose_from(p: &PoseSection) -> Result<Pose, FieldErr> {
             Pose { camera_to_inertial: Some(DQuat::from_xyzw(x, y, z, w) / n), ..pose }
         }
     };
-    limits::gate_pose(&pose).map_err(|e| {
+    limits::gate_pose(&pose, lim).map_err(|e| {
         let rates = p.velocity.as_ref().or(p.angular_rate.as_ref()).map(Spanned::span);
         let span = match e.field {
             "pose.attitude" => p.attitude.span(),

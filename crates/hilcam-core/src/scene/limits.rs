@@ -16,8 +16,51 @@ pub const BACKGROUND_W_SR_M2: (f64, f64) = (0.0, 1.0e6);
 pub const TRANSLATE_M: f64 = 1.0e5;
 /// Mesh rotation, each Euler angle, degrees.
 pub const ROTATE_DEG: f64 = 360.0;
-/// Mesh scale factor (dimensionless: OBJ units to metres).
+/// Mesh scale factor (dimensionless: OBJ units to metres), the smallest and the default
+/// largest ([`SceneLimits::max_scale`] raises the largest up to [`MAX_SCALE_CEILING`]).
 pub const SCALE: (f64, f64) = (1.0e-6, 1.0e6);
+/// The default largest pose range, metres (10 000 km: a rendezvous camera).
+pub const MAX_RANGE_M: f64 = 1.0e7;
+/// How far `[limits] max_range_m` may go: 100 AU, the planet's own limit. The render frame
+/// sits at the target, so f32 geometry does not care about range; tests/render/limits.rs
+/// renders a target at this range and finds it where the pinhole puts it.
+pub const MAX_RANGE_CEILING_M: f64 = 1.5e13;
+/// How far `[limits] max_scale` may go: a unit mesh 10⁹ m across (ten Jupiters; a planet's
+/// largest radius), tested at this scale beside the range ceiling.
+pub const MAX_SCALE_CEILING: f64 = 1.0e9;
+
+/// A scene's `[limits]`: the largest pose range and mesh scale it accepts (docs/scene.md).
+/// A Mars or Earth approach raises them; the defaults keep a rendezvous bench's gate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneLimits {
+    /// Largest accepted |position|, m: every pose of this scene, from every input.
+    pub max_range_m: f64,
+    /// Largest accepted `[[mesh]] scale`.
+    pub max_scale: f64,
+}
+
+impl Default for SceneLimits {
+    fn default() -> Self {
+        SceneLimits { max_range_m: MAX_RANGE_M, max_scale: SCALE.1 }
+    }
+}
+
+impl SceneLimits {
+    /// Checked: each within its ceiling (and above the smallest range or scale); a refusal
+    /// names the key (`max_range_m`, `max_scale`) and the range.
+    pub fn checked(max_range_m: f64, max_scale: f64) -> Result<SceneLimits, (&'static str, String)> {
+        in_range(max_range_m, (PoseLimits::default().min_range_m, MAX_RANGE_CEILING_M), " m")
+            .map_err(|m| ("max_range_m", m))?;
+        in_range(max_scale, (SCALE.0, MAX_SCALE_CEILING), "").map_err(|m| ("max_scale", m))?;
+        Ok(SceneLimits { max_range_m, max_scale })
+    }
+
+    /// The pose gate for this scene: the default gate with its largest range, and the
+    /// radius of its planet (`None`: a pose that moves a planet is refused).
+    pub fn pose_limits(&self, planet_radius_m: Option<f64>) -> PoseLimits {
+        PoseLimits { max_range_m: self.max_range_m, planet_radius_m, ..PoseLimits::default() }
+    }
+}
 /// OBJ vertex coordinate, each component, OBJ units (before `scale`).
 pub const OBJ_COORD: f64 = 1.0e6;
 /// Pixel pitch, µm (after `--width` rescaling too).
@@ -45,7 +88,7 @@ pub struct PoseRefusal {
     pub message: String,
 }
 
-/// The live pose gate ([`check_pose`] with [`PoseLimits::default`]) for a pose written by
+/// The live pose gate ([`check_pose`] with the scene's `lim`) for a pose written by
 /// hand. The sun is a direction of any non-zero finite length: it is normalised first,
 /// robustly (a huge vector is scaled by its largest component before squaring). The
 /// attitude is not: a quaternion whose norm is not within the gate's tolerance of 1 is
@@ -53,15 +96,14 @@ pub struct PoseRefusal {
 ///
 /// The accepted pose is normalised as a loaded scene always was (`DQuat::normalize`,
 /// `DVec3::normalize`), so frames keep their bytes.
-pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
+pub fn gate_pose(p: &Pose, lim: &PoseLimits) -> Result<Pose, PoseRefusal> {
     let refuse = |field, message: String| Err(PoseRefusal { field, message });
     let Some(sun) = unit_or_none(p.sun_dir) else {
         let why = if p.sun_dir.is_finite() { "direction is zero" } else { "non-finite value" };
         return refuse("pose.sun", format!("{why} (got {})", fmt3(p.sun_dir)));
     };
-    let lim = PoseLimits::default();
     let candidate = Pose { sun_dir: sun, ..*p };
-    match check_pose(&candidate, &lim) {
+    match check_pose(&candidate, lim) {
         Ok(_) => Ok(Pose { attitude: p.attitude.normalize(), sun_dir: sun, ..*p }),
         Err(r) => {
             let q = p.attitude;
@@ -71,6 +113,9 @@ pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
             let (field, detail) = match r {
                 Rejection::NonFinite if !p.position.is_finite() => ("pose.position", fmt3(p.position)),
                 Rejection::NonFinite if !q.is_finite() => ("pose.attitude", fmt_q(p)),
+                Rejection::NonFinite if p.planet_centre.is_some_and(|c| !c.is_finite()) => {
+                    ("pose.planet_centre", String::new())
+                }
                 Rejection::NonFinite => ("pose.velocity", String::new()),
                 Rejection::QuaternionNorm => (
                     "pose.attitude",
@@ -79,8 +124,12 @@ pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
                 Rejection::SunNorm => ("pose.sun", fmt3(p.sun_dir)),
                 Rejection::TooClose | Rejection::TooFar => (
                     "pose.position",
-                    format!("range {range:e} m, limits {} … {:e} m", lim.min_range_m, lim.max_range_m),
+                    format!(
+                        "range {range:e} m, limits {} … {:e} m; the largest is [limits] max_range_m",
+                        lim.min_range_m, lim.max_range_m
+                    ),
                 ),
+                Rejection::Planet => ("pose.planet_centre", crate::pose::validate::describe(p, r, lim)),
                 Rejection::RateLimit | Rejection::TimeBackwards => ("pose", String::new()),
             };
             let message = if detail.is_empty() { r.to_string() } else { format!("{r} ({detail})") };
@@ -92,9 +141,10 @@ pub fn gate_pose(p: &Pose) -> Result<Pose, PoseRefusal> {
 /// A pose given as numbers (`hilcam render --pose`, Python's `Renderer.render`): the
 /// position `[px, py, pz]` (m, camera frame), optionally the attitude `[qw, qx, qy, qz]`
 /// (body → camera) and the sun direction `[sx, sy, sz]`; what is not given comes from
-/// `base` (the scene's `[pose]`). The result has passed [`gate_pose`]; a refusal reads
-/// `field: reason (value)`, the same text everywhere.
+/// `base` (the scene's `[pose]`). The result has passed [`gate_pose`] with the scene's
+/// `lim`; a refusal reads `field: reason (value)`, the same text everywhere.
 pub fn pose_from_numbers(
+    lim: &PoseLimits,
     base: &Pose,
     position: [f64; 3],
     attitude: Option<[f64; 4]>,
@@ -108,7 +158,7 @@ pub fn pose_from_numbers(
     if let Some(s) = sun {
         p.sun_dir = DVec3::from_array(s);
     }
-    gate_pose(&p).map_err(|e| format!("{}: {}", e.field, e.message))
+    gate_pose(&p, lim).map_err(|e| format!("{}: {}", e.field, e.message))
 }
 
 fn fmt3(v: DVec3) -> String {
@@ -148,39 +198,49 @@ mod tests {
     #[test]
     fn the_gate_names_the_field_and_the_reason() {
         let ok = Pose::ahead(10.0);
-        assert!(gate_pose(&ok).is_ok());
-        let e = gate_pose(&Pose { attitude: DQuat::from_xyzw(0.0, 0.0, 0.0, 2.0), ..ok }).unwrap_err();
+        assert!(gate_pose(&ok, &PoseLimits::default()).is_ok());
+        let e = gate_pose(&Pose { attitude: DQuat::from_xyzw(0.0, 0.0, 0.0, 2.0), ..ok }, &PoseLimits::default())
+            .unwrap_err();
         assert_eq!(e.field, "pose.attitude");
         assert!(e.message.contains("quaternion norm outside tolerance") && e.message.contains("norm 2"), "{e:?}");
-        let e = gate_pose(&Pose { attitude: DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), ..ok }).unwrap_err();
+        let e = gate_pose(&Pose { attitude: DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), ..ok }, &PoseLimits::default())
+            .unwrap_err();
         assert_eq!(e.field, "pose.attitude");
-        let e = gate_pose(&Pose { sun_dir: DVec3::ZERO, ..ok }).unwrap_err();
+        let e = gate_pose(&Pose { sun_dir: DVec3::ZERO, ..ok }, &PoseLimits::default()).unwrap_err();
         assert_eq!(e.field, "pose.sun");
-        let e = gate_pose(&Pose { position: DVec3::new(0.0, 0.0, 1e200), ..ok }).unwrap_err();
+        let e = gate_pose(&Pose { position: DVec3::new(0.0, 0.0, 1e200), ..ok }, &PoseLimits::default()).unwrap_err();
         assert!(e.field == "pose.position" && e.message.contains("range above maximum"), "{e:?}");
-        let e = gate_pose(&Pose { position: DVec3::new(f64::NAN, 0.0, 1.0), ..ok }).unwrap_err();
+        let e =
+            gate_pose(&Pose { position: DVec3::new(f64::NAN, 0.0, 1.0), ..ok }, &PoseLimits::default()).unwrap_err();
         assert!(e.field == "pose.position" && e.message.contains("non-finite"), "{e:?}");
     }
 
     #[test]
     fn a_huge_sun_direction_is_normalised_robustly() {
         let p = Pose { sun_dir: DVec3::new(1e300, 0.0, -1e300), ..Pose::ahead(10.0) };
-        let g = gate_pose(&p).unwrap();
+        let g = gate_pose(&p, &PoseLimits::default()).unwrap();
         assert!((g.sun_dir - DVec3::new(1.0, 0.0, -1.0).normalize()).length() < 1e-15, "{}", g.sun_dir);
         let p = Pose { sun_dir: DVec3::new(1e-320, 0.0, 0.0), ..Pose::ahead(10.0) };
-        assert_eq!(gate_pose(&p).unwrap().sun_dir, DVec3::X);
+        assert_eq!(gate_pose(&p, &PoseLimits::default()).unwrap().sun_dir, DVec3::X);
     }
 
     #[test]
     fn numbers_keep_what_is_not_given_and_pass_the_gate() {
         let base = Pose { sun_dir: DVec3::new(0.0, 0.0, -1.0), ..Pose::ahead(10.0) };
-        let p = pose_from_numbers(&base, [1.0, 2.0, 30.0], None, None).unwrap();
+        let p = pose_from_numbers(&PoseLimits::default(), &base, [1.0, 2.0, 30.0], None, None).unwrap();
         assert_eq!((p.position, p.attitude, p.sun_dir), (DVec3::new(1.0, 2.0, 30.0), base.attitude, base.sun_dir));
-        let p = pose_from_numbers(&base, [0.0, 0.0, 5.0], Some([0.0, 1.0, 0.0, 0.0]), Some([0.0, 2.0, 0.0])).unwrap();
+        let p = pose_from_numbers(
+            &PoseLimits::default(),
+            &base,
+            [0.0, 0.0, 5.0],
+            Some([0.0, 1.0, 0.0, 0.0]),
+            Some([0.0, 2.0, 0.0]),
+        )
+        .unwrap();
         assert_eq!((p.attitude, p.sun_dir), (DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0), DVec3::Y));
-        let e = pose_from_numbers(&base, [f64::NAN, 0.0, 5.0], None, None).unwrap_err();
+        let e = pose_from_numbers(&PoseLimits::default(), &base, [f64::NAN, 0.0, 5.0], None, None).unwrap_err();
         assert_eq!(e, "pose.position: non-finite value ([NaN, 0, 5])");
-        let e = pose_from_numbers(&base, [0.0, 0.0, 5.0], None, Some([0.0; 3])).unwrap_err();
+        let e = pose_from_numbers(&PoseLimits::default(), &base, [0.0, 0.0, 5.0], None, Some([0.0; 3])).unwrap_err();
         assert_eq!(e, "pose.sun: direction is zero (got [0, 0, 0])");
     }
 }

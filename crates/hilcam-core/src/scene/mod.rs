@@ -38,6 +38,8 @@ pub struct Scene {
     pub sensor: SensorConfig,
     pub pose: Pose,
     pub render: RenderSettings,
+    /// `[limits]`: the largest pose range and mesh scale.
+    pub limits: limits::SceneLimits,
 }
 
 /// What a scene is made of before the acceleration structure is built.
@@ -56,6 +58,8 @@ pub struct SceneParts {
     pub stars: Option<StarField>,
     /// A planet behind the target (`[planet]`), if any.
     pub planet: Option<crate::render::planet::Planet>,
+    /// `[limits]` (default: [`limits::SceneLimits::default`]).
+    pub limits: limits::SceneLimits,
 }
 
 impl Scene {
@@ -73,11 +77,28 @@ impl Scene {
             layout,
             stars,
             planet,
+            limits,
         } = parts;
         let mut target = Target::build(mesh, materials, sun_irradiance, background, layout);
         target.stars = stars;
         target.planet = planet;
-        Scene { target, camera, sensor, pose, render }
+        Scene { target, camera, sensor, pose, render, limits }
+    }
+
+    /// The gate every pose of this scene passes, from every input: its `[limits]`
+    /// range and its planet's radius (a pose may move the planet only if there is one).
+    pub fn pose_limits(&self) -> crate::pose::validate::PoseLimits {
+        self.limits.pose_limits(self.target.planet.map(|p| p.radius_m))
+    }
+
+    /// The scene's planet moved to `pose`'s planet centre when the pose carries one
+    /// (checked by the pose gate), else the scene's planet as it stands.
+    pub fn planet_at(&self, pose: &Pose) -> Option<crate::render::planet::Planet> {
+        let p = self.target.planet?;
+        Some(match pose.planet_centre {
+            Some(c) => crate::render::planet::Planet { centre_cam: c, ..p },
+            None => p,
+        })
     }
 }
 

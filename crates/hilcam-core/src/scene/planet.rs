@@ -21,7 +21,7 @@ pub const MOON: (f64, f64) = (1.7374e6, 0.11);
 /// Radius, metres: a 1 m boulder up to ten times Jupiter.
 pub const RADIUS_M: (f64, f64) = (1.0, 1.0e9);
 /// Distance of the centre from the camera, metres: up to 100 AU.
-pub const MAX_DISTANCE_M: f64 = 1.5e13;
+pub const MAX_DISTANCE_M: f64 = crate::pose::validate::MAX_PLANET_DISTANCE_M;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

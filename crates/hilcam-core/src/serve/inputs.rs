@@ -21,22 +21,25 @@ const CHANNEL_DEPTH: usize = 1024;
 /// `shutdown` (`None` task for `kind = "none"`: the channel is closed at once).
 /// Start the configured input. `fill_rates`: the camera integrates over its exposure, so
 /// trajectory rows without rates get them from their neighbours
-/// ([`crate::pose::rates::fill_missing_rates`]).
+/// ([`crate::pose::rates::fill_missing_rates`]). `limits`: the scene's pose gate
+/// (`Scene::pose_limits`: its `[limits]` range and its planet).
 pub fn start(
     cfg: &InputConfig,
     counters: Arc<InputCounters>,
     shutdown: &Shutdown,
     fill_rates: bool,
+    limits: PoseLimits,
 ) -> anyhow::Result<(mpsc::Receiver<InputEvent>, Option<JoinHandle<()>>)> {
     let (tx, rx) = mpsc::channel::<InputEvent>(CHANNEL_DEPTH);
     let stop = shutdown.clone().wait_owned();
     let task = match cfg {
         InputConfig::Serial(i) => {
-            let sc = SerialConfig::new(i.device.clone(), i.baud);
+            let sc = SerialConfig { limits, ..SerialConfig::new(i.device.clone(), i.baud) };
             Some(tokio::spawn(crate::link::serial::run_serial(sc, tx, counters, stop)))
         }
         InputConfig::Slcan(i) => {
-            let sc = slcan_config(i)?;
+            let mut sc = slcan_config(i)?;
+            sc.serial.limits = limits;
             Some(tokio::spawn(async move {
                 if let Err(e) = crate::link::slcan::run_slcan(sc, tx, counters, stop).await {
                     tracing::error!("{e}");
@@ -44,7 +47,7 @@ pub fn start(
             }))
         }
         InputConfig::Socketcan(i) => {
-            let sc = socketcan_config(i)?;
+            let sc = SocketCanConfig { limits, ..socketcan_config(i)? };
             Some(tokio::spawn(crate::link::socketcan::run_socketcan(sc, tx, counters, stop)))
         }
         InputConfig::Trajectory(i) => {
@@ -53,7 +56,7 @@ pub fn start(
             if fill_rates {
                 crate::pose::rates::fill_missing_rates(&mut samples);
             }
-            let gate = EventSink::new(tx, counters, PoseLimits::default(), format!("trajectory {}", file.display()));
+            let gate = EventSink::new(tx, counters, limits, format!("trajectory {}", file.display()));
             Some(tokio::spawn(replay_trajectory(samples, *speed, gate, stop)))
         }
         InputConfig::None {} => None,

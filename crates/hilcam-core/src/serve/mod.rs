@@ -109,7 +109,7 @@ pub async fn run(
     let input_name = if embed.inputs.is_some() { "embedded" } else { cfg.input.kind() };
     let (inputs, input_task) = match embed.inputs.take() {
         Some(rx) => (rx, None),
-        None => inputs::start(&cfg.input, counters.clone(), &shutdown, exposure_start)?,
+        None => inputs::start(&cfg.input, counters.clone(), &shutdown, exposure_start, scene.pose_limits())?,
     };
     let out = Outputs::start(&cfg, &scene, &camera, &registry, inputs).await?;
     let session = session_file::start(&cfg, &camera, &settings, input_name, clock, &registry)?;

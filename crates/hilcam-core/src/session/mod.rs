@@ -53,6 +53,9 @@ pub struct PoseFields {
     /// (w, x, y, z), camera → inertial.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera_to_inertial: Option<[f64; 4]>,
+    /// The planet's centre, camera frame, m (a pose that moves the scene's planet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planet_centre: Option<[f64; 3]>,
 }
 
 impl From<&Pose> for PoseFields {
@@ -67,6 +70,7 @@ impl From<&Pose> for PoseFields {
             velocity: p.velocity.map(|v| v.to_array()),
             angular_rate: p.angular_rate.map(|v| v.to_array()),
             camera_to_inertial: p.camera_to_inertial.map(|q| [q.w, q.x, q.y, q.z]),
+            planet_centre: p.planet_centre.map(|c| c.to_array()),
         }
     }
 }
@@ -83,6 +87,7 @@ impl PoseFields {
             velocity: self.velocity.map(DVec3::from_array),
             angular_rate: self.angular_rate.map(DVec3::from_array),
             camera_to_inertial: self.camera_to_inertial.map(|[w, x, y, z]| DQuat::from_xyzw(x, y, z, w)),
+            planet_centre: self.planet_centre.map(DVec3::from_array),
         }
     }
 }
@@ -428,6 +433,7 @@ mod tests {
             velocity: Some(DVec3::new(f64::MIN_POSITIVE, 5e-324, -7.25)),
             angular_rate: None,
             camera_to_inertial: None,
+            planet_centre: None,
         }
     }
 
@@ -472,6 +478,7 @@ mod tests {
         v.extend(p.attitude.to_array());
         v.extend(p.sun_dir.to_array());
         v.extend(p.velocity.map_or([0.0; 3], |x| x.to_array()));
+        v.extend(p.planet_centre.map_or([0.0; 3], |x| x.to_array()));
         v.iter().map(|x| x.to_bits()).collect()
     }
 
@@ -515,6 +522,7 @@ mod tests {
                 attitude: DQuat::from_xyzw(f(), f(), f(), f()),
                 sun_dir: DVec3::new(f(), f(), f()),
                 velocity: Some(DVec3::new(f(), f(), f())),
+                planet_centre: Some(DVec3::new(f(), f(), f())),
                 ..pose()
             };
             let t = SessionLine::Pose(PoseLine { mono_ns: 0, unix_ns: 0, source: String::new(), pose: (&p).into() });
