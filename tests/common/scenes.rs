@@ -85,6 +85,7 @@ pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Po
         layout: BvhLayout::Bvh2,
         stars: None,
         planet: None,
+        texturing: None,
     })
 }
 

@@ -35,6 +35,7 @@ mod shadow_packet;
 mod silhouette;
 mod stars;
 mod sun_shadow;
+mod texture;
 mod trade;
 mod truth;
 mod waves;

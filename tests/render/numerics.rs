@@ -73,6 +73,7 @@ fn grooved_scene(mesh: TriMesh, cam: &CameraModel, range: f64, settings: RenderS
         layout,
         stars: None,
         planet: None,
+        texturing: None,
     })
 }
 

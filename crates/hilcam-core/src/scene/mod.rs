@@ -13,6 +13,8 @@ pub mod mtl_bsdf;
 pub mod obj;
 pub mod obj_faces;
 pub mod planet;
+pub mod texture_file;
+mod textures;
 
 use crate::pose::Pose;
 use crate::render::camera::CameraModel;
@@ -56,6 +58,8 @@ pub struct SceneParts {
     pub stars: Option<StarField>,
     /// A planet behind the target (`[planet]`), if any.
     pub planet: Option<crate::render::planet::Planet>,
+    /// Base-colour textures and the UVs of the mesh's triangles, if a material is textured.
+    pub texturing: Option<crate::render::texture::Texturing>,
 }
 
 impl Scene {
@@ -73,10 +77,12 @@ impl Scene {
             layout,
             stars,
             planet,
+            texturing,
         } = parts;
         let mut target = Target::build(mesh, materials, sun_irradiance, background, layout);
         target.stars = stars;
         target.planet = planet;
+        target.texturing = texturing.map(Box::new);
         Scene { target, camera, sensor, pose, render }
     }
 }

@@ -75,6 +75,7 @@ impl PlaneCase {
             layout: BvhLayout::default(),
             stars: None,
             planet: None,
+            texturing: None,
         });
         let view =
             View::new(&camera, &pose, scene.frame_origin_body, scene.bounds).with_parts(Some(scene.parts.clone()));
