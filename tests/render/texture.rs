@@ -399,3 +399,33 @@ fn the_shipped_textured_satellite_files_are_what_the_script_writes() {
         assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/textured_satellite/{f} is stale");
     }
 }
+
+#[test]
+fn a_gltf_base_colour_texture_on_another_uv_set_is_reported_not_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = plate_glb(&quadrant_png());
+    // The plate's GLB with `texCoord` 1 on its texture: the JSON chunk rewritten, its
+    // length and the file's total updated.
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json = String::from_utf8(glb[20..20 + json_len].to_vec()).unwrap();
+    let edited =
+        json.replacen(r#""baseColorTexture":{"index":0}"#, r#""baseColorTexture":{"index":0,"texCoord":1}"#, 1);
+    let mut out = glb[..12].to_vec();
+    let mut j = edited.into_bytes();
+    while !j.len().is_multiple_of(4) {
+        j.push(b' ');
+    }
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&glb[20 + json_len..]);
+    let total = out.len() as u32;
+    out[8..12].copy_from_slice(&total.to_le_bytes());
+    std::fs::write(dir.path().join("plate.glb"), out).unwrap();
+    let (s, log) = load_logged(&write_scene(dir.path(), "s.toml", "plate.glb", 1));
+    assert!(s.target.texturing.is_none());
+    assert!(
+        log.contains("`baseColorTexture` (texture 0) ignored: it uses texCoord 1, hilcam reads TEXCOORD_0 only: plate.glb, material `panel`"),
+        "{log}"
+    );
+}
