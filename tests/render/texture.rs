@@ -429,3 +429,19 @@ fn a_gltf_base_colour_texture_on_another_uv_set_is_reported_not_used() {
         "{log}"
     );
 }
+
+#[test]
+fn the_hybrid_method_path_traces_a_textured_target() {
+    // Its fragments would shade with the material's own BRDF: the frame falls back to the
+    // path tracer (docs/render.md), the same bytes as `method = "path"`.
+    let dir = tempfile::tempdir().unwrap();
+    let (mut s, _) = checker_scene(dir.path(), 4);
+    let path = frame(&s);
+    s.render.method = hilcam_core::render::integrator::Method::Hybrid;
+    assert!(frame(&s) == path, "a hybrid frame of a textured target is not the path-traced one");
+    // The control: without its texture the same plate is rasterised, other bytes.
+    s.target.texturing = None;
+    let hybrid = frame(&s);
+    s.render.method = hilcam_core::render::integrator::Method::Path;
+    assert!(frame(&s) != hybrid, "the hybrid method did not run on the untextured plate");
+}
