@@ -445,3 +445,16 @@ fn the_hybrid_method_path_traces_a_textured_target() {
     s.render.method = hilcam_core::render::integrator::Method::Path;
     assert!(frame(&s) != hybrid, "the hybrid method did not run on the untextured plate");
 }
+
+#[test]
+fn a_textured_frame_is_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let (s, _) = checker_scene(dir.path(), 3);
+    let at = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| frame(&s))
+    };
+    let one = at(1);
+    assert!(one.iter().any(|&v| v > 0.0));
+    assert!(at(2) == one && at(3) == one, "the frame depends on the thread count");
+}
