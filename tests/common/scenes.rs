@@ -86,6 +86,7 @@ pub fn scene(mesh: TriMesh, materials: Vec<Material>, cam: CameraModel, pose: Po
         stars: None,
         planet: None,
         limits: Default::default(),
+        texturing: None,
     })
 }
 

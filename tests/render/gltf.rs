@@ -224,7 +224,10 @@ fn textures_and_unused_material_properties_are_reported_by_file_and_material() {
     let log = String::from_utf8(buf.0.lock().unwrap().clone()).unwrap();
     assert_eq!(s.target.materials[0].bsdf.model_name(), "ggx_conductor");
     for want in [
-        "`baseColorTexture` (texture 0) ignored: textures are not supported yet: cells.glb, material `cells`",
+        // The texture is used, but its file is missing: a warning, and the factor renders.
+        "cells.png` cannot be read",
+        ": cells.glb, material `cells`; the material's factor is used",
+        "mesh `plate` primitive 0: its material is textured but it has no TEXCOORD_0",
         "`emissiveFactor` ignored (hilcam has no emitting surfaces yet): cells.glb, material `cells`",
         "`doubleSided` false ignored",
     ] {

@@ -36,6 +36,7 @@ mod shadow_packet;
 mod silhouette;
 mod stars;
 mod sun_shadow;
+mod texture;
 mod trade;
 mod truth;
 mod waves;

@@ -74,6 +74,7 @@ fn grooved_scene(mesh: TriMesh, cam: &CameraModel, range: f64, settings: RenderS
         stars: None,
         planet: None,
         limits: Default::default(),
+        texturing: None,
     })
 }
 

@@ -39,6 +39,7 @@ pub mod sampling;
 pub mod sensor_plan;
 pub mod stars;
 pub mod target;
+pub mod texture;
 pub mod truth;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -212,7 +213,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         samples = h.covered_pixels * crate::render::hybrid::pattern::SAMPLES as u64;
     }
     if let Some(rect) = rect.filter(|_| hybrid_frame.is_none()) {
-        let ctx = PathContext::new(target, view.sun, settings);
+        let ctx = PathContext::new(target, view.sun, settings).with_view(view, settings);
         // The silhouette spans and the rasteriser hold for one camera position: a moving
         // view skips only the pixels no leaf box reaches at any instant of its exposure
         // (`Coverage::from_leaf_boxes`), each primary ray traced from where the camera is

@@ -10,6 +10,7 @@ use crate::render::geometry::spawn::TrianglePlane;
 use crate::render::geometry::{Accel, BvhLayout, TriMesh};
 use crate::render::planet::Planet;
 use crate::render::stars::StarField;
+use crate::render::texture::Texturing;
 use glam::{DVec3, Vec3};
 
 /// A named material and its BRDF.
@@ -65,6 +66,9 @@ pub struct Target {
     pub stars: Option<StarField>,
     /// A planet behind the target (`render::planet`), if the scene has one.
     pub planet: Option<Planet>,
+    /// Base-colour textures and the triangles' UVs (`render::texture`); `None` unless a
+    /// material is textured.
+    pub texturing: Option<Box<Texturing>>,
 }
 
 impl Target {
@@ -132,6 +136,7 @@ impl Target {
             background: background as f32,
             stars: None,
             planet: None,
+            texturing: None,
         }
     }
 

@@ -12,6 +12,8 @@ pub struct AuthoredBsdf {
     pub bsdf: Bsdf,
     /// One note per unused or adjusted value, each naming its file and place.
     pub notes: Vec<String>,
+    /// The base colour's texture (MTL `map_Kd`, glTF `baseColorTexture`), if it has one.
+    pub base_texture: Option<super::texture_file::TextureRef>,
 }
 
 /// The metallic-roughness material (glTF 2.0, the MTL PBR extension) at one band: a GGX

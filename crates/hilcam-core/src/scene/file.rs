@@ -45,10 +45,12 @@
 //! sampler = "cosine"
 //! seed = 0
 //! bvh = "bvh8"                 # the default; the lab build also has "bvh4", "bvh2", "cwbvh"
+//! texture_filter = "mip"       # the default; "bilinear": full resolution (docs/brdf.md)
 //! ```
 
 use super::limits;
 use super::model::load_model;
+use super::texture_file::TextureRef;
 use super::{Material, Scene, SceneParts};
 use crate::pose::Pose;
 use crate::render::bsdf::BsdfSpec;
@@ -58,6 +60,7 @@ use crate::render::integrator::{Method, QualityGoal, QualityMode, RenderSettings
 use crate::render::sampling::Sequence;
 use crate::render::stars::catalogue::Selection;
 use crate::render::stars::{StarField, band_zero_point_w_m2};
+use crate::render::texture::TextureFilter;
 use crate::scene::fold::{
     FoldLevel, FoldTarget, MAX_WRAP_TRIANGLES, fit_for_edge, fit_panel_triangle_estimate, wrap_faces_report,
     wrap_triangle_estimate,
@@ -307,6 +310,10 @@ struct RenderSection {
     /// Any of the four names; a lab layout in a build without it is refused below.
     #[serde(default = "default_bvh")]
     bvh: Spanned<BvhLayout>,
+    /// `"mip"` (camera hits prefiltered over the spp-scaled pixel footprint) or
+    /// `"bilinear"` (full resolution everywhere).
+    #[serde(default)]
+    texture_filter: TextureFilter,
 }
 
 fn yes() -> bool {
@@ -343,6 +350,7 @@ impl Default for RenderSection {
             method: Method::default(),
             seed: 0,
             bvh: default_bvh(),
+            texture_filter: TextureFilter::default(),
         }
     }
 }
@@ -409,6 +417,10 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     // Materials built from a model file, and which file: a later file's different
     // definition of the same name is reported.
     let mut authored_from: Vec<(u32, PathBuf)> = Vec::new();
+    // Textured materials (scene index, texture) and the UVs of every triangle so far
+    // (empty until a textured model comes: textureless scenes store none).
+    let mut base_textures: Vec<(u32, TextureRef)> = Vec::new();
+    let mut uv: Vec<[glam::Vec2; 3]> = Vec::new();
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
         let obj_path = dir.join(entry.obj.get_ref());
@@ -461,6 +473,13 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 }
                 tracing::info!(material = %name, file = %obj_path.display(), bsdf = %super::authored::describe(&built.bsdf), "material from the model file");
                 materials.push(Material { name: name.clone(), bsdf: built.bsdf });
+                if let Some(t) = built.base_texture {
+                    if loaded.uv.is_empty() {
+                        tracing::warn!(material = %name, "texture `{}` ignored: {} has no texture coordinates (`vt`, TEXCOORD_0) for it; its factor is used: {}", t.name(), obj_path.display(), t.at);
+                    } else {
+                        base_textures.push(((materials.len() - 1) as u32, t));
+                    }
+                }
                 map.push((materials.len() - 1) as u32);
                 authored_from.push(((materials.len() - 1) as u32, obj_path.clone()));
                 continue;
@@ -490,7 +509,23 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         for mat in &mut m.material {
             *mat = map[*mat as usize];
         }
+        if !loaded.uv.is_empty() {
+            uv.resize(mesh.indices.len(), [glam::Vec2::ZERO; 3]);
+            uv.extend_from_slice(&loaded.uv);
+        }
         mesh.append(&m);
+    }
+    if !uv.is_empty() {
+        uv.resize(mesh.indices.len(), [glam::Vec2::ZERO; 3]);
+    }
+    if !file.wrap.is_empty() && !base_textures.is_empty() {
+        for (_, t) in base_textures.drain(..) {
+            tracing::warn!(
+                "texture `{}` ignored: [[wrap]] re-triangulates the mesh and does not carry texture coordinates yet; its factor is used: {}",
+                t.name(),
+                t.at
+            );
+        }
     }
 
     for (k, w) in file.wrap.iter().enumerate() {
@@ -599,7 +634,9 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         None => None,
         Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor, camera.focal_px())?),
     };
+    let texturing = super::textures::build(&materials, base_textures, uv, file.render.texture_filter);
     Ok(SceneParts {
+        texturing,
         mesh,
         materials,
         sun_irradiance: irradiance,

@@ -7,16 +7,20 @@
 //! - Refused, naming the file: primitives other than triangles, Draco
 //!   (`KHR_draco_mesh_compression`) and quantized (`KHR_mesh_quantization`, or any
 //!   non-float position) meshes, indices past the vertex count, unreadable buffers.
+//! - `baseColorTexture` with texture coordinate set 0 is used (UV origin the image's
+//!   top-left, sRGB, times `baseColorFactor`; `scene::texture_file`).
 //! - Reported (a note naming the file and the material), never silently dropped: every
-//!   texture reference (textures are not supported yet), emission, alpha, single-sided
-//!   materials, every extension used, animations and skins.
+//!   other texture reference and texture set, emission, alpha, single-sided materials,
+//!   every extension used, animations and skins.
 
 use super::authored::{AuthoredBsdf, MIN_ROUGHNESS, metallic_roughness};
 use super::model::{AuthoredMaterials, ModelMesh};
+use super::texture_file::{ImageSource, TextureRef};
 use crate::render::bsdf::GLTF_DIELECTRIC_IOR;
 use crate::render::geometry::TriMesh;
 use glam::{DMat4, DVec3, Vec3};
 use gltf::mesh::Mode;
+use gltf::texture::WrappingMode;
 use std::path::Path;
 
 /// Largest vertex coordinate accepted, metres after the node transforms (as OBJ's).
@@ -62,7 +66,10 @@ fn load(path: &Path) -> Result<ModelMesh, String> {
         notes.push(format!("{} skin(s) ignored: the rest pose is rendered", doc.skins().len()));
     }
 
-    let (materials, names) = materials(doc, path);
+    let (materials, names) = materials(doc, path, &buffers);
+    // UVs (TEXCOORD_0) only when some material is textured.
+    let textured: Vec<bool> = materials.iter().map(|m| m.as_ref().is_ok_and(|b| b.base_texture.is_some())).collect();
+    let mut uv: Vec<[glam::Vec2; 3]> = Vec::new();
     let mut mesh = TriMesh::default();
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().collect(),
@@ -74,7 +81,9 @@ fn load(path: &Path) -> Result<ModelMesh, String> {
     while let Some((node, parent)) = stack.pop() {
         let m = parent * DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         if let Some(gmesh) = node.mesh() {
-            append_mesh(&mut mesh, &gmesh, m, &buffers, names.len() - 1)?;
+            let want_uv =
+                textured.iter().any(|&t| t).then_some(UvOut { textured: &textured, uv: &mut uv, notes: &mut notes });
+            append_mesh(&mut mesh, &gmesh, m, &buffers, names.len() - 1, want_uv)?;
         }
         let children: Vec<gltf::Node> = node.children().collect();
         stack.extend(children.into_iter().rev().map(|c| (c, m)));
@@ -95,7 +104,10 @@ fn load(path: &Path) -> Result<ModelMesh, String> {
         }
         *m = remap[i];
     }
-    Ok(ModelMesh { mesh, material_names, authored: AuthoredMaterials::Gltf(authored), notes })
+    if !uv.is_empty() {
+        uv.resize(mesh.indices.len(), [glam::Vec2::ZERO; 3]);
+    }
+    Ok(ModelMesh { mesh, material_names, authored: AuthoredMaterials::Gltf(authored), notes, uv })
 }
 
 /// Each buffer's bytes: the GLB's binary chunk, a base64 data URI, or a file beside the
@@ -129,7 +141,11 @@ fn read_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, String> 
 
 /// Every material of the file built (index `len` is glTF's default material, for
 /// primitives without one), and their unique names.
-fn materials(doc: &gltf::Document, path: &Path) -> (Vec<Result<AuthoredBsdf, String>>, Vec<String>) {
+fn materials(
+    doc: &gltf::Document,
+    path: &Path,
+    buffers: &[Vec<u8>],
+) -> (Vec<Result<AuthoredBsdf, String>>, Vec<String>) {
     let file = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into());
     let mut built = Vec::new();
     let mut names: Vec<String> = Vec::new();
@@ -139,18 +155,24 @@ fn materials(doc: &gltf::Document, path: &Path) -> (Vec<Result<AuthoredBsdf, Str
         if names.contains(&name) || name == "default" {
             name = format!("{name}#{i}");
         }
-        built.push(material(&m, &name, &file));
+        built.push(material(&m, &name, &file, path, buffers));
         names.push(name);
     }
     // glTF's default material: base colour 1, metallic 1, roughness 1.
     let bsdf = metallic_roughness(1.0, 1.0, 1.0, GLTF_DIELECTRIC_IOR).map_err(|e| e.to_string());
-    built.push(bsdf.map(|bsdf| AuthoredBsdf { bsdf, notes: Vec::new() }));
+    built.push(bsdf.map(|bsdf| AuthoredBsdf { bsdf, notes: Vec::new(), base_texture: None }));
     names.push("default".to_string());
     (built, names)
 }
 
 /// One material: the factors as GGX, every texture and unused property a note.
-fn material(m: &gltf::Material, name: &str, file: &str) -> Result<AuthoredBsdf, String> {
+fn material(
+    m: &gltf::Material,
+    name: &str,
+    file: &str,
+    path: &Path,
+    buffers: &[Vec<u8>],
+) -> Result<AuthoredBsdf, String> {
     let at = format!("{file}, material `{name}`");
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, a] = pbr.base_color_factor();
@@ -164,8 +186,32 @@ fn material(m: &gltf::Material, name: &str, file: &str) -> Result<AuthoredBsdf, 
         ));
         roughness = MIN_ROUGHNESS;
     }
+    // The base colour's texture, with TEXCOORD_0 (other sets are reported, not used).
+    let mut base_texture = None;
+    if let Some(info) = pbr.base_color_texture() {
+        let t = info.texture();
+        if info.tex_coord() != 0 {
+            notes.push(format!(
+                "`baseColorTexture` (texture {}) ignored: it uses texCoord {}, hilcam reads TEXCOORD_0 only: {at}",
+                t.index(),
+                info.tex_coord()
+            ));
+        } else {
+            match image_source(&t.source(), path, buffers) {
+                Ok(source) => base_texture = Some(TextureRef { source, factor: [r, g, b], at: at.clone() }),
+                Err(e) => notes.push(format!("`baseColorTexture` (texture {}) ignored: {e}: {at}", t.index())),
+            }
+            let s = t.sampler();
+            if s.wrap_s() != WrappingMode::Repeat || s.wrap_t() != WrappingMode::Repeat {
+                notes.push(format!(
+                    "`baseColorTexture` sampler wrap ({:?}, {:?}) ignored: textures repeat: {at}",
+                    s.wrap_s(),
+                    s.wrap_t()
+                ));
+            }
+        }
+    }
     let textures = [
-        ("baseColorTexture", pbr.base_color_texture().map(|t| t.texture().index())),
         ("metallicRoughnessTexture", pbr.metallic_roughness_texture().map(|t| t.texture().index())),
         ("normalTexture", m.normal_texture().map(|t| t.texture().index())),
         ("occlusionTexture", m.occlusion_texture().map(|t| t.texture().index())),
@@ -173,7 +219,7 @@ fn material(m: &gltf::Material, name: &str, file: &str) -> Result<AuthoredBsdf, 
     ];
     for (what, tex) in textures {
         if let Some(t) = tex {
-            notes.push(format!("`{what}` (texture {t}) ignored: textures are not supported yet: {at}"));
+            notes.push(format!("`{what}` (texture {t}) ignored: only base-colour textures are used: {at}"));
         }
     }
     if m.emissive_factor() != [0.0; 3] {
@@ -186,7 +232,60 @@ fn material(m: &gltf::Material, name: &str, file: &str) -> Result<AuthoredBsdf, 
         notes.push(format!("`doubleSided` false ignored: hilcam's surfaces are two-sided: {at}"));
     }
     let bsdf = metallic_roughness(base, metallic, roughness, GLTF_DIELECTRIC_IOR).map_err(|e| format!("{at}: {e}"))?;
-    Ok(AuthoredBsdf { bsdf, notes })
+    Ok(AuthoredBsdf { bsdf, notes, base_texture })
+}
+
+/// Where an image's encoded bytes are: a buffer view (GLB), a base64 data URI, or a file
+/// beside the glTF.
+fn image_source(img: &gltf::Image, path: &Path, buffers: &[Vec<u8>]) -> Result<ImageSource, String> {
+    let name = img.name().map_or_else(|| format!("image {}", img.index()), |n| format!("image `{n}`"));
+    match img.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = buffers.get(view.buffer().index()).ok_or_else(|| format!("{name}: buffer missing"))?;
+            let bytes = data
+                .get(view.offset()..view.offset() + view.length())
+                .ok_or_else(|| format!("{name}: buffer view past its buffer"))?;
+            Ok(ImageSource::Bytes { name, data: bytes.into() })
+        }
+        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+            let (_, payload) =
+                uri.split_once(";base64,").ok_or_else(|| format!("{name}: only base64 data URIs are read"))?;
+            let data = super::base64::decode(payload).map_err(|e| format!("{name}: {e}"))?;
+            Ok(ImageSource::Bytes { name, data: data.into() })
+        }
+        gltf::image::Source::Uri { uri, .. } => {
+            Ok(ImageSource::File(path.parent().unwrap_or(Path::new(".")).join(percent_decoded(uri))))
+        }
+    }
+}
+
+/// A URI's `%XX` escapes decoded (glTF file names are URIs: `solar%20cells.png`).
+fn percent_decoded(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = b.get(i + 1..i + 3).and_then(|h| u8::from_str_radix(std::str::from_utf8(h).ok()?, 16).ok());
+        match (b[i], hex) {
+            (b'%', Some(v)) => {
+                out.push(v);
+                i += 3;
+            }
+            (c, _) => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Where [`append_mesh`] puts texture coordinates: which materials are textured (by
+/// glTF index), the UVs per triangle so far, and the file's notes.
+struct UvOut<'a> {
+    textured: &'a [bool],
+    uv: &'a mut Vec<[glam::Vec2; 3]>,
+    notes: &'a mut Vec<String>,
 }
 
 /// Append a mesh's triangle primitives, transformed by `m` (node to body frame);
@@ -197,6 +296,7 @@ fn append_mesh(
     m: DMat4,
     buffers: &[Vec<u8>],
     default: usize,
+    mut uv: Option<UvOut>,
 ) -> Result<(), String> {
     let mname = gmesh.name().map_or_else(|| format!("{}", gmesh.index()), |n| format!("`{n}`"));
     // A mirroring transform reverses the winding; swap two corners to keep it.
@@ -236,6 +336,26 @@ fn append_mesh(
                 return Err(format!("{at}: vertex {v} must be finite and within ±{MAX_COORD:e} m"));
             }
             out.positions.push(Vec3::new(v.x as f32, v.y as f32, v.z as f32));
+        }
+        // glTF's UV origin is the image's top-left: (s, t) = (u, v) as they are.
+        if let Some(UvOut { textured, uv, notes }) = uv.as_mut()
+            && textured.get(mat).copied().unwrap_or(false)
+        {
+            let coords: Vec<glam::Vec2> = match reader.read_tex_coords(0) {
+                Some(c) => c.into_f32().map(glam::Vec2::from).collect(),
+                None => {
+                    notes.push(format!("{at}: its material is textured but it has no TEXCOORD_0: texel (0, 0) used"));
+                    vec![glam::Vec2::ZERO; n as usize]
+                }
+            };
+            if coords.len() != n as usize {
+                return Err(format!("{at}: {} TEXCOORD_0 for {n} vertices", coords.len()));
+            }
+            uv.resize(out.indices.len(), [glam::Vec2::ZERO; 3]);
+            for t in indices.chunks_exact(3) {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| coords[i as usize]);
+                uv.push(if flip { [a, c, b] } else { [a, b, c] });
+            }
         }
         for t in indices.chunks_exact(3) {
             let [a, b, c] = [t[0] + base, t[1] + base, t[2] + base];

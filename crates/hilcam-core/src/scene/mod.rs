@@ -13,6 +13,8 @@ pub mod mtl_bsdf;
 pub mod obj;
 pub mod obj_faces;
 pub mod planet;
+pub mod texture_file;
+mod textures;
 
 use crate::pose::Pose;
 use crate::render::camera::CameraModel;
@@ -60,6 +62,8 @@ pub struct SceneParts {
     pub planet: Option<crate::render::planet::Planet>,
     /// `[limits]` (default: [`limits::SceneLimits::default`]).
     pub limits: limits::SceneLimits,
+    /// Base-colour textures and the UVs of the mesh's triangles, if a material is textured.
+    pub texturing: Option<crate::render::texture::Texturing>,
 }
 
 impl Scene {
@@ -78,10 +82,12 @@ impl Scene {
             stars,
             planet,
             limits,
+            texturing,
         } = parts;
         let mut target = Target::build(mesh, materials, sun_irradiance, background, layout);
         target.stars = stars;
         target.planet = planet;
+        target.texturing = texturing.map(Box::new);
         Scene { target, camera, sensor, pose, render, limits }
     }
 

@@ -22,6 +22,10 @@ pub struct ModelMesh {
     pub authored: AuthoredMaterials,
     /// What the file has and hilcam does not use, file-wide (each names the file).
     pub notes: Vec<String>,
+    /// Texture coordinates `(s, t)` (t = 0 at an image's top row) at each triangle's
+    /// corners, in `mesh.indices` order; empty unless the file has a textured material
+    /// and coordinates for it.
+    pub uv: Vec<[glam::Vec2; 3]>,
 }
 
 impl ModelMesh {

@@ -17,6 +17,7 @@
 
 use super::authored::{AuthoredBsdf, MIN_ROUGHNESS, metallic_roughness};
 use super::mtl::{MtlKey, MtlMaterial};
+use super::texture_file::{ImageSource, TextureRef};
 use crate::render::bsdf::{Bsdf, Ggx, Lambert};
 
 /// Largest dielectric F0 a `Ks` maps to: the coating's index is at most 4.
@@ -139,6 +140,8 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
         }
     }
     used.push("Ke");
+    let base_texture = m.get("map_Kd").map(|k| map_kd(m, k, &mut notes)).transpose()?;
+    used.push("map_Kd");
     // Every other key, once per material.
     let mut reported: Vec<&str> = Vec::new();
     for k in &m.keys {
@@ -147,7 +150,34 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
             notes.push(format!("`{}` ignored: {}", k.key, m.at(k.line)));
         }
     }
-    Ok(AuthoredBsdf { bsdf, notes })
+    Ok(AuthoredBsdf { bsdf, notes, base_texture })
+}
+
+/// `map_Kd [options] file`: the image beside the MTL (sRGB), times `Kd`'s r g b. Options
+/// (`-s`, `-o`, `-bm`, …) are noted as ignored and the file is the last word.
+fn map_kd(m: &MtlMaterial, k: &MtlKey, notes: &mut Vec<String>) -> Result<TextureRef, String> {
+    let file = match k.args.as_slice() {
+        [] => return Err(format!("{}: map_Kd: needs a file name", m.at(k.line))),
+        args if args.iter().any(|a| a.starts_with('-')) => {
+            notes.push(format!(
+                "`map_Kd` options `{}` ignored (the image is used as is): {}",
+                args[..args.len() - 1].join(" "),
+                m.at(k.line)
+            ));
+            args[args.len() - 1].clone()
+        }
+        args => args.join(" "),
+    };
+    let factor = match m.get("Kd") {
+        None => [1.0; 3],
+        Some(kd) => match kd.args.iter().map(|a| a.parse::<f32>()).collect::<Result<Vec<_>, _>>() {
+            Ok(v) if v.len() == 3 => [v[0], v[1], v[2]],
+            Ok(v) if v.len() == 1 => [v[0]; 3],
+            _ => [band(m, kd)?; 3],
+        },
+    };
+    let dir = m.file.parent().unwrap_or(std::path::Path::new("."));
+    Ok(TextureRef { source: ImageSource::File(dir.join(file.replace('\\', "/"))), factor, at: m.at(k.line) })
 }
 
 #[cfg(test)]
@@ -199,9 +229,9 @@ mod tests {
 
     #[test]
     fn every_unused_key_is_named_once_with_file_and_line() {
-        let f = one("Kd 0.5 0.5 0.5\nmap_Kd cells.png\nPs 0.3\nillum 2\nd 1\nPs 0.4\nKa 0 0 0\nKe 1 1 1\n").unwrap();
+        let f = one("Kd 0.5 0.5 0.5\nmap_Ks cells.png\nPs 0.3\nillum 2\nd 1\nPs 0.4\nKa 0 0 0\nKe 1 1 1\n").unwrap();
         for want in [
-            "`map_Kd` ignored: panel.mtl:3",
+            "`map_Ks` ignored: panel.mtl:3",
             "`Ps` ignored: panel.mtl:4",
             "`illum` ignored: panel.mtl:5",
             "`d` ignored: panel.mtl:6",
@@ -213,6 +243,19 @@ mod tests {
         assert_eq!(f.notes.iter().filter(|n| n.contains("`Ps`")).count(), 1);
         let f = one("Kd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nPr 0.5\nNi 1.45\n").unwrap();
         assert!(f.notes.iter().any(|n| n == "`Ks` ignored (the material has `Pr`/`Pm`): panel.mtl:3"), "{:?}", f.notes);
+    }
+
+    #[test]
+    fn map_kd_is_the_image_beside_the_mtl_times_kd() {
+        let f = one("Kd 0.2 0.4 0.6\nmap_Kd -s 2 2 1 tex\\cells.png\n").unwrap();
+        let t = f.base_texture.unwrap();
+        assert_eq!(t.source, ImageSource::File("/x/tex/cells.png".into()));
+        assert_eq!((t.factor, t.at.as_str()), ([0.2, 0.4, 0.6], "panel.mtl:3"));
+        assert!(
+            f.notes.iter().any(|n| n == "`map_Kd` options `-s 2 2 1` ignored (the image is used as is): panel.mtl:3")
+        );
+        assert_eq!(one("map_Kd a b.png\n").unwrap().base_texture.unwrap().factor, [1.0; 3]);
+        assert!(one("Kd 0.5\nmap_Kd\n").unwrap_err().starts_with("panel.mtl:3: map_Kd"));
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! OBJ/MTL loading with tobj: triangles plus the MTL material name of each.
 
 use crate::render::geometry::TriMesh;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::path::Path;
 
 use super::model::{AuthoredMaterials, ModelMesh};
@@ -78,6 +78,9 @@ fn load_obj_unnamed(path: &Path) -> Result<ModelMesh, String> {
             Vec::new()
         }
     };
+    // UVs only when a material has a texture: OBJ's `v` = 0 is the image's bottom row.
+    let textured = mtl_defs.iter().any(|d| d.get("map_Kd").is_some());
+    let mut uv: Vec<[Vec2; 3]> = Vec::new();
     let mut names: Vec<String> = Vec::new();
     let mut out = TriMesh::default();
     for model in &models {
@@ -96,11 +99,28 @@ fn load_obj_unnamed(path: &Path) -> Result<ModelMesh, String> {
             out.indices.push([t[0] + base, t[1] + base, t[2] + base]);
             out.material.push(mat);
         }
+        // tobj lists a `vt` only for vertices that have one: faces mixing both leave
+        // them misaligned, so such a mesh's UVs are not used (and said).
+        let whole = m.texcoords.len() == m.positions.len() / 3 * 2;
+        if textured && !m.texcoords.is_empty() && !whole {
+            notes.push(format!(
+                "{file}: object `{}` mixes faces with and without `vt`: its texture coordinates are not used",
+                model.name
+            ));
+        }
+        if textured && !m.texcoords.is_empty() && whole {
+            let st = |i: u32| Vec2::new(m.texcoords[2 * i as usize], 1.0 - m.texcoords[2 * i as usize + 1]);
+            uv.resize(out.indices.len() - m.indices.len() / 3, [Vec2::ZERO; 3]);
+            uv.extend(m.indices.chunks_exact(3).map(|t| [st(t[0]), st(t[1]), st(t[2])]));
+        }
+    }
+    if !uv.is_empty() {
+        uv.resize(out.indices.len(), [Vec2::ZERO; 3]);
     }
     if out.indices.is_empty() {
         return Err(": no triangles".to_string());
     }
-    Ok(ModelMesh { mesh: out, material_names: names, authored: AuthoredMaterials::Mtl(mtl_defs), notes })
+    Ok(ModelMesh { mesh: out, material_names: names, authored: AuthoredMaterials::Mtl(mtl_defs), notes, uv })
 }
 
 #[cfg(test)]

@@ -76,6 +76,7 @@ impl PlaneCase {
             stars: None,
             planet: None,
             limits: Default::default(),
+            texturing: None,
         });
         let view =
             View::new(&camera, &pose, scene.frame_origin_body, scene.bounds).with_parts(Some(scene.parts.clone()));

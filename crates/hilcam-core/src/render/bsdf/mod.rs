@@ -132,6 +132,24 @@ impl Bsdf {
         dispatch!(self, b => b.pdf(wo, wi))
     }
 
+    /// This BRDF with its base colour replaced by `base` (a texel, [0, 1]): Lambert's ρ;
+    /// GGX's plastic ρ and Schlick conductor F0, as glTF's metallic-roughness uses its
+    /// base colour for both. The lobe models have no base colour and stay as they are.
+    #[inline]
+    pub fn with_base(&self, base: f32) -> Bsdf {
+        match *self {
+            Bsdf::Lambert(_) => Bsdf::Lambert(Lambert { rho: base }),
+            Bsdf::Ggx(mut g) => {
+                g.rho = base;
+                if let ConductorFresnel::Schlick { f0 } = &mut g.conductor {
+                    *f0 = base;
+                }
+                Bsdf::Ggx(g)
+            }
+            other => other,
+        }
+    }
+
     /// True if `f_r` is zero everywhere (no indirect work needed).
     pub fn is_black(&self) -> bool {
         match self {

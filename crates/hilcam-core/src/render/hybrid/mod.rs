@@ -65,7 +65,8 @@ pub fn render(
     settings: &RenderSettings,
     frame: u64,
 ) -> Option<HybridStats> {
-    if view.motion.is_some() || target.planet.is_some() {
+    // Its fragments shade with each material's own BRDF: a textured target is path-traced.
+    if view.motion.is_some() || target.planet.is_some() || target.texturing.is_some() {
         return None;
     }
     let HybridBuffers { setup, shadows } = buffers;

@@ -65,7 +65,7 @@ pub enum Method {
     Path,
     /// Sub-pixel coverage by rasterisation, the sun's light per surface fragment, indirect
     /// light by path tracing from one coverage sample per pixel (`render::hybrid`); an
-    /// instant view without a planet (else the frame is path-traced).
+    /// instant view without a planet or textures (else the frame is path-traced).
     Hybrid,
 }
 
@@ -238,6 +238,19 @@ pub struct PathContext<'a> {
     /// The planet behind the target in this frame (escaping rays may meet it; it may hide
     /// the sun).
     pub planet: Option<PlacedPlanet>,
+    /// Where the camera is and how wide its pixels are, for texture footprints; `None`
+    /// unless the target is textured (`render::texture`).
+    pub footprint: Option<Footprint>,
+}
+
+/// A camera hit's pixel footprint: `|p − eye| · per_metre` is the pixel's width across
+/// the ray at `p`, already scaled by `texture::spp_scale`.
+#[derive(Clone, Copy, Debug)]
+pub struct Footprint {
+    /// The camera's centre, render frame.
+    pub eye: Vec3,
+    /// Pixel pitch / focal length (rad per pixel) × `max(1/8, 1/√spp)`.
+    pub per_metre: f32,
 }
 
 impl<'a> PathContext<'a> {
@@ -251,7 +264,19 @@ impl<'a> PathContext<'a> {
             indirect,
             roulette: settings.roulette,
             planet: None,
+            footprint: None,
         }
+    }
+
+    /// This context with the texture footprint of `view`'s pixels at `settings.spp`
+    /// (untextured targets: none; without it camera hits look up the finest level). The pinhole's pixel angle at the boresight is
+    /// used for every pixel (a lens's distortion changes it by its few per cent).
+    pub fn with_view(self, view: &crate::render::camera::View, settings: &RenderSettings) -> Self {
+        let footprint = self.scene.texturing.as_ref().map(|_| Footprint {
+            eye: view.origin.as_vec3(),
+            per_metre: (1.0 / view.focal_px()) as f32 * crate::render::texture::spp_scale(settings.spp.get()),
+        });
+        PathContext { footprint, ..self }
     }
 
     /// This context with `planet` behind the target.
@@ -355,8 +380,23 @@ impl<'a> PathContext<'a> {
         if n.dot(wo) < 0.0 {
             n = -n;
         }
-        let bsdf = &self.scene.materials[hit.material as usize].bsdf;
         let p = ray.origin + ray.dir * hit.t;
+        let own = &self.scene.materials[hit.material as usize].bsdf;
+        let textured;
+        let bsdf = match self.scene.texturing.as_deref().and_then(|t| Some((t, t.base_of(hit.material)?))) {
+            None => own,
+            Some((tx, mip)) => {
+                // Camera hits: the pixel's footprint on the surface, √(area) of its
+                // projection (width / √cosθ); bounces: the finest level.
+                let width = self.footprint.filter(|_| bounce == 0).map(|f| {
+                    let cos = hit.normal.dot(wo).abs().max(1e-3);
+                    (p - f.eye).length() * f.per_metre / cos.sqrt()
+                });
+                let corners = self.scene.mesh.triangle(hit.tri as usize);
+                textured = own.with_base(tx.value_at(mip, hit.tri, corners, p, width));
+                &textured
+            }
+        };
         let origin = self.spawn(p, hit.tri, hit.normal, n);
         let basis = ShadingBasis::from_normal(n);
         let wo_l = basis.to_local(wo);
