@@ -89,16 +89,16 @@ def _q(v, scale):
 
 
 def compact_block(pose) -> bytes:
-    """The CAN compact pose block: flags, t_ns, f32 position, Q23 quaternion, Q15 sun, options."""
+    """The CAN compact pose block: flags, t_ns, f32 position, Q23 quaternion, Q15 sun,
+    options (velocity, rate, planet centre: f32 each)."""
     _, t_ns, pos, q, sun, vel, rate = pose[:7]
-    if len(pose) > 7 and pose[7]:
-        raise ValueError("the CAN pose block has no planet field (docs/protocol.md)")
-    flags = (1 if vel else 0) | (2 if rate else 0)
+    planet = pose[7] if len(pose) > 7 else None
+    flags = (1 if vel else 0) | (2 if rate else 0) | (4 if planet else 0)
     b = struct.pack("<BQ3f", flags, t_ns, *pos)
     for c in q:
         b += struct.pack("<i", _q(c, 8388607.0))[:3]
     b += struct.pack("<3h", *(_q(c, 32767.0) for c in sun))
-    for opt in (vel, rate):
+    for opt in (vel, rate, planet):
         if opt:
             b += struct.pack("<3f", *opt)
     return b
@@ -118,4 +118,8 @@ def can_group(pose):
 
 def can_fd(pose) -> bytes:
     """Data of the CAN FD pose frame (before padding to 48/64 bytes)."""
-    return bytes([pose[0] & 0xFF]) + compact_block(pose)
+    data = bytes([pose[0] & 0xFF]) + compact_block(pose)
+    if len(data) > 64:
+        raise ValueError("a pose with both rates and the planet (76 bytes) does not fit one CAN FD frame: "
+                         "send it as a classic group (docs/protocol.md)")
+    return data

@@ -2,7 +2,7 @@
 
 use anyhow::Context;
 use hilcam_core::link::send::{SendOptions, SendTarget, open_target, send_trajectory};
-use hilcam_core::pose::can::CanIds;
+use hilcam_core::pose::can::{self, CanIds};
 use hilcam_core::pose::trajectory::Trajectory;
 use std::path::PathBuf;
 
@@ -66,14 +66,19 @@ pub fn run(args: SendArgs) -> anyhow::Result<()> {
         (_, _, Some(p)) => SendTarget::Slcan { path: p.clone(), baud: args.baud, bitrate: Some(args.bitrate) },
         _ => unreachable!("clap requires one target"),
     };
-    // The CAN encodings have no room for the planet (an FD frame would need 76 of its 64
-    // bytes): refuse rather than send poses whose planet silently stays behind.
-    if !matches!(target, SendTarget::Serial { .. }) && samples.iter().any(|s| s.planet_centre.is_some()) {
-        anyhow::bail!(
-            "{}: columns `plx,ply,plz` (the planet's centre) go on the serial link only; \
-             the CAN pose block has no field for them (docs/protocol.md)",
-            args.trajectory.display()
-        );
+    // A CAN FD frame holds a pose with the planet's centre and at most one rate (a pose
+    // with both rates and a planet is 76 of its 64 bytes): refuse rather than switch such
+    // poses to classic groups behind the user's back.
+    if args.can_fd && !matches!(target, SendTarget::Serial { .. }) {
+        if let Some(s) = samples.iter().find(|s| !can::fits_fd(&s.to_pose(0))) {
+            anyhow::bail!(
+                "{}: the sample at {} s has the planet's centre and both rates, 76 bytes that one \
+                 CAN FD frame (64) cannot carry; send it as classic CAN groups (without --can-fd) \
+                 or on the serial link (docs/protocol.md)",
+                args.trajectory.display(),
+                s.time_s
+            );
+        }
     }
     let writer = open_target(&target, ids, args.can_fd)?;
     let opts = SendOptions { rate_hz: args.rate, speed: args.speed };

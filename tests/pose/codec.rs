@@ -191,7 +191,7 @@ fn can_group_literal_decodes_and_encodes() {
 #[test]
 fn can_fd_literal() {
     let hex = "010015cd5b0700000000000000000000000000002041ffff7f000000000000000000000000000180";
-    let f = can::encode_fd(CanIds::default(), &literal_pose(), true);
+    let f = can::encode_fd(CanIds::default(), &literal_pose(), true).unwrap();
     assert_eq!(f.id, 0x310);
     assert_eq!(f.data().len(), 48); // 40 bytes padded to the next FD length
     assert_eq!(&f.data()[..40], unhex(hex).as_slice());
@@ -213,7 +213,7 @@ fn can_groups_with_missing_mixed_duplicate_or_corrupt_frames_are_dropped() {
     };
     let ok = CanEvent::Message(Message::Pose(Pose {
         seq: 2,
-        ..can::decode_fd(can::encode_fd(ids, &Pose { seq: 2, ..literal_pose() }, false).data()).unwrap()
+        ..can::decode_fd(can::encode_fd(ids, &Pose { seq: 2, ..literal_pose() }, false).unwrap().data()).unwrap()
     }));
     // Missing frame 3 of group 1, then group 2 complete.
     let mut s: Vec<CanFrame> = g1.iter().enumerate().filter(|(i, _)| *i != 3).map(|(_, f)| *f).collect();
@@ -243,6 +243,36 @@ fn can_groups_with_missing_mixed_duplicate_or_corrupt_frames_are_dropped() {
     assert_eq!(a.push(&CanFrame::new(0x123, false, &[0; 8]).unwrap()), None);
     assert_eq!(a.push(&CanFrame::new(0x300, true, &[0; 8]).unwrap()), None);
     assert_eq!(a.foreign_frames(), 2);
+}
+
+#[test]
+fn a_can_planet_block_adds_12_bytes_and_a_corrupted_one_is_dropped() {
+    let ids = CanIds::default();
+    let base = Pose { velocity: Some(DVec3::X), angular_rate: Some(DVec3::Y), ..literal_pose() };
+    let with = Pose { planet_centre: Some(DVec3::new(-1.25e7, 3.5e6, 3.844e8)), ..base };
+    // 39 + 12 + 12 + 12 block bytes + CRC-16 = 77 stream bytes: 11 frames on base + 0 … 10.
+    let g = can::encode_group(ids, &with);
+    assert_eq!((can::encode_group(ids, &base).len(), g.len()), (10, 11));
+    assert_eq!(g.last().unwrap().id, ids.base() + 10);
+    assert_eq!(g[0].data()[1], can::FLAG_VELOCITY | can::FLAG_ANGULAR_RATE | can::FLAG_PLANET);
+    let mut a = CanAssembler::new(ids);
+    let got: Vec<CanEvent> = g.iter().filter_map(|f| a.push(f)).collect();
+    let [CanEvent::Message(Message::Pose(p))] = got[..] else { panic!("{got:?}") };
+    assert_eq!(p.planet_centre, Some(DVec3::new(-1.25e7, 3.5e6, 3.844e8f32 as f64)));
+    // A flipped bit in the planet's bytes (frame 9) fails the group CRC: dropped, counted.
+    let mut bad = g.clone();
+    let mut d = [0u8; 8];
+    d.copy_from_slice(bad[9].data());
+    d[3] ^= 0x10;
+    bad[9] = CanFrame::new(bad[9].id, false, &d).unwrap();
+    let got: Vec<CanEvent> = bad.iter().filter_map(|f| a.push(f)).collect();
+    assert_eq!(got, vec![CanEvent::Dropped(GroupDrop::Crc)]);
+    // FD: a planet with one rate fits (64 bytes); with both it does not.
+    let one = Pose { angular_rate: None, ..with };
+    let f = can::encode_fd(ids, &one, true).unwrap();
+    assert_eq!(f.data().len(), 64);
+    assert_eq!(can::decode_fd(f.data()).unwrap().planet_centre, p.planet_centre);
+    assert!(can::encode_fd(ids, &with, true).is_none() && !can::fits_fd(&with));
 }
 
 #[test]
@@ -333,6 +363,28 @@ proptest! {
         let bytes = serial::encode_frame(&msg);
         prop_assert_eq!(bytes.len(), 106 + 24 * [p.velocity.is_some(), p.angular_rate.is_some(), c.is_some()].iter().filter(|x| **x).count());
         prop_assert_eq!(serial::decode_frame(&bytes), Ok((msg, bytes.len())));
+    }
+
+    #[test]
+    fn can_round_trip_with_a_planet_keeps_f32_precision(p in any_pose(), c in opt_vec(1.5e13), fd in any::<bool>()) {
+        // Classic groups carry every pose (up to 11 frames); an FD frame all but both rates
+        // with a planet, which `encode_message` then sends as a classic group.
+        let p = Pose { planet_centre: c, ..p };
+        let ids = CanIds::default();
+        let frames = can::encode_message(ids, &Message::Pose(p), fd);
+        let all_three = p.velocity.is_some() && p.angular_rate.is_some() && c.is_some();
+        prop_assert_eq!(can::fits_fd(&p), !all_three);
+        prop_assert_eq!(frames.len() == 1, fd && !all_three);
+        prop_assert!(frames.len() <= can::MAX_GROUP_FRAMES);
+        let mut a = CanAssembler::new(ids);
+        let got: Vec<CanEvent> = frames.iter().filter_map(|f| a.push(f)).collect();
+        prop_assert_eq!(got.len(), 1);
+        let CanEvent::Message(Message::Pose(g)) = got[0] else { panic!("{:?}", got) };
+        prop_assert_eq!(g.planet_centre.is_some(), c.is_some());
+        if let (Some(a), Some(b)) = (g.planet_centre, c) {
+            // f32 per component: within 2^-24 of the largest (its angular error at any range).
+            prop_assert!((a - b).abs().max_element() <= b.abs().max_element() * 6.0e-8, "{} vs {}", a, b);
+        }
     }
 
     #[test]

@@ -85,7 +85,7 @@ fn can_group_fd_and_slcan_examples_are_the_encoders_frames() {
         assert_eq!(bytes, f.data(), "{line}");
     }
     // CAN FD: `310##1 <hex groups> + 8×00`.
-    let fd = can::encode_fd(CanIds::default(), &example_pose(), true);
+    let fd = can::encode_fd(CanIds::default(), &example_pose(), true).unwrap();
     let line = block_after(&p, "The same pose as CAN FD").into_iter().next().unwrap();
     let (id, rest) = line.split_once("##").unwrap();
     assert_eq!(u32::from_str_radix(id, 16).unwrap(), fd.id);
@@ -159,7 +159,7 @@ fn stated_lengths_are_the_encoders() {
         assert_eq!((b + 2).div_ceil(7), *f, "the stream bytes fill the frames");
     }
     let fd: Vec<usize> =
-        three_poses().iter().map(|q| can::encode_fd(CanIds::default(), q, true).data().len()).collect();
+        three_poses().iter().map(|q| can::encode_fd(CanIds::default(), q, true).unwrap().data().len()).collect();
     let stated = numbers_after(&p, "One FD frame on `base + 0x10`: the group sequence byte, then the block;", 5);
     assert_eq!(&stated[..3], &block.iter().map(|b| b + 1).collect::<Vec<_>>()[..], "FD bytes before padding");
     assert_eq!(fd, vec![stated[3], stated[4], stated[4]], "padded FD lengths");

@@ -191,3 +191,81 @@ async fn python_can_slcan_example_sends_the_group() {
     stop_tx.send(()).unwrap();
     task.await.unwrap().unwrap();
 }
+
+#[test]
+fn hilcam_send_slcan_carries_the_planet_and_refuses_what_one_fd_frame_cannot() {
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("moon.csv");
+    // Both rates and the planet: 75 block bytes, an 11-frame classic group per pose.
+    std::fs::write(
+        &traj,
+        "time_s,px,py,pz,qw,qx,qy,qz,sx,sy,sz,vx,vy,vz,wx,wy,wz,plx,ply,plz\n\
+         0,0,0,40,1,0,0,0,0,0,-1,0,0,-1,0,0,0.01,-1.25e7,3.5e6,3.844e8\n\
+         0.5,0,0,39.5,1,0,0,0,0,0,-1,0,0,-1,0,0,0.01,-1.2500001e7,3.4999e6,3.8440001e8\n",
+    )
+    .unwrap();
+    let want = Trajectory::load(&traj).unwrap();
+    let bin = env!("CARGO_BIN_EXE_hilcam");
+    // One CAN FD frame cannot hold it (76 of 64 bytes): refused before the port opens.
+    let o = std::process::Command::new(bin)
+        .args(["send", "--slcan", "/nonexistent/adapter", "--can-fd", "--trajectory"])
+        .arg(&traj)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("moon.csv") && err.contains("without --can-fd"), "{err}");
+    // As classic groups through an adapter (a pty): the planet arrives in f32.
+    let (mut adapter, slave) = pty_pair();
+    let mut child = std::process::Command::new(bin)
+        .args(["send", "--slcan", &pty_name(&slave), "--speed", "inf", "--trajectory"])
+        .arg(&traj)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut dec = SlcanDecoder::new();
+    let mut asm = hilcam_core::pose::can::CanAssembler::new(CanIds::default());
+    let (mut got, mut frames) = (vec![], 0);
+    let mut buf = [0u8; 4096];
+    let deadline = std::time::Instant::now() + PATIENCE;
+    while got.len() < want.len() && std::time::Instant::now() < deadline {
+        adapter.set_timeout(Duration::from_millis(50)).unwrap();
+        let n = match adapter.read(&mut buf) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
+            Err(e) => panic!("{e}"),
+        };
+        dec.push(&buf[..n]);
+        while let Some(item) = dec.next_item() {
+            if let Ok(SlcanItem::Frame(f)) = item {
+                frames += 1;
+                if let Some(hilcam_core::pose::can::CanEvent::Message(Message::Pose(p))) = asm.push(&f) {
+                    got.push(p);
+                }
+            }
+        }
+    }
+    assert!(child.wait().unwrap().success());
+    assert_eq!(frames, 11 * want.len());
+    let f32ed = |c: glam::DVec3| glam::DVec3::new(c.x as f32 as f64, c.y as f32 as f64, c.z as f32 as f64);
+    let centres: Vec<_> = got.iter().map(|p| p.planet_centre).collect();
+    assert_eq!(centres, want.iter().map(|s| s.planet_centre.map(f32ed)).collect::<Vec<_>>());
+    // The Python encoder (examples/hilcam_proto.py, its own struct packing and CRC-16)
+    // writes the same 11 frames per pose.
+    let Some(py) = python() else { return };
+    let script = "import sys; sys.path.insert(0, sys.argv[1]); import hilcam_proto as hp\n\
+                  for k, r in enumerate(hp.load_trajectory(sys.argv[2])):\n\
+                  \x20   print(' '.join(f'{i}:{d.hex()}' for i, d in hp.can_group(hp.pose_of(r, k))))";
+    let o =
+        std::process::Command::new(&py).args(["-c", script]).arg(root().join("examples")).arg(&traj).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rust: Vec<String> = want
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let g = hilcam_core::pose::can::encode_group(CanIds::default(), &s.to_pose(k as u32));
+            let hex = |d: &[u8]| d.iter().map(|b| format!("{b:02x}")).collect::<String>();
+            g.iter().map(|f| format!("{}:{}", f.id - 0x300, hex(f.data()))).collect::<Vec<_>>().join(" ")
+        })
+        .collect();
+    assert_eq!(String::from_utf8_lossy(&o.stdout).lines().collect::<Vec<_>>(), rust);
+}

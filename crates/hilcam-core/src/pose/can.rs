@@ -6,14 +6,15 @@
 //!
 //! | id | frame |
 //! |---|---|
-//! | base + 0 … base + 9 | classic pose group, frame index = id − base |
+//! | base + 0 … base + 10 | classic pose group, frame index = id − base |
 //! | base + 0x0E | heartbeat (classic, 8 bytes: seq u32, status u32) |
 //! | base + 0x0F | trigger (classic, 8 bytes: simulation time ns u64) |
 //! | base + 0x10 | CAN FD pose (48 or 64 bytes) |
 //!
 //! Both pose encodings share the *compact pose block* (little-endian):
 //! flags u8, t_ns u64, position f32 ×3, attitude i24 ×4 (Q23, scalar first),
-//! sun i16 ×3 (Q15), optional velocity f32 ×3, optional angular rate f32 ×3.
+//! sun i16 ×3 (Q15), optional velocity f32 ×3, optional angular rate f32 ×3, optional
+//! planet centre f32 ×3 (camera frame, m).
 //! `docs/protocol.md` gives the precision of each field and why.
 
 use super::crc::crc16_ccitt;
@@ -27,12 +28,16 @@ pub const HEARTBEAT_OFFSET: u32 = 0x0E;
 pub const TRIGGER_OFFSET: u32 = 0x0F;
 /// Offset of the CAN FD pose frame id from the base id.
 pub const FD_POSE_OFFSET: u32 = 0x10;
-/// Most frames a classic pose group can have.
-pub const MAX_GROUP_FRAMES: usize = 10;
+/// Most frames a classic pose group can have (all three options: 75 block bytes + CRC).
+pub const MAX_GROUP_FRAMES: usize = 11;
 /// Block flag: velocity present.
 pub const FLAG_VELOCITY: u8 = 0x01;
 /// Block flag: angular rate present.
 pub const FLAG_ANGULAR_RATE: u8 = 0x02;
+/// Block flag: the planet's centre present (camera frame, metres).
+pub const FLAG_PLANET: u8 = 0x04;
+/// Longest FD pose payload: seq byte + block.
+pub const FD_MAX_LEN: usize = 64;
 /// Quaternion component scale: value = raw / `QUAT_SCALE` (Q23, step 1.19e-7).
 pub const QUAT_SCALE: f64 = 8_388_607.0;
 /// Sun component scale: value = raw / `SUN_SCALE` (Q15, step 3.05e-5).
@@ -153,11 +158,18 @@ impl Default for CanIds {
 fn flags_of(p: &Pose) -> u8 {
     (if p.velocity.is_some() { FLAG_VELOCITY } else { 0 })
         | (if p.angular_rate.is_some() { FLAG_ANGULAR_RATE } else { 0 })
+        | (if p.planet_centre.is_some() { FLAG_PLANET } else { 0 })
+}
+
+/// Whether `pose` fits one CAN FD frame: all but a pose with both rates and a planet
+/// (1 + 75 bytes of 64), which goes as a classic group or on the serial link.
+pub fn fits_fd(pose: &Pose) -> bool {
+    block_len(flags_of(pose)).is_some_and(|n| 1 + n <= FD_MAX_LEN)
 }
 
 /// Length of the compact block for `flags`, or `None` for unknown flag bits.
 pub fn block_len(flags: u8) -> Option<usize> {
-    if flags & !(FLAG_VELOCITY | FLAG_ANGULAR_RATE) != 0 {
+    if flags & !(FLAG_VELOCITY | FLAG_ANGULAR_RATE | FLAG_PLANET) != 0 {
         return None;
     }
     Some(BLOCK_BASE_LEN + 12 * (flags.count_ones() as usize))
@@ -185,6 +197,9 @@ fn write_block(p: &Pose, out: &mut Vec<u8>) {
     if let Some(v) = p.angular_rate {
         w.dvec3_f32(v);
     }
+    if let Some(c) = p.planet_centre {
+        w.dvec3_f32(c);
+    }
 }
 
 /// Reads a block whose length the caller checked against [`block_len`].
@@ -197,6 +212,7 @@ fn read_block(seq: u32, b: &[u8]) -> Pose {
     let s: [f64; 3] = std::array::from_fn(|_| r.i16() as f64 / SUN_SCALE);
     let velocity = (flags & FLAG_VELOCITY != 0).then(|| r.dvec3_f32());
     let angular_rate = (flags & FLAG_ANGULAR_RATE != 0).then(|| r.dvec3_f32());
+    let planet_centre = (flags & FLAG_PLANET != 0).then(|| r.dvec3_f32());
     Pose {
         seq,
         t_ns,
@@ -206,7 +222,7 @@ fn read_block(seq: u32, b: &[u8]) -> Pose {
         velocity,
         angular_rate,
         camera_to_inertial: None,
-        planet_centre: None,
+        planet_centre,
     }
 }
 
@@ -215,7 +231,7 @@ pub fn group_frames(flags: u8) -> Option<usize> {
     block_len(flags).map(|n| (n + 2).div_ceil(GROUP_BYTES_PER_FRAME))
 }
 
-/// The classic frames (6, 8 or 10) carrying `pose`; the group sequence is the
+/// The classic frames (6 to 11) carrying `pose`; the group sequence is the
 /// low byte of `pose.seq`.
 pub fn encode_group(ids: CanIds, pose: &Pose) -> Vec<CanFrame> {
     let seq = pose.seq as u8;
@@ -235,11 +251,12 @@ pub fn encode_group(ids: CanIds, pose: &Pose) -> Vec<CanFrame> {
         .collect()
 }
 
-/// The CAN FD frame carrying `pose` (48 or 64 bytes): seq u8 then the block.
-pub fn encode_fd(ids: CanIds, pose: &Pose, brs: bool) -> CanFrame {
+/// The CAN FD frame carrying `pose` (48 or 64 bytes): seq u8 then the block; None when
+/// it does not fit ([`fits_fd`]).
+pub fn encode_fd(ids: CanIds, pose: &Pose, brs: bool) -> Option<CanFrame> {
     let mut d = vec![pose.seq as u8];
     write_block(pose, &mut d);
-    CanFrame::new_fd(ids.base + FD_POSE_OFFSET, ids.extended, &d, brs).expect("≤ 64 bytes")
+    CanFrame::new_fd(ids.base + FD_POSE_OFFSET, ids.extended, &d, brs)
 }
 
 /// Decodes the payload of an FD pose frame.
@@ -259,11 +276,12 @@ pub fn decode_fd(data: &[u8]) -> Result<Pose, GroupDrop> {
 }
 
 /// The frames for any message: a pose as a classic group (or one FD frame when
-/// `fd`), a trigger or heartbeat as one classic frame.
+/// `fd` and it fits: a pose that does not is sent as a classic group), a trigger or
+/// heartbeat as one classic frame.
 pub fn encode_message(ids: CanIds, msg: &Message, fd: bool) -> Vec<CanFrame> {
     let id = |off: u32| ids.base + off;
     match msg {
-        Message::Pose(p) if fd => vec![encode_fd(ids, p, true)],
+        Message::Pose(p) if fd && fits_fd(p) => vec![encode_fd(ids, p, true).expect("fits")],
         Message::Pose(p) => encode_group(ids, p),
         Message::Trigger { t_ns, .. } => {
             vec![CanFrame::new(id(TRIGGER_OFFSET), ids.extended, &t_ns.to_le_bytes()).expect("8")]
