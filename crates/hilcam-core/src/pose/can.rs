@@ -164,7 +164,8 @@ fn flags_of(p: &Pose) -> u8 {
 /// Whether `pose` fits one CAN FD frame: all but a pose with both rates and a planet
 /// (1 + 75 bytes of 64), which goes as a classic group or on the serial link.
 pub fn fits_fd(pose: &Pose) -> bool {
-    block_len(flags_of(pose)).is_some_and(|n| 1 + n <= FD_MAX_LEN)
+    // The seq byte and the block: 1 + n ≤ 64.
+    block_len(flags_of(pose)).is_some_and(|n| n < FD_MAX_LEN)
 }
 
 /// Length of the compact block for `flags`, or `None` for unknown flag bits.
