@@ -69,16 +69,17 @@ pub fn run(args: SendArgs) -> anyhow::Result<()> {
     // A CAN FD frame holds a pose with the planet's centre and at most one rate (a pose
     // with both rates and a planet is 76 of its 64 bytes): refuse rather than switch such
     // poses to classic groups behind the user's back.
-    if args.can_fd && !matches!(target, SendTarget::Serial { .. }) {
-        if let Some(s) = samples.iter().find(|s| !can::fits_fd(&s.to_pose(0))) {
-            anyhow::bail!(
-                "{}: the sample at {} s has the planet's centre and both rates, 76 bytes that one \
+    if args.can_fd
+        && !matches!(target, SendTarget::Serial { .. })
+        && let Some(s) = samples.iter().find(|s| !can::fits_fd(&s.to_pose(0)))
+    {
+        anyhow::bail!(
+            "{}: the sample at {} s has the planet's centre and both rates, 76 bytes that one \
                  CAN FD frame (64) cannot carry; send it as classic CAN groups (without --can-fd) \
                  or on the serial link (docs/protocol.md)",
-                args.trajectory.display(),
-                s.time_s
-            );
-        }
+            args.trajectory.display(),
+            s.time_s
+        );
     }
     let writer = open_target(&target, ids, args.can_fd)?;
     let opts = SendOptions { rate_hz: args.rate, speed: args.speed };
