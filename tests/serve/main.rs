@@ -7,6 +7,7 @@
 mod common;
 mod serve_common;
 
+mod authored_model;
 mod cli;
 mod end_to_end;
 mod exposure_tags;
