@@ -4,18 +4,26 @@ examples/bsk_serial_loop.py over the serial link against `hilcam serve`; docs/py
 Basilisk propagates two spacecraft in a 400 km circular orbit under the Earth's gravity: a
 chaser with a camera and a 1 m sphere target ahead of it. The camera is fixed in the
 chaser's Hill frame (boresight along-track), so the pose hilcam gets is the target's
-relative position in the camera frame. Each step the frame's radiance-weighted centroid and
-flux are measured; a PD controller pushes the chaser (Basilisk's ExtForceTorque) to bring
-the target to the image centre and to a 30 m range estimated from the flux, closing the
-loop through pixels only. Basilisk's truth (the pinhole projection of the relative
-position) judges the measurement: for a Lambert sphere at phase angle φ the lit centroid
-sits 3/8·r·tan φ toward the sun from the centre's projection (first order in φ), and that
-is what each measured centroid is compared with.
+relative position in the camera frame. Each step the frame goes, as an 8-bit PNG, to
+Basilisk's own image processing (bsk-opnav's `houghCircles`, class Hough): the circle it
+finds gives the target's bearing (its centre) and range (its radius, the sphere's 1 m
+known), and a PD controller pushes the chaser (Basilisk's ExtForceTorque) to bring the
+target to the image centre at 30 m, closing the loop through pixels only. Basilisk's
+truth (the pinhole projection of the relative position, and the sphere's apparent radius)
+judges the Hough circle. The frame's radiance-weighted centroid is logged as a
+cross-check: for a Lambert sphere at phase angle φ the lit centroid sits 3/8·r·tan φ
+toward the sun from the centre's projection (first order in φ).
 """
 
 import math
+import os
+import struct
+import tempfile
+import zlib
 
 import numpy as np
+from Basilisk.architecture import messaging
+from Basilisk.fswAlgorithms import houghCircles
 from Basilisk.simulation import extForceTorque, spacecraft
 from Basilisk.utilities import SimulationBaseClass, macros, orbitalMotion, simIncludeGravBody
 
@@ -134,6 +142,79 @@ def measure(img):
     return (cols + 0.5).ravel() @ img.ravel() / flux, (rows + 0.5).ravel() @ img.ravel() / flux, flux
 
 
+def write_png8(path, img):
+    """An 8-bit grayscale PNG of a radiance frame, scaled to its peak (an auto-exposure)."""
+    img = np.asarray(img, dtype=np.float64)
+    dn = np.clip(np.rint(img * (255.0 / max(float(img.max()), 1e-30))), 0, 255).astype(np.uint8)
+    h, w = dn.shape
+    raw = b"".join(b"\0" + dn[r].tobytes() for r in range(h))
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    with open(path + ".tmp", "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
+                + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+    os.replace(path + ".tmp", path)
+
+
+# houghCircles' parameters for this scene: a 12–25 px disc on black, one circle.
+HOUGH = dict(blurrSize=5, cannyThresh=200, voteThresh=20, dpValue=1,
+             houghMinDist=WIDTH, houghMinRadius=6, houghMaxRadius=40, expectedCircles=1)
+
+
+class Hough:
+    """Basilisk's houghCircles (bsk-opnav) in its own Basilisk simulation, one update per
+    frame. The module reads the frame from the PNG named in its `filename` field (its
+    image message is linked to an empty CameraImageMsg, which it requires but then does
+    not read) and writes an OpNavCirclesMsg: OpenCV's HOUGH_GRADIENT after the module's
+    own threshold and box blur. Its centres are pixel indices; +0.5 makes them continuous
+    pixel coordinates (the pixel (i, j) spans [i, i+1] × [j, j+1]), as the truth's."""
+
+    def __init__(self):
+        self.dir = tempfile.TemporaryDirectory(prefix="hilcam-hough-")
+        self.png = os.path.join(self.dir.name, "frame.png")
+        self.sim = SimulationBaseClass.SimBaseClass()
+        proc = self.sim.CreateNewProcess("opnav")
+        proc.addTask(self.sim.CreateNewTask("image", macros.sec2nano(DT_S)))
+        self.module = houghCircles.HoughCircles()
+        self.module.ModelTag = "houghCircles"
+        for k, v in HOUGH.items():
+            setattr(self.module, k, v)
+        self.module.filename = self.png
+        self.image_msg = messaging.CameraImageMsg().write(messaging.CameraImageMsgPayload())
+        self.module.imageInMsg.subscribeTo(self.image_msg)
+        self.sim.AddModelToTask("image", self.module)
+        self.sim.InitializeSimulation()
+        self.k = 0
+
+    def __call__(self, img):
+        """(u, v, radius) of the circle found in the frame, in pixels."""
+        write_png8(self.png, img)
+        self.sim.ConfigureStopTime(macros.sec2nano(self.k * DT_S))
+        self.sim.ExecuteSimulation()
+        self.k += 1
+        m = self.module.opnavCirclesOutMsg.read()
+        if not m.valid:
+            raise RuntimeError("houghCircles found no circle in frame %d" % (self.k - 1))
+        c = list(m.circlesCenters)
+        return c[0] + 0.5, c[1] + 0.5, float(m.circlesRadii[0])
+
+    def close(self):
+        self.dir.cleanup()
+
+
+def range_of_radius(r_px):
+    """The range at which the 1 m sphere's limb is r_px from its centre's image: its
+    angular radius asin(R/d) seen at tan⁻¹(r/f) on the boresight."""
+    return RADIUS_M / math.sin(math.atan(r_px / F_PX))
+
+
+def radius_of(position):
+    """The sphere's apparent radius in pixels on the boresight (truth for the Hough radius)."""
+    return F_PX * math.tan(math.asin(RADIUS_M / np.linalg.norm(position)))
+
+
 def predicted(position, sun):
     """Where the lit centroid should be: the pinhole projection of the centre, moved
     3/8·r·tan φ toward the sun's side (first order in the phase angle φ)."""
@@ -150,16 +231,16 @@ def predicted(position, sun):
 
 
 class Controller:
-    """PD on the measured target position (bearing × range from the flux), Hill frame:
-    lateral offsets to zero, range to GOAL_RANGE_M. ω = 0.2 rad/s, critically damped."""
+    """PD on the measured target position (bearing from the Hough centre × range from its
+    radius), Hill frame: lateral offsets to zero, range to GOAL_RANGE_M. ω = 0.2 rad/s,
+    critically damped."""
 
-    def __init__(self, first_flux, first_range):
-        self.k = first_flux * first_range**2  # flux ∝ 1/range²: calibrated at hand-over
+    def __init__(self):
         self.last = None
         self.kp, self.kd = 0.2**2, 2 * 0.2
 
-    def __call__(self, u, v, flux):
-        rng = math.sqrt(self.k / flux)
+    def __call__(self, u, v, r_px):
+        rng = range_of_radius(r_px)
         z = rng / math.sqrt(1 + ((u - WIDTH / 2) / F_PX) ** 2 + ((v - WIDTH / 2) / F_PX) ** 2)
         rel_cam = np.array([(u - WIDTH / 2) / F_PX * z, (v - WIDTH / 2) / F_PX * z, z])
         rel_h = CAM_H.T @ rel_cam
@@ -173,18 +254,21 @@ class Controller:
 def run(render, steps=60):
     """Close the loop for `steps` steps; `render(k, position, attitude, sun)` returns the
     frame's radiance. Returns one dict per step (truth, measurement, prediction)."""
-    orbit = Orbit()
-    log, ctl = [], None
-    for k in range(steps):
-        pos, q, sun, _ = orbit.truth()
-        img = render(k, orbit.t, pos, q, sun)
-        u, v, flux = measure(img)
-        if ctl is None:
-            ctl = Controller(flux, float(np.linalg.norm(pos)))
-        accel, rng = ctl(u, v, flux)
-        (tu, tv), (pu, pv), phase = predicted(pos, sun)
-        log.append(dict(step=k, t=orbit.t, range_m=float(np.linalg.norm(pos)), range_est_m=rng,
-                        centroid=[u, v], truth=[tu, tv], predicted=[pu, pv], phase_deg=math.degrees(phase),
-                        accel=[float(a) for a in accel]))
-        orbit.step(accel)
+    orbit, hough, ctl = Orbit(), Hough(), Controller()
+    log = []
+    try:
+        for k in range(steps):
+            pos, q, sun, _ = orbit.truth()
+            img = render(k, orbit.t, pos, q, sun)
+            hu, hv, hr = hough(img)
+            accel, rng = ctl(hu, hv, hr)
+            cu, cv, _ = measure(img)
+            (tu, tv), (pu, pv), phase = predicted(pos, sun)
+            log.append(dict(step=k, t=orbit.t, range_m=float(np.linalg.norm(pos)), range_est_m=rng,
+                            hough=[hu, hv], hough_r_px=hr, truth_r_px=radius_of(pos),
+                            centroid=[float(cu), float(cv)], truth=[tu, tv], predicted=[pu, pv],
+                            phase_deg=math.degrees(phase), accel=[float(a) for a in accel]))
+            orbit.step(accel)
+    finally:
+        hough.close()
     return log

@@ -6,8 +6,8 @@
 The same loop as examples/bsk_loop.py (examples/bsk_common.py), but the way a bench runs
 it: each step's pose goes out as a serial pose frame (examples/hilcam_proto.py) on a
 pseudo-terminal into `hilcam serve`, which renders it and streams the frame back over TCP
-(examples/recv_frames.py parses it, checking both CRCs); the centroid of that frame
-drives the controller. The server is started here with a config on the pty and a free
+(examples/recv_frames.py parses it, checking both CRCs); Basilisk's houghCircles
+measures that frame and its circle drives the controller. The server is started here with a config on the pty and a free
 port, and stopped at the end. Needs the venv of scripts/setup-basilisk.sh (pyserial is
 not needed: the pty is written directly).
 """
