@@ -133,13 +133,18 @@ def write_glb(path, meshes, nodes):
         "bufferViews": views,
         "accessors": accessors,
     }
+    path.write_bytes(glb_container(doc, bin_))
+
+
+def glb_container(doc, bin_):
+    """The GLB file of a glTF JSON document and its binary buffer: the 12-byte header, then
+    the JSON chunk (space-padded) and the BIN chunk (zero-padded) to 4-byte boundaries."""
     js = json.dumps(doc, separators=(",", ":")).encode()
     js += b" " * (-len(js) % 4)
-    bin_ += b"\0" * (-len(bin_) % 4)
+    bin_ = bytes(bin_) + b"\0" * (-len(bin_) % 4)
     total = 12 + 8 + len(js) + 8 + len(bin_)
     out = struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(js), b"JSON") + js
-    out += struct.pack("<I4s", len(bin_), b"BIN\0") + bytes(bin_)
-    path.write_bytes(out)
+    return out + struct.pack("<I4s", len(bin_), b"BIN\0") + bin_
 
 
 def write_obj(obj_path, mtl_path, meshes, nodes):

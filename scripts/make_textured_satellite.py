@@ -15,7 +15,6 @@ library only (the cell pattern is drawn here; no downloaded asset):
   the panel's +Y edge, so the two files render the same (tests/render/texture.rs).
 """
 import importlib.util
-import json
 import struct
 import sys
 import zlib
@@ -142,13 +141,7 @@ def write_glb(path, meshes, nodes, image):
         "bufferViews": views,
         "accessors": accessors,
     }
-    js = json.dumps(doc, separators=(",", ":")).encode()
-    js += b" " * (-len(js) % 4)
-    bin_ += b"\0" * (-len(bin_) % 4)
-    total = 12 + 8 + len(js) + 8 + len(bin_)
-    out = struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(js), b"JSON") + js
-    out += struct.pack("<I4s", len(bin_), b"BIN\0") + bytes(bin_)
-    path.write_bytes(out)
+    path.write_bytes(base.glb_container(doc, bin_))
 
 
 def write_obj(obj_path, mtl_path, meshes, nodes):

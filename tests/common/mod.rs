@@ -2,5 +2,6 @@
 #![allow(dead_code)]
 
 pub mod frames;
+pub mod logs;
 pub mod scenes;
 pub mod soup;

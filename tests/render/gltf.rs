@@ -2,6 +2,7 @@
 //! format's own layout) render as the equivalent OBJ + MTL, land where their node
 //! transforms put them, and bad files are refused naming the file.
 
+use crate::common;
 use hilcam_core::render::{RenderOptions, render};
 use std::path::{Path, PathBuf};
 
@@ -197,8 +198,6 @@ fn bad_glb_files_are_refused_naming_the_file() {
 
 #[test]
 fn textures_and_unused_material_properties_are_reported_by_file_and_material() {
-    use std::io::Write;
-    use std::sync::{Arc, Mutex};
     let dir = tempfile::tempdir().unwrap();
     let textured = r#"{"name":"cells","pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1.0],
 "baseColorTexture":{"index":0},"metallicFactor":1.0,"roughnessFactor":0.3},"emissiveFactor":[1,0,0]}"#;
@@ -206,22 +205,8 @@ fn textures_and_unused_material_properties_are_reported_by_file_and_material() {
     std::fs::write(dir.path().join("cells.glb"), glb(&plate_json("[{\"mesh\":0}]", textured, "", top), &plate_bin()))
         .unwrap();
     let scene = scene_file(dir.path(), "s.toml", "cells.glb", 1);
-    #[derive(Clone)]
-    struct Buf(Arc<Mutex<Vec<u8>>>);
-    impl Write for Buf {
-        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(b);
-            Ok(b.len())
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            Ok(())
-        }
-    }
-    let buf = Buf(Arc::new(Mutex::new(Vec::new())));
-    let w = buf.clone();
-    let sub = tracing_subscriber::fmt().with_writer(move || w.clone()).with_ansi(false).finish();
-    let s = tracing::subscriber::with_default(sub, || hilcam_core::scene::load(&scene)).unwrap();
-    let log = String::from_utf8(buf.0.lock().unwrap().clone()).unwrap();
+    let (s, log) = common::logs::with_log(|| hilcam_core::scene::load(&scene));
+    let s = s.unwrap();
     assert_eq!(s.target.materials[0].bsdf.model_name(), "ggx_conductor");
     for want in [
         // The texture is used, but its file is missing: a warning, and the factor renders.

@@ -2,11 +2,11 @@
 //! the MTL's own keys, its unused keys are reported by file and line, and a table still
 //! overrides it. Radiance against the analytic Lambert plate, ρ·E·cosθ/π.
 
+use crate::common;
+use common::logs::load_logged;
 use hilcam_core::render::bsdf::Bsdf;
 use hilcam_core::render::{RenderOptions, render};
-use std::io::Write;
 use std::path::Path;
-use std::sync::{Arc, Mutex};
 
 const E: f64 = 593.1;
 
@@ -41,27 +41,6 @@ fn plate_mean(scene: &hilcam_core::scene::Scene) -> (f64, f64) {
     let mean = v.iter().sum::<f64>() / v.len() as f64;
     let spread = v.iter().fold(0.0f64, |m, x| m.max((x - mean).abs()));
     (mean, spread)
-}
-
-/// Load with the log captured.
-fn load_logged(path: &Path) -> (Result<hilcam_core::scene::Scene, String>, String) {
-    #[derive(Clone)]
-    struct Buf(Arc<Mutex<Vec<u8>>>);
-    impl Write for Buf {
-        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(b);
-            Ok(b.len())
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            Ok(())
-        }
-    }
-    let buf = Buf(Arc::new(Mutex::new(Vec::new())));
-    let w = buf.clone();
-    let sub = tracing_subscriber::fmt().with_writer(move || w.clone()).with_ansi(false).finish();
-    let scene = tracing::subscriber::with_default(sub, || hilcam_core::scene::load(path).map_err(|e| e.to_string()));
-    let log = String::from_utf8(buf.0.lock().unwrap().clone()).unwrap();
-    (scene, log)
 }
 
 #[test]

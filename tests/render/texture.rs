@@ -7,6 +7,7 @@
 //!   and the same textured plate as OBJ + MTL and as GLB renders the same;
 //! - an sRGB 128 texel is albedo 0.2158 × `Kd`.
 
+use crate::common;
 use hilcam_core::render::texture::TextureFilter;
 use hilcam_core::render::{RenderOptions, render};
 use hilcam_core::scene::Scene;
@@ -305,27 +306,10 @@ fn an_srgb_128_texel_is_albedo_0_2158_times_kd() {
     }
 }
 
-/// Load with the log captured.
+/// Load with the log captured (the scene must load).
 fn load_logged(path: &Path) -> (Scene, String) {
-    use std::io::Write;
-    use std::sync::{Arc, Mutex};
-    #[derive(Clone)]
-    struct Buf(Arc<Mutex<Vec<u8>>>);
-    impl Write for Buf {
-        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(b);
-            Ok(b.len())
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            Ok(())
-        }
-    }
-    let buf = Buf(Arc::new(Mutex::new(Vec::new())));
-    let w = buf.clone();
-    let sub = tracing_subscriber::fmt().with_writer(move || w.clone()).with_ansi(false).finish();
-    let scene = tracing::subscriber::with_default(sub, || hilcam_core::scene::load(path)).unwrap();
-    let log = String::from_utf8(buf.0.lock().unwrap().clone()).unwrap();
-    (scene, log)
+    let (scene, log) = common::logs::load_logged(path);
+    (scene.unwrap(), log)
 }
 
 #[test]

@@ -13,14 +13,6 @@ use std::time::Instant;
 
 const WIDTH: u32 = 128;
 
-fn bytes(p: &Pixels) -> Vec<u8> {
-    match p {
-        Pixels::Mono8(d) => d.clone(),
-        Pixels::Mono16 { data, .. } => data.iter().flat_map(|v| v.to_le_bytes()).collect(),
-        Pixels::Float32(d) => d.iter().flat_map(|v| v.to_le_bytes()).collect(),
-    }
-}
-
 /// One frame of `scene` at its own pose, through a running server.
 async fn served(scene: &str) -> Vec<u8> {
     let mut cfg =
@@ -35,7 +27,7 @@ async fn served(scene: &str) -> Vec<u8> {
     let f = reader.next().await;
     assert_eq!(f.meta.frame_seq, 0);
     server.finish().await;
-    bytes(&f.pixels)
+    pixel_bytes(&f.pixels)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -50,7 +42,7 @@ async fn a_textured_glb_spacecraft_streams_what_renders_offline_and_what_its_obj
     let scene = Arc::new(scene);
     let mut pipeline = FramePipeline::new(scene.clone(), scene.camera.clone()).unwrap();
     let offline = pipeline.frame(&scene.pose, &scene.render, 0).unwrap();
-    assert!(bytes(&offline.pixels) == glb, "the served frame differs from the offline one");
+    assert!(pixel_bytes(&offline.pixels) == glb, "the served frame differs from the offline one");
     // Not a black frame: the target is in view and lit.
     let lit = match &offline.pixels {
         Pixels::Mono16 { data, .. } => data.iter().filter(|&&v| v > 200).count(),

@@ -13,7 +13,6 @@ use hilcam_core::link::InputEvent;
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::pose::trajectory::Trajectory;
 use hilcam_core::pose::validate::PoseLimits;
-use hilcam_core::render::film::Pixels;
 use hilcam_core::sink::recorder::FrameRecord;
 use serve_common::*;
 use std::collections::BTreeMap;
@@ -34,14 +33,6 @@ const SCENES: [&str; 8] = [
 ];
 /// Small enough to run in seconds, large enough that every scene's target covers pixels.
 const WIDTH: u32 = 96;
-
-fn pixel_bytes(p: &Pixels) -> Vec<u8> {
-    match p {
-        Pixels::Mono8(d) => d.clone(),
-        Pixels::Mono16 { data, .. } => data.iter().flat_map(|v| v.to_le_bytes()).collect(),
-        Pixels::Float32(d) => d.iter().flat_map(|v| v.to_le_bytes()).collect(),
-    }
-}
 
 fn crc_f32(v: &[f32]) -> u32 {
     CRC32.checksum(&v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>())

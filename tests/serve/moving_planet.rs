@@ -12,7 +12,7 @@ use hilcam_core::serve::config::{GovernorConfig, InputConfig, SerialInput, Traje
 use serialport::SerialPort;
 use serve_common::*;
 use std::io::Write;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// 96² camera, f = 200 px; the 1 m sphere target and a 30 m planet (`[planet]` 1 km away,
 /// seen at (28, 28) px where nothing else is; no frame below shows it there: every pose
@@ -142,14 +142,21 @@ async fn a_planet_sent_over_serial_lands_where_the_pinhole_puts_it_and_bad_plane
     let plx_at = 18 + 84 + 3; // header, base payload, a byte inside plx
     bytes[plx_at] ^= 0x10;
     w.into_inner().write_all(&bytes).unwrap();
-    tokio::time::sleep(Duration::from_millis(300)).await;
 
-    let mut s = tokio::net::TcpStream::connect(server.info.metrics.expect("metrics listener")).await.unwrap();
-    s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).await.unwrap();
-    assert!(text.lines().any(|l| l == "hilcam_input_rejected_total{reason=\"planet\"} 1"), "{text}");
-    assert!(text.lines().any(|l| l == "hilcam_input_crc_failures_total 1"), "{text}");
+    // Both counted (a bounded poll of the metrics: the receiver runs on its own time).
+    let want = ["hilcam_input_rejected_total{reason=\"planet\"} 1", "hilcam_input_crc_failures_total 1"];
+    let deadline = Instant::now() + PATIENCE;
+    loop {
+        let mut s = tokio::net::TcpStream::connect(server.info.metrics.expect("metrics listener")).await.unwrap();
+        s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+        let mut text = String::new();
+        s.read_to_string(&mut text).await.unwrap();
+        if want.iter().all(|w| text.lines().any(|l| l == *w)) {
+            break;
+        }
+        assert!(Instant::now() < deadline, "not counted within {PATIENCE:?}: {text}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
     let report = server.finish().await;
     assert_eq!((report.poses_accepted, report.poses_rejected, report.scheduler.frames), (3, 1, 3));
     drop(slave);
@@ -189,12 +196,6 @@ async fn a_served_trajectory_moves_the_planet_and_counts_a_planet_row_the_gate_r
     }
     let report = server.finish().await;
     assert_eq!((report.poses_accepted, report.poses_rejected, report.scheduler.frames), (2, 1, 2));
-}
-
-/// `hilcam …`: (exit success, stderr).
-fn hilcam(args: &[&std::ffi::OsStr]) -> (bool, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam")).args(args).output().unwrap();
-    (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 #[test]
@@ -282,14 +283,4 @@ fn a_replayed_planet_row_is_hilcam_render_with_that_planet_and_a_scene_with_it_t
         dir.path().join("o3").as_os_str(),
     ]);
     assert!(!ok && err.contains("inside.csv:2:0:") && err.contains("the camera is inside it"), "{err}");
-    let (ok, err) = hilcam(&[
-        &os("send"),
-        &os("--trajectory"),
-        csv.as_os_str(),
-        &os("--slcan"),
-        &os("/dev/null"),
-        &os("--speed"),
-        &os("inf"),
-    ]);
-    assert!(!ok && err.contains("`plx,ply,plz`") && err.contains("serial link only"), "{err}");
 }

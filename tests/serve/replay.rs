@@ -3,6 +3,7 @@
 //! frames rendered live through `FramePipeline::frame`.
 
 use crate::common;
+use crate::serve_common::hilcam;
 use common::scenes::*;
 use glam::{DQuat, DVec3};
 use hilcam_core::frame::{CRC32, PixelFormat};
@@ -306,12 +307,6 @@ fn jobs_carry_their_own_settings_flags_and_expected_crc() {
     assert!(matches!(e, ReplayError::NotIdentical { frame: 2, .. }), "{e}");
     assert!(!other.path().join("frame_0000000002.pfm").exists());
     assert_eq!(records(&other.path().join("frames.jsonl")).len(), 2);
-}
-
-/// `hilcam replay …` as a user runs it: (exit success, stderr).
-fn hilcam(args: &[&std::ffi::OsStr]) -> (bool, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam")).args(args).output().unwrap();
-    (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 #[test]

@@ -133,3 +133,19 @@ pub fn radiance(f: &Frame) -> &[f32] {
 pub fn pose(seq: u32, position: DVec3, sun: DVec3) -> Pose {
     Pose { seq, t_ns: u64::from(seq) * 1_000_000, position, sun_dir: sun.normalize(), ..Pose::ahead(10.0) }
 }
+
+/// `hilcam …` as a user runs it: (exit success, stderr).
+pub fn hilcam(args: &[&std::ffi::OsStr]) -> (bool, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam")).args(args).output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+/// A frame's pixels as the bytes the stream carries (little-endian).
+pub fn pixel_bytes(p: &hilcam_core::render::film::Pixels) -> Vec<u8> {
+    use hilcam_core::render::film::Pixels;
+    match p {
+        Pixels::Mono8(d) => d.clone(),
+        Pixels::Mono16 { data, .. } => data.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        Pixels::Float32(d) => d.iter().flat_map(|v| v.to_le_bytes()).collect(),
+    }
+}
