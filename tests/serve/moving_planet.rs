@@ -141,7 +141,10 @@ async fn a_planet_sent_over_serial_lands_where_the_pinhole_puts_it_and_bad_plane
     let mut bytes = encode_frame(&Message::Pose(good));
     let plx_at = 18 + 84 + 3; // header, base payload, a byte inside plx
     bytes[plx_at] ^= 0x10;
-    w.into_inner().write_all(&bytes).unwrap();
+    // Keep the pty's master open until both are counted: closing it hangs up the line, and
+    // the receiver may lose what it had not read yet.
+    let mut master = w.into_inner();
+    master.write_all(&bytes).unwrap();
 
     // Both counted (a bounded poll of the metrics: the receiver runs on its own time).
     let want = ["hilcam_input_rejected_total{reason=\"planet\"} 1", "hilcam_input_crc_failures_total 1"];
@@ -159,7 +162,7 @@ async fn a_planet_sent_over_serial_lands_where_the_pinhole_puts_it_and_bad_plane
     }
     let report = server.finish().await;
     assert_eq!((report.poses_accepted, report.poses_rejected, report.scheduler.frames), (3, 1, 3));
-    drop(slave);
+    drop((master, slave));
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
