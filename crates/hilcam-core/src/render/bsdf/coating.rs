@@ -63,6 +63,7 @@ impl CoatingAlbedo {
         CoatingAlbedo { v: [0.0; N], coupling: Coupling::Energy, mean: 0.0, norm: 1.0, t_mean: 1.0 };
 
     /// Tabulate the coating of roughness `dist` and index `eta` in the energy coupling.
+    #[cfg(test)]
     pub fn new(dist: GgxDistribution, eta: f32) -> Self {
         CoatingAlbedo::coupled(dist, eta, Coupling::Energy)
     }

@@ -90,7 +90,14 @@ impl Ggx {
     /// or `k`.
     pub fn conductor(roughness: f32, fresnel: ConductorFresnel) -> Result<Self, BsdfError> {
         const M: &str = "ggx_conductor";
-        Ggx::build(check_roughness(M, roughness)?, 1.0, check_conductor(M, fresnel)?, 0.0, GLTF_DIELECTRIC_IOR)
+        Ggx::build(
+            check_roughness(M, roughness)?,
+            1.0,
+            check_conductor(M, fresnel)?,
+            0.0,
+            GLTF_DIELECTRIC_IOR,
+            Coupling::Energy,
+        )
     }
 
     /// A rough plastic: a GGX dielectric coating of index `ior` over Lambert `rho`.
@@ -110,12 +117,7 @@ impl Ggx {
         const M: &str = "ggx_plastic";
         check_unit(M, "rho", rho)?;
         let eta = check_eta(M, ior)?;
-        let dist = check_roughness(M, roughness)?;
-        let mut g = Ggx::build(dist, 0.0, ConductorFresnel::Schlick { f0: 0.0 }, rho, eta)?;
-        if coupling != Coupling::Energy && rho > 0.0 {
-            g.coating = CoatingAlbedo::coupled(dist, eta, coupling);
-        }
-        Ok(g)
+        Ggx::build(check_roughness(M, roughness)?, 0.0, ConductorFresnel::Schlick { f0: 0.0 }, rho, eta, coupling)
     }
 
     /// glTF 2.0's metallic-roughness material at one band: the conductor with Schlick
@@ -138,7 +140,7 @@ impl Ggx {
         check_unit(M, "base_color", base)?;
         check_unit(M, "metallic", metallic)?;
         let dist = check_roughness(M, roughness)?;
-        Ggx::build(dist, metallic, ConductorFresnel::Schlick { f0: base }, base, check_eta(M, ior)?)
+        Ggx::build(dist, metallic, ConductorFresnel::Schlick { f0: base }, base, check_eta(M, ior)?, Coupling::Energy)
     }
 
     fn build(
@@ -147,9 +149,10 @@ impl Ggx {
         conductor: ConductorFresnel,
         rho: f32,
         eta: f32,
+        coupling: Coupling,
     ) -> Result<Self, BsdfError> {
         let base_shows = metallic < 1.0 && rho > 0.0;
-        let coating = if base_shows { CoatingAlbedo::new(dist, eta) } else { CoatingAlbedo::NONE };
+        let coating = if base_shows { CoatingAlbedo::coupled(dist, eta, coupling) } else { CoatingAlbedo::NONE };
         Ok(Ggx { dist, metallic, conductor, rho, eta, coating })
     }
 
