@@ -107,18 +107,7 @@ def write_glb(path, meshes, nodes):
             gprims.append({"attributes": {"POSITION": len(accessors) - 2}, "indices": len(accessors) - 1,
                            "material": names.index(mat), "mode": 4})
         gmeshes.append({"name": name, "primitives": gprims})
-    gnodes = []
-    for name, mesh, t, s, children in nodes:
-        n = {"name": name}
-        if mesh is not None:
-            n["mesh"] = mesh
-        if t != [0.0, 0.0, 0.0]:
-            n["translation"] = t
-        if s != [1.0, 1.0, 1.0]:
-            n["scale"] = s
-        if children:
-            n["children"] = children
-        gnodes.append(n)
+    gnodes = glb_nodes(nodes)
     doc = {
         "asset": {"version": "2.0", "generator": "hilcam scripts/make_gltf_satellite.py"},
         "scene": 0,
@@ -134,6 +123,23 @@ def write_glb(path, meshes, nodes):
         "accessors": accessors,
     }
     path.write_bytes(glb_container(doc, bin_))
+
+
+def glb_nodes(nodes):
+    """glTF node objects of (name, mesh, translation, scale, children), defaults left out."""
+    gnodes = []
+    for name, mesh, t, s, children in nodes:
+        n = {"name": name}
+        if mesh is not None:
+            n["mesh"] = mesh
+        if t != [0.0, 0.0, 0.0]:
+            n["translation"] = t
+        if s != [1.0, 1.0, 1.0]:
+            n["scale"] = s
+        if children:
+            n["children"] = children
+        gnodes.append(n)
+    return gnodes
 
 
 def glb_container(doc, bin_):

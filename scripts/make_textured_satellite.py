@@ -110,18 +110,7 @@ def write_glb(path, meshes, nodes, image):
                            "material": names.index(mat), "mode": 4})
         gmeshes.append({"name": name, "primitives": gprims})
     image_view = add(image)
-    gnodes = []
-    for name, mesh, t, s, children in nodes:
-        n = {"name": name}
-        if mesh is not None:
-            n["mesh"] = mesh
-        if t != [0.0, 0.0, 0.0]:
-            n["translation"] = t
-        if s != [1.0, 1.0, 1.0]:
-            n["scale"] = s
-        if children:
-            n["children"] = children
-        gnodes.append(n)
+    gnodes = base.glb_nodes(nodes)
     materials = []
     for n, (b, m, r) in MATERIALS.items():
         pbr = {"baseColorFactor": [b, b, b, 1.0], "metallicFactor": m, "roughnessFactor": r}
