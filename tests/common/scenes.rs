@@ -62,10 +62,10 @@ pub fn square(cx: f32, cy: f32, z: f32, s: f32, material: u32) -> TriMesh {
 }
 
 pub fn lambert(name: &str, rho: f32) -> Material {
-    Material {
-        name: name.into(),
-        bsdf: toml::from_str::<BsdfSpec>(&format!("model = \"lambert\"\nrho = {rho}")).unwrap().build().unwrap(),
-    }
+    Material::new(
+        name,
+        toml::from_str::<BsdfSpec>(&format!("model = \"lambert\"\nrho = {rho}")).unwrap().build().unwrap(),
+    )
 }
 
 pub fn camera(width: u32, height: u32, pitch_um: f64, focal_mm: f64) -> CameraModel {

@@ -154,7 +154,7 @@ fn white_furnace_render_of_a_faceted_sphere_matches_quadrature() {
     let mesh = sphere(1.0, 48);
     for (alpha, sampler) in [(0.5f32, SamplerKind::Brdf), (1.0, SamplerKind::Brdf), (0.5, SamplerKind::Cosine)] {
         let settings = RenderSettings { spp: Spp::whole(32), depth: 2, sampler, seed: 3, ..Default::default() };
-        let mat = Material { name: "white".into(), bsdf: white_conductor(alpha) };
+        let mat = Material::new("white", white_conductor(alpha));
         let mut s = scene(mesh.clone(), vec![mat], cam.clone(), Pose::ahead(range), settings);
         s.sun_irradiance = 0.0;
         s.background = 1.0;

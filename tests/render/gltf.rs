@@ -208,15 +208,45 @@ fn textures_and_unused_material_properties_are_reported_by_file_and_material() {
     let (s, log) = common::logs::with_log(|| hilcam_core::scene::load(&scene));
     let s = s.unwrap();
     assert_eq!(s.target.materials[0].bsdf.model_name(), "ggx_conductor");
+    // emissiveFactor (1, 0, 0): a third of sunlit white in the band.
+    let want = 593.1 / std::f64::consts::PI / 3.0;
+    assert!((f64::from(s.target.materials[0].emission) / want - 1.0).abs() < 1e-6);
+    assert!(!log.contains("emissiveFactor"), "emission is used:\n{log}");
     for want in [
         // The texture is used, but its file is missing: a warning, and the factor renders.
         "cells.png` cannot be read",
         ": cells.glb, material `cells`; the material's factor is used",
         "mesh `plate` primitive 0: its material is textured but it has no TEXCOORD_0",
-        "`emissiveFactor` ignored (hilcam has no emitting surfaces yet): cells.glb, material `cells`",
         "`doubleSided` false ignored",
     ] {
         assert!(log.contains(want), "log lacks {want}:\n{log}");
+    }
+}
+
+#[test]
+fn emissive_strength_scales_the_emissive_factor_relative_to_sunlit_white() {
+    // Base colour black, sun behind the plate: all the camera sees is the emission,
+    // emissiveFactor 0.5 × KHR_materials_emissive_strength 4 = 2 × E/π.
+    let dir = tempfile::tempdir().unwrap();
+    let glow = r#"{"name":"glow","pbrMetallicRoughness":{"baseColorFactor":[0,0,0,1],"metallicFactor":0.0},
+"emissiveFactor":[0.25,0.5,0.75],"extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":4.0}},"doubleSided":true}"#;
+    let top = r#","extensionsUsed":["KHR_materials_emissive_strength"]"#;
+    std::fs::write(dir.path().join("glow.glb"), glb(&plate_json("[{\"mesh\":0}]", glow, "", top), &plate_bin()))
+        .unwrap();
+    let path = scene_file(dir.path(), "s.toml", "glow.glb", 1);
+    let text = std::fs::read_to_string(&path).unwrap().replace("-0.8660254037844386", "0.8660254037844386");
+    std::fs::write(&path, text).unwrap();
+    let (s, log) = common::logs::with_log(|| hilcam_core::scene::load(&path));
+    let s = s.unwrap();
+    assert!(!log.contains("KHR_materials_emissive_strength` ignored"), "{log}");
+    let img = render(&s, &s.view(&s.camera, &s.pose), &RenderOptions::new(s.render, 0)).0.data;
+    let want = 2.0 * 593.1 / std::f64::consts::PI;
+    // The plate's inner 150² pixels (it covers 200² around the centre).
+    for r in 53..203 {
+        for c in 53..203 {
+            let v = f64::from(img[r * 256 + c]);
+            assert!((v / want - 1.0).abs() < 1e-5, "pixel ({c}, {r}): {v} vs {want}");
+        }
     }
 }
 

@@ -12,6 +12,7 @@ mod bsdf;
 mod bvh;
 mod bvh_wide;
 mod closest_packet;
+mod emission;
 mod extremes;
 mod fold;
 mod ggx;

@@ -43,10 +43,15 @@ fn write_obj(dir: &Path, mtl: &str) {
 }
 
 fn write_scene(dir: &Path, name: &str, mesh: &str, spp: u32) -> PathBuf {
+    write_scene_lit(dir, name, mesh, spp, "[0.5, 0.0, -0.8660254037844386]")
+}
+
+/// [`write_scene`] with the sun toward `sun` (camera frame).
+fn write_scene_lit(dir: &Path, name: &str, mesh: &str, spp: u32, sun: &str) -> PathBuf {
     let text = format!(
         "[camera]\nwidth = {SIDE}\nheight = {SIDE}\npitch_um = 20.0\nfocal_mm = 40.0\n\
          [[mesh]]\nobj = \"{mesh}\"\n[sun]\nirradiance = {E}\n\
-         [pose]\nposition = [0.0, 0.0, {RANGE}]\nsun = [0.5, 0.0, -0.8660254037844386]\n\
+         [pose]\nposition = [0.0, 0.0, {RANGE}]\nsun = {sun}\n\
          [render]\nspp = {spp}\ndepth = 1\nadaptive = false\n"
     );
     let p = dir.join(name);
@@ -206,6 +211,15 @@ fn quadrant_means(img: &[f64]) -> [[f64; 2]; 2] {
 /// The plate as GLB: the same corners and triangles; TEXCOORD_0 = (u, 1 − v) of the OBJ's
 /// `vt` (an exporter's flip to glTF's top-left origin); the PNG in the binary chunk.
 fn plate_glb(image: &[u8]) -> Vec<u8> {
+    plate_glb_with(
+        image,
+        r#"{"name":"panel","pbrMetallicRoughness":{"baseColorFactor":[0.8,0.8,0.8,1.0],
+"baseColorTexture":{"index":0},"metallicFactor":0.0,"roughnessFactor":0.5},"doubleSided":true}"#,
+    )
+}
+
+/// [`plate_glb`] with the glTF `material` (its texture 0 is the PNG).
+fn plate_glb_with(image: &[u8], material: &str) -> Vec<u8> {
     let mut bin = Vec::new();
     let corners = [[-HALF, -HALF], [HALF, -HALF], [HALF, HALF], [-HALF, HALF]];
     for [x, y] in corners {
@@ -230,8 +244,7 @@ fn plate_glb(image: &[u8]) -> Vec<u8> {
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
 "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-"materials":[{{"name":"panel","pbrMetallicRoughness":{{"baseColorFactor":[0.8,0.8,0.8,1.0],
-"baseColorTexture":{{"index":0}},"metallicFactor":0.0,"roughnessFactor":0.5}},"doubleSided":true}}],
+"materials":[{material}],
 "textures":[{{"source":0}}],"images":[{{"bufferView":3,"mimeType":"image/png"}}],
 "buffers":[{{"byteLength":{len}}}],
 "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
@@ -287,6 +300,30 @@ fn obj_v_zero_is_the_bottom_row_and_the_glb_renders_the_same() {
     let worst = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / lit;
     eprintln!("OBJ vs GLB textured plate: largest difference {worst:e} of the lit value");
     assert!(worst < 1e-5, "OBJ and GLB differ by {worst}");
+}
+
+#[test]
+fn an_emission_texture_lands_as_the_base_colour_s_does_and_scales_sunlit_white() {
+    // A black plate lit from behind: the camera sees only `Ke` × texel × E/π, where the
+    // quadrant image puts it (the base-colour test's bottom-left), OBJ and GLB alike.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("quad.png"), quadrant_png()).unwrap();
+    write_obj(dir.path(), "newmtl panel\nKd 0 0 0\nKe 0.5 0.5 0.5\nmap_Ke quad.png\n");
+    let behind = "[0.5, 0.0, 0.8660254037844386]";
+    let s = hilcam_core::scene::load(&write_scene_lit(dir.path(), "obj.toml", "panel.obj", 4, behind)).unwrap();
+    let a = frame(&s);
+    let q = quadrant_means(&a);
+    let lit = 0.5 * E / std::f64::consts::PI;
+    assert!((q[1][0] / lit - 1.0).abs() < 1e-4, "bottom-left {} vs {lit}", q[1][0]);
+    for (r, c) in [(0, 0), (0, 1), (1, 1)] {
+        assert!(q[r][c] < 1e-6 * lit, "quadrant ({r}, {c}) should be dark: {}", q[r][c]);
+    }
+    let glow = r#"{"name":"panel","pbrMetallicRoughness":{"baseColorFactor":[0,0,0,1],"metallicFactor":0.0},
+"emissiveFactor":[0.5,0.5,0.5],"emissiveTexture":{"index":0},"doubleSided":true}"#;
+    std::fs::write(dir.path().join("plate.glb"), plate_glb_with(&quadrant_png(), glow)).unwrap();
+    let b = frame(&hilcam_core::scene::load(&write_scene_lit(dir.path(), "glb.toml", "plate.glb", 4, behind)).unwrap());
+    let worst = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / lit;
+    assert!(worst < 1e-5, "OBJ and GLB emission differ by {worst} of the lit value");
 }
 
 #[test]

@@ -13,11 +13,22 @@ use crate::render::stars::StarField;
 use crate::render::texture::Texturing;
 use glam::{DVec3, Vec3};
 
-/// A named material and its BRDF.
+/// A named material: its BRDF and the radiance it emits.
 #[derive(Clone, Debug)]
 pub struct Material {
     pub name: String,
     pub bsdf: Bsdf,
+    /// Radiance the surface emits from both sides, W·sr⁻¹·m⁻² in the band (0: none).
+    /// Seen by camera rays and by bounces; not sampled as a light (docs/brdf.md,
+    /// "Emission").
+    pub emission: f32,
+}
+
+impl Material {
+    /// A material that emits nothing.
+    pub fn new(name: impl Into<String>, bsdf: Bsdf) -> Self {
+        Material { name: name.into(), bsdf, emission: 0.0 }
+    }
 }
 
 /// The sphere about the centre of `part`'s box, over its vertices (render frame, whose
@@ -154,5 +165,10 @@ impl Target {
     /// True when some material reflects light (indirect bounces can carry energy).
     pub fn any_reflective(&self) -> bool {
         self.materials.iter().any(|m| !m.bsdf.is_black())
+    }
+
+    /// True when some surface emits light (a constant or a texture).
+    pub fn any_emitting(&self) -> bool {
+        self.materials.iter().any(|m| m.emission > 0.0)
     }
 }

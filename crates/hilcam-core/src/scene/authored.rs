@@ -14,6 +14,35 @@ pub struct AuthoredBsdf {
     pub notes: Vec<String>,
     /// The base colour's texture (MTL `map_Kd`, glTF `baseColorTexture`), if it has one.
     pub base_texture: Option<super::texture_file::TextureRef>,
+    /// What the surface emits (MTL `Ke`, glTF `emissiveFactor`), if anything.
+    pub emission: Option<AuthoredEmission>,
+}
+
+/// `c` over its band value (the mean of the three): the texture factor of a colour
+/// whose band value is carried separately.
+pub fn over_band(c: [f32; 3]) -> [f32; 3] {
+    let band = (c[0] + c[1] + c[2]) / 3.0;
+    if band > 0.0 { c.map(|v| v / band) } else { [1.0; 3] }
+}
+
+impl AuthoredBsdf {
+    /// True when a texture is named (base colour or emission): the triangles need UVs.
+    pub fn is_textured(&self) -> bool {
+        self.base_texture.is_some() || self.emission.as_ref().is_some_and(|e| e.texture.is_some())
+    }
+}
+
+/// Emission as a model file gives it: relative to the radiance of a white Lambert surface
+/// facing the sun (E/π), so `Ke 1 1 1` looks as bright as sunlit white paint of albedo 1,
+/// as it does in the tools the model was made with (docs/brdf.md, "Emission").
+#[derive(Clone, Debug, PartialEq)]
+pub struct AuthoredEmission {
+    /// The factor's band value times any strength (textured or not).
+    pub relative: f32,
+    /// The emission's texture (MTL `map_Ke`, glTF `emissiveTexture`), if it has one: its
+    /// factor is the colour over its band value, so the texture holds the multiplier of
+    /// `relative` (and a texture that fails to load leaves the factor's emission).
+    pub texture: Option<super::texture_file::TextureRef>,
 }
 
 /// The metallic-roughness material (glTF 2.0, the MTL PBR extension) at one band: a GGX

@@ -49,11 +49,12 @@
 //! ```
 
 use super::limits;
+use super::material_entry::MaterialEntry;
 use super::model::load_model;
 use super::texture_file::TextureRef;
+use super::textures::Slot;
 use super::{Material, Scene, SceneParts};
 use crate::pose::Pose;
-use crate::render::bsdf::BsdfSpec;
 use crate::render::camera::CameraModel;
 use crate::render::geometry::{BvhLayout, TriMesh};
 use crate::render::integrator::{Method, QualityGoal, QualityMode, RenderSettings, SamplerKind, Spp};
@@ -91,7 +92,7 @@ struct SceneFile {
     #[serde(default)]
     mesh: Vec<MeshEntry>,
     #[serde(default)]
-    materials: BTreeMap<String, Spanned<BsdfSpec>>,
+    materials: BTreeMap<String, Spanned<MaterialEntry>>,
     #[serde(default)]
     sun: SunSection,
     #[serde(default)]
@@ -396,12 +397,18 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             field(span, &format!("limits.{key}"), m)
         })?;
 
+    let irradiance = *file.sun.irradiance.get_ref();
+    limits::in_range(irradiance, limits::IRRADIANCE_W_M2, " W/m²")
+        .map_err(|m| field(file.sun.irradiance.span(), "sun.irradiance", m))?;
+    // A model file's emission is relative to sunlit white: E/π × its value.
+    let sunlit_white = irradiance / std::f64::consts::PI;
+
     // Materials, in name order (BTreeMap) so indices are stable.
     let mut materials = Vec::new();
     for (name, spec) in &file.materials {
-        let bsdf =
-            spec.get_ref().build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
-        materials.push(Material { name: name.clone(), bsdf });
+        let entry = spec.get_ref();
+        let bsdf = entry.bsdf.build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
+        materials.push(Material { name: name.clone(), bsdf, emission: entry.emission as f32 });
     }
     let index_of = |materials: &[Material], name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
 
@@ -417,9 +424,9 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     // Materials built from a model file, and which file: a later file's different
     // definition of the same name is reported.
     let mut authored_from: Vec<(u32, PathBuf)> = Vec::new();
-    // Textured materials (scene index, texture) and the UVs of every triangle so far
+    // Textured materials (scene index, what the texture gives, texture) and the UVs of every triangle so far
     // (empty until a textured model comes: textureless scenes store none).
-    let mut base_textures: Vec<(u32, TextureRef)> = Vec::new();
+    let mut textures_named: Vec<(u32, Slot, TextureRef)> = Vec::new();
     let mut uv: Vec<[glam::Vec2; 3]> = Vec::new();
     for (k, entry) in file.mesh.iter().enumerate() {
         let fname = format!("mesh[{k}].obj");
@@ -472,12 +479,20 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                     tracing::warn!(material = %name, "{note}");
                 }
                 tracing::info!(material = %name, file = %obj_path.display(), bsdf = %super::authored::describe(&built.bsdf), "material from the model file");
-                materials.push(Material { name: name.clone(), bsdf: built.bsdf });
-                if let Some(t) = built.base_texture {
+                let emission = built.emission.as_ref().map_or(0.0, |e| (f64::from(e.relative) * sunlit_white) as f32);
+                if emission > 0.0 {
+                    tracing::info!(material = %name, radiance = emission, "emitting surface (W·sr⁻¹·m⁻²)");
+                }
+                materials.push(Material { name: name.clone(), bsdf: built.bsdf, emission });
+                let mat = (materials.len() - 1) as u32;
+                let textures =
+                    [(Slot::Base, built.base_texture), (Slot::Emission, built.emission.and_then(|e| e.texture))];
+                for (slot, t) in textures {
+                    let Some(t) = t else { continue };
                     if loaded.uv.is_empty() {
                         tracing::warn!(material = %name, "texture `{}` ignored: {} has no texture coordinates (`vt`, TEXCOORD_0) for it; its factor is used: {}", t.name(), obj_path.display(), t.at);
                     } else {
-                        base_textures.push(((materials.len() - 1) as u32, t));
+                        textures_named.push((mat, slot, t));
                     }
                 }
                 map.push((materials.len() - 1) as u32);
@@ -518,8 +533,8 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     if !uv.is_empty() {
         uv.resize(mesh.indices.len(), [glam::Vec2::ZERO; 3]);
     }
-    if !file.wrap.is_empty() && !base_textures.is_empty() {
-        for (_, t) in base_textures.drain(..) {
+    if !file.wrap.is_empty() && !textures_named.is_empty() {
+        for (_, _, t) in textures_named.drain(..) {
             tracing::warn!(
                 "texture `{}` ignored: [[wrap]] re-triangulates the mesh and does not carry texture coordinates yet; its factor is used: {}",
                 t.name(),
@@ -597,9 +612,6 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     };
     let pose_limits = scene_limits.pose_limits(planet.map(|p| p.radius_m));
     let pose = pose_from(&file.pose, &pose_limits).map_err(|(span, f, m)| field(span, &f, m))?;
-    let irradiance = *file.sun.irradiance.get_ref();
-    limits::in_range(irradiance, limits::IRRADIANCE_W_M2, " W/m²")
-        .map_err(|m| field(file.sun.irradiance.span(), "sun.irradiance", m))?;
     let background = *file.background.radiance.get_ref();
     limits::in_range(background, limits::BACKGROUND_W_SR_M2, " W·sr⁻¹·m⁻²")
         .map_err(|m| field(file.background.radiance.span(), "background.radiance", m))?;
@@ -634,7 +646,7 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
         None => None,
         Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor, camera.focal_px())?),
     };
-    let texturing = super::textures::build(&materials, base_textures, uv, file.render.texture_filter);
+    let texturing = super::textures::build(&materials, textures_named, uv, file.render.texture_filter);
     Ok(SceneParts {
         texturing,
         mesh,

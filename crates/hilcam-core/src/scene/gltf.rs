@@ -7,13 +7,16 @@
 //! - Refused, naming the file: primitives other than triangles, Draco
 //!   (`KHR_draco_mesh_compression`) and quantized (`KHR_mesh_quantization`, or any
 //!   non-float position) meshes, indices past the vertex count, unreadable buffers.
-//! - `baseColorTexture` with texture coordinate set 0 is used (UV origin the image's
-//!   top-left, sRGB, times `baseColorFactor`; `scene::texture_file`).
+//! - `baseColorTexture` and `emissiveTexture` with texture coordinate set 0 are used (UV
+//!   origin the image's top-left, sRGB, times `baseColorFactor` / `emissiveFactor`;
+//!   `scene::texture_file`); emission is `emissiveFactor` × `KHR_materials_emissive_strength`
+//!   relative to sunlit white (`authored::AuthoredEmission`); `KHR_materials_ior` sets the
+//!   dielectric's index.
 //! - Reported (a note naming the file and the material), never silently dropped: every
-//!   other texture reference and texture set, emission, alpha, single-sided materials,
-//!   every extension used, animations and skins.
+//!   other texture reference and texture set, alpha, single-sided materials, every other
+//!   extension used, animations and skins.
 
-use super::authored::{AuthoredBsdf, MIN_ROUGHNESS, metallic_roughness};
+use super::authored::{AuthoredBsdf, AuthoredEmission, MIN_ROUGHNESS, metallic_roughness, over_band};
 use super::model::{AuthoredMaterials, ModelMesh};
 use super::texture_file::{ImageSource, TextureRef};
 use crate::render::bsdf::GLTF_DIELECTRIC_IOR;
@@ -22,6 +25,9 @@ use glam::{DMat4, DVec3, Vec3};
 use gltf::mesh::Mode;
 use gltf::texture::WrappingMode;
 use std::path::Path;
+
+/// Extensions whose properties are read.
+const USED_EXTENSIONS: [&str; 2] = ["KHR_materials_emissive_strength", "KHR_materials_ior"];
 
 /// Largest vertex coordinate accepted, metres after the node transforms (as OBJ's).
 const MAX_COORD: f64 = crate::scene::limits::OBJ_COORD;
@@ -57,7 +63,9 @@ fn load(path: &Path) -> Result<ModelMesh, String> {
 
     let mut notes = Vec::new();
     for ext in doc.extensions_used() {
-        notes.push(format!("extension `{ext}` ignored"));
+        if !USED_EXTENSIONS.contains(&ext) {
+            notes.push(format!("extension `{ext}` ignored"));
+        }
     }
     if doc.animations().len() > 0 {
         notes.push(format!("{} animation(s) ignored: the rest pose is rendered", doc.animations().len()));
@@ -68,7 +76,7 @@ fn load(path: &Path) -> Result<ModelMesh, String> {
 
     let (materials, names) = materials(doc, path, &buffers);
     // UVs (TEXCOORD_0) only when some material is textured.
-    let textured: Vec<bool> = materials.iter().map(|m| m.as_ref().is_ok_and(|b| b.base_texture.is_some())).collect();
+    let textured: Vec<bool> = materials.iter().map(|m| m.as_ref().is_ok_and(AuthoredBsdf::is_textured)).collect();
     let mut uv: Vec<[glam::Vec2; 3]> = Vec::new();
     let mut mesh = TriMesh::default();
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
@@ -160,7 +168,7 @@ fn materials(
     }
     // glTF's default material: base colour 1, metallic 1, roughness 1.
     let bsdf = metallic_roughness(1.0, 1.0, 1.0, GLTF_DIELECTRIC_IOR).map_err(|e| e.to_string());
-    built.push(bsdf.map(|bsdf| AuthoredBsdf { bsdf, notes: Vec::new(), base_texture: None }));
+    built.push(bsdf.map(|bsdf| AuthoredBsdf { bsdf, notes: Vec::new(), base_texture: None, emission: None }));
     names.push("default".to_string());
     (built, names)
 }
@@ -186,44 +194,29 @@ fn material(
         ));
         roughness = MIN_ROUGHNESS;
     }
-    // The base colour's texture, with TEXCOORD_0 (other sets are reported, not used).
-    let mut base_texture = None;
-    if let Some(info) = pbr.base_color_texture() {
-        let t = info.texture();
-        if info.tex_coord() != 0 {
-            notes.push(format!(
-                "`baseColorTexture` (texture {}) ignored: it uses texCoord {}, hilcam reads TEXCOORD_0 only: {at}",
-                t.index(),
-                info.tex_coord()
-            ));
-        } else {
-            match image_source(&t.source(), path, buffers) {
-                Ok(source) => base_texture = Some(TextureRef { source, factor: [r, g, b], at: at.clone() }),
-                Err(e) => notes.push(format!("`baseColorTexture` (texture {}) ignored: {e}: {at}", t.index())),
-            }
-            let s = t.sampler();
-            if s.wrap_s() != WrappingMode::Repeat || s.wrap_t() != WrappingMode::Repeat {
-                notes.push(format!(
-                    "`baseColorTexture` sampler wrap ({:?}, {:?}) ignored: textures repeat: {at}",
-                    s.wrap_s(),
-                    s.wrap_t()
-                ));
-            }
-        }
-    }
+    // The base colour's and the emission's textures, with TEXCOORD_0.
+    let base_texture = pbr
+        .base_color_texture()
+        .and_then(|info| texture_ref("baseColorTexture", &info, [r, g, b], &at, path, buffers, &mut notes));
     let textures = [
         ("metallicRoughnessTexture", pbr.metallic_roughness_texture().map(|t| t.texture().index())),
         ("normalTexture", m.normal_texture().map(|t| t.texture().index())),
         ("occlusionTexture", m.occlusion_texture().map(|t| t.texture().index())),
-        ("emissiveTexture", m.emissive_texture().map(|t| t.texture().index())),
     ];
     for (what, tex) in textures {
         if let Some(t) = tex {
-            notes.push(format!("`{what}` (texture {t}) ignored: only base-colour textures are used: {at}"));
+            notes
+                .push(format!("`{what}` (texture {t}) ignored: only base-colour and emissive textures are used: {at}"));
         }
     }
-    if m.emissive_factor() != [0.0; 3] {
-        notes.push(format!("`emissiveFactor` ignored (hilcam has no emitting surfaces yet): {at}"));
+    let emission = emission(m, &at, path, buffers, &mut notes)?;
+    let mut ior = GLTF_DIELECTRIC_IOR;
+    if let Some(v) = m.ior() {
+        if (1.0..=4.0).contains(&v) {
+            ior = v;
+        } else {
+            notes.push(format!("KHR_materials_ior `ior` {v} is outside [1, 4]: {GLTF_DIELECTRIC_IOR} used: {at}"));
+        }
     }
     if a != 1.0 || m.alpha_mode() != gltf::material::AlphaMode::Opaque {
         notes.push(format!("alpha ({:?}, base colour alpha {a}) ignored: surfaces are opaque: {at}", m.alpha_mode()));
@@ -231,8 +224,79 @@ fn material(
     if !m.double_sided() {
         notes.push(format!("`doubleSided` false ignored: hilcam's surfaces are two-sided: {at}"));
     }
-    let bsdf = metallic_roughness(base, metallic, roughness, GLTF_DIELECTRIC_IOR).map_err(|e| format!("{at}: {e}"))?;
-    Ok(AuthoredBsdf { bsdf, notes, base_texture })
+    let bsdf = metallic_roughness(base, metallic, roughness, ior).map_err(|e| format!("{at}: {e}"))?;
+    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission })
+}
+
+/// Largest emissive strength taken (`KHR_materials_emissive_strength`): 1e6 × sunlit
+/// white, as MTL's `Ke`.
+const MAX_EMISSIVE_STRENGTH: f32 = 1.0e6;
+
+/// `emissiveFactor` × `KHR_materials_emissive_strength`, and `emissiveTexture`.
+fn emission(
+    m: &gltf::Material,
+    at: &str,
+    path: &Path,
+    buffers: &[Vec<u8>],
+    notes: &mut Vec<String>,
+) -> Result<Option<AuthoredEmission>, String> {
+    let factor = m.emissive_factor();
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    if !(strength.is_finite() && (0.0..=MAX_EMISSIVE_STRENGTH).contains(&strength)) {
+        return Err(format!("{at}: emissive_strength {strength} must be in [0, {MAX_EMISSIVE_STRENGTH:e}]"));
+    }
+    let info = m.emissive_texture();
+    if factor == [0.0; 3] || strength == 0.0 {
+        if let Some(info) = info {
+            notes.push(format!(
+                "`emissiveTexture` (texture {}) ignored: the emission factor is black: {at}",
+                info.texture().index()
+            ));
+        }
+        return Ok(None);
+    }
+    let texture =
+        info.and_then(|info| texture_ref("emissiveTexture", &info, over_band(factor), at, path, buffers, notes));
+    let relative = strength * (factor[0] + factor[1] + factor[2]) / 3.0;
+    Ok(Some(AuthoredEmission { relative, texture }))
+}
+
+/// A material's texture reference (`what` names it in notes), with its colour `factor`;
+/// `None` with a note when it cannot be used (another texture set, an unreadable image
+/// source).
+fn texture_ref(
+    what: &str,
+    info: &gltf::texture::Info,
+    factor: [f32; 3],
+    at: &str,
+    path: &Path,
+    buffers: &[Vec<u8>],
+    notes: &mut Vec<String>,
+) -> Option<TextureRef> {
+    let t = info.texture();
+    if info.tex_coord() != 0 {
+        notes.push(format!(
+            "`{what}` (texture {}) ignored: it uses texCoord {}, hilcam reads TEXCOORD_0 only: {at}",
+            t.index(),
+            info.tex_coord()
+        ));
+        return None;
+    }
+    let s = t.sampler();
+    if s.wrap_s() != WrappingMode::Repeat || s.wrap_t() != WrappingMode::Repeat {
+        notes.push(format!(
+            "`{what}` sampler wrap ({:?}, {:?}) ignored: textures repeat: {at}",
+            s.wrap_s(),
+            s.wrap_t()
+        ));
+    }
+    match image_source(&t.source(), path, buffers) {
+        Ok(source) => Some(TextureRef { source, factor, at: at.to_string() }),
+        Err(e) => {
+            notes.push(format!("`{what}` (texture {}) ignored: {e}: {at}", t.index()));
+            None
+        }
+    }
 }
 
 /// Where an image's encoded bytes are: a buffer view (GLB), a base64 data URI, or a file

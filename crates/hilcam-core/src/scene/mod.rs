@@ -7,6 +7,7 @@ pub mod file;
 pub mod fold;
 pub mod gltf;
 pub mod limits;
+pub mod material_entry;
 pub mod model;
 pub mod mtl;
 pub mod mtl_bsdf;

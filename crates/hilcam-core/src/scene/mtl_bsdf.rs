@@ -13,9 +13,10 @@
 //!   `(1 + √F0)/(1 − √F0)`, F0 at most 0.36 = index 4) with the Blinn–Phong exponent `Ns`
 //!   mapped to GGX by Walter et al. 2007's `α = √(2/(Ns + 2))` (`Ns` default 0: α = 1).
 //!   `Ni` is then MTL's refraction index of transparent materials, unused.
-//! - `Ke` is unused unless black: hilcam has no emitting surfaces yet.
+//! - `Ke r g b` (≥ 0, may exceed 1) is emission relative to sunlit white (E/π,
+//!   `authored::AuthoredEmission`); `map_Ke` its texture (sRGB, times `Ke`).
 
-use super::authored::{AuthoredBsdf, MIN_ROUGHNESS, metallic_roughness};
+use super::authored::{AuthoredBsdf, AuthoredEmission, MIN_ROUGHNESS, metallic_roughness, over_band};
 use super::mtl::{MtlKey, MtlMaterial};
 use super::texture_file::{ImageSource, TextureRef};
 use crate::render::bsdf::{Bsdf, Ggx, Lambert};
@@ -25,15 +26,55 @@ const MAX_DIELECTRIC_F0: f32 = 0.36;
 
 /// `Kd r [g b]` → the band value (g and b default to r, as MTL says).
 fn band(m: &MtlMaterial, k: &MtlKey) -> Result<f32, String> {
+    let [r, g, b] = rgb(m, k)?;
+    unit(m, k, (r + g + b) / 3.0)
+}
+
+/// A colour key's `r g b` (g and b default to r).
+fn rgb(m: &MtlMaterial, k: &MtlKey) -> Result<[f32; 3], String> {
     let v: Vec<f32> = k.args.iter().map(|a| a.parse::<f32>()).collect::<Result<_, _>>().map_err(|_| {
         format!("{}: {}: `{}` is not `{} r g b` (numbers)", m.at(k.line), k.key, k.args.join(" "), k.key)
     })?;
-    let b = match v.as_slice() {
-        [r] => *r,
-        [r, g, b] => (r + g + b) / 3.0,
-        _ => return Err(format!("{}: {}: needs 1 or 3 numbers, got {}", m.at(k.line), k.key, v.len())),
+    match v.as_slice() {
+        [r] => Ok([*r; 3]),
+        [r, g, b] => Ok([*r, *g, *b]),
+        _ => Err(format!("{}: {}: needs 1 or 3 numbers, got {}", m.at(k.line), k.key, v.len())),
+    }
+}
+
+/// Largest `Ke` component: 1e6 × sunlit white is far beyond any lamp on a spacecraft and
+/// keeps the radiance finite in f32.
+const MAX_KE: f32 = 1.0e6;
+
+/// `Ke r g b` and `map_Ke`: the material's emission, if it emits.
+fn emission(m: &MtlMaterial, notes: &mut Vec<String>) -> Result<Option<AuthoredEmission>, String> {
+    let ke = match m.get("Ke") {
+        None => None,
+        Some(k) => {
+            let c = rgb(m, k)?;
+            if c.iter().any(|v| !(0.0..=MAX_KE).contains(v)) {
+                return Err(format!("{}: Ke: `{}` must be in [0, {MAX_KE:e}]", m.at(k.line), k.args.join(" ")));
+            }
+            Some(c)
+        }
     };
-    unit(m, k, b)
+    let texture = m.get("map_Ke").map(|k| map_file(m, k, over_band(ke.unwrap_or([1.0; 3])), notes)).transpose()?;
+    if texture.is_some() && ke.is_none() {
+        let k = m.get("map_Ke").expect("map_Ke read");
+        notes.push(format!("`map_Ke` used with `Ke 1 1 1` (the material gives no `Ke`): {}", m.at(k.line)));
+    }
+    let c = ke.unwrap_or([1.0; 3]);
+    if c == [0.0; 3] {
+        if let Some(t) = texture {
+            notes.push(format!("`map_Ke` `{}` ignored: `Ke` is black: {}", t.name(), t.at));
+        }
+        return Ok(None);
+    }
+    if texture.is_none() && ke.is_none() {
+        return Ok(None);
+    }
+    let relative = (c[0] + c[1] + c[2]) / 3.0;
+    Ok(Some(AuthoredEmission { relative, texture }))
 }
 
 fn unit(m: &MtlMaterial, k: &MtlKey, v: f32) -> Result<f32, String> {
@@ -133,14 +174,9 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
             Bsdf::Ggx(Ggx::plastic(roughness, base, ior).map_err(|e| format!("{}: {e}", m.at(m.line)))?)
         }
     };
-    if let Some(k) = m.get("Ke") {
-        let ke = band(m, k).or_else(|_| scalar(m, k)).unwrap_or(f32::NAN);
-        if ke != 0.0 {
-            notes.push(format!("`Ke` ignored (hilcam has no emitting surfaces yet): {}", m.at(k.line)));
-        }
-    }
-    used.push("Ke");
-    let base_texture = m.get("map_Kd").map(|k| map_kd(m, k, &mut notes)).transpose()?;
+    let emission = emission(m, &mut notes)?;
+    used.extend(["Ke", "map_Ke"]);
+    let base_texture = m.get("map_Kd").map(|k| map_file(m, k, kd_factor(m)?, &mut notes)).transpose()?;
     used.push("map_Kd");
     // Every other key, once per material.
     let mut reported: Vec<&str> = Vec::new();
@@ -150,31 +186,37 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
             notes.push(format!("`{}` ignored: {}", k.key, m.at(k.line)));
         }
     }
-    Ok(AuthoredBsdf { bsdf, notes, base_texture })
+    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission })
 }
 
-/// `map_Kd [options] file`: the image beside the MTL (sRGB), times `Kd`'s r g b. Options
-/// (`-s`, `-o`, `-bm`, …) are noted as ignored and the file is the last word.
-fn map_kd(m: &MtlMaterial, k: &MtlKey, notes: &mut Vec<String>) -> Result<TextureRef, String> {
-    let file = match k.args.as_slice() {
-        [] => return Err(format!("{}: map_Kd: needs a file name", m.at(k.line))),
-        args if args.iter().any(|a| a.starts_with('-')) => {
-            notes.push(format!(
-                "`map_Kd` options `{}` ignored (the image is used as is): {}",
-                args[..args.len() - 1].join(" "),
-                m.at(k.line)
-            ));
-            args[args.len() - 1].clone()
-        }
-        args => args.join(" "),
-    };
-    let factor = match m.get("Kd") {
+/// `Kd`'s r g b, the factor of `map_Kd` (white without `Kd`).
+fn kd_factor(m: &MtlMaterial) -> Result<[f32; 3], String> {
+    Ok(match m.get("Kd") {
         None => [1.0; 3],
         Some(kd) => match kd.args.iter().map(|a| a.parse::<f32>()).collect::<Result<Vec<_>, _>>() {
             Ok(v) if v.len() == 3 => [v[0], v[1], v[2]],
             Ok(v) if v.len() == 1 => [v[0]; 3],
             _ => [band(m, kd)?; 3],
         },
+    })
+}
+
+/// `map_Kd [options] file` (or `map_Ke`): the image beside the MTL (sRGB), times
+/// `factor`. Options (`-s`, `-o`, `-bm`, …) are noted as ignored and the file is the last
+/// word.
+fn map_file(m: &MtlMaterial, k: &MtlKey, factor: [f32; 3], notes: &mut Vec<String>) -> Result<TextureRef, String> {
+    let file = match k.args.as_slice() {
+        [] => return Err(format!("{}: {}: needs a file name", m.at(k.line), k.key)),
+        args if args.iter().any(|a| a.starts_with('-')) => {
+            notes.push(format!(
+                "`{}` options `{}` ignored (the image is used as is): {}",
+                k.key,
+                args[..args.len() - 1].join(" "),
+                m.at(k.line)
+            ));
+            args[args.len() - 1].clone()
+        }
+        args => args.join(" "),
     };
     let dir = m.file.parent().unwrap_or(std::path::Path::new("."));
     Ok(TextureRef { source: ImageSource::File(dir.join(file.replace('\\', "/"))), factor, at: m.at(k.line) })
@@ -236,13 +278,33 @@ mod tests {
             "`illum` ignored: panel.mtl:5",
             "`d` ignored: panel.mtl:6",
             "`Ka` ignored: panel.mtl:8",
-            "`Ke` ignored (hilcam has no emitting surfaces yet): panel.mtl:9",
         ] {
             assert!(f.notes.iter().any(|n| n == want), "missing {want}: {:?}", f.notes);
         }
         assert_eq!(f.notes.iter().filter(|n| n.contains("`Ps`")).count(), 1);
+        assert!(!f.notes.iter().any(|n| n.contains("`Ke`")), "Ke is used: {:?}", f.notes);
         let f = one("Kd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nPr 0.5\nNi 1.45\n").unwrap();
         assert!(f.notes.iter().any(|n| n == "`Ks` ignored (the material has `Pr`/`Pm`): panel.mtl:3"), "{:?}", f.notes);
+    }
+
+    #[test]
+    fn ke_is_emission_relative_to_sunlit_white_and_map_ke_its_texture() {
+        let e = one("Kd 0.5\nKe 0.2 0.4 3.0\n").unwrap().emission.unwrap();
+        assert!((e.relative - 1.2).abs() < 1e-6 && e.texture.is_none(), "{e:?}");
+        assert!(one("Kd 0.5\nKe 0 0 0\n").unwrap().emission.is_none());
+        assert!(one("Kd 0.5\n").unwrap().emission.is_none());
+        let e = one("Ke 0.5 1 1.5\nmap_Ke glow.png\n").unwrap().emission.unwrap();
+        let t = e.texture.unwrap();
+        assert_eq!((e.relative, t.factor, t.at.as_str()), (1.0, [0.5, 1.0, 1.5], "panel.mtl:3"));
+        let f = one("Ke 0 0 0\nmap_Ke glow.png\n").unwrap();
+        assert!(f.emission.is_none());
+        assert!(
+            f.notes.iter().any(|n| n == "`map_Ke` `/x/glow.png` ignored: `Ke` is black: panel.mtl:3"),
+            "{:?}",
+            f.notes
+        );
+        assert!(one("Ke -1 0 0\n").unwrap_err().starts_with("panel.mtl:2: Ke: `-1 0 0` must be in [0, "));
+        assert!(one("Ke a\n").unwrap_err().starts_with("panel.mtl:2: Ke:"));
     }
 
     #[test]

@@ -65,7 +65,7 @@ impl PlaneCase {
         };
         let scene = Scene::build(SceneParts {
             mesh,
-            materials: vec![Material { name: "plane".into(), bsdf }],
+            materials: vec![Material::new("plane", bsdf)],
             sun_irradiance: irradiance,
             background: 0.0,
             camera: camera.clone(),

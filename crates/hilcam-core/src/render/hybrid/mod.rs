@@ -12,7 +12,7 @@
 //! direction's change across a fragment (second order).
 //!
 //! Applies to an instant view (no motion over the exposure) with every vertex in front of
-//! the camera and no planet; otherwise [`render`] returns None and the caller path-traces.
+//! the camera and no planet, texture or emitting surface; otherwise [`render`] returns None and the caller path-traces.
 
 pub mod area;
 pub mod cells;
@@ -65,8 +65,9 @@ pub fn render(
     settings: &RenderSettings,
     frame: u64,
 ) -> Option<HybridStats> {
-    // Its fragments shade with each material's own BRDF: a textured target is path-traced.
-    if view.motion.is_some() || target.planet.is_some() || target.texturing.is_some() {
+    // Its fragments shade with each material's own BRDF and no emission: a textured or
+    // emitting target is path-traced.
+    if view.motion.is_some() || target.planet.is_some() || target.texturing.is_some() || target.any_emitting() {
         return None;
     }
     let HybridBuffers { setup, shadows } = buffers;

@@ -12,6 +12,7 @@ use crate::render::sampling::{
     SampleSource, Sequence, ShadingBasis, UNIFORM_HEMISPHERE_PDF, cosine_hemisphere, uniform_hemisphere,
 };
 use crate::render::target::Target;
+use crate::render::texture::{MipMap, Texturing};
 use glam::Vec3;
 use serde::Deserialize;
 
@@ -219,6 +220,8 @@ impl RayLog for RecordedRays {
 
 /// What one surface interaction produces (see [`PathContext::scatter`]).
 pub struct Scatter {
+    /// Radiance the surface emits toward the path, times the throughput that reached it.
+    pub emitted: f32,
     /// Shadow ray toward the sun, and the radiance it adds if nothing blocks it.
     pub shadow: Option<(Ray, f32)>,
     /// The path's next ray and throughput; `None` when the path ends here.
@@ -354,6 +357,7 @@ impl<'a> PathContext<'a> {
                 break;
             };
             let sc = self.scatter(&ray, &hit, beta, bounce, rng);
+            l += sc.emitted;
             if let Some((shadow, contribution)) = sc.shadow {
                 counts.shadow += 1;
                 log.shadow(&shadow);
@@ -381,19 +385,31 @@ impl<'a> PathContext<'a> {
             n = -n;
         }
         let p = ray.origin + ray.dir * hit.t;
-        let own = &self.scene.materials[hit.material as usize].bsdf;
+        let material = &self.scene.materials[hit.material as usize];
+        let own = &material.bsdf;
+        // A texture's value here: camera hits prefilter over the pixel's footprint on the
+        // surface, √(area) of its projection (width / √cosθ); bounces take the finest level.
+        let texel = |tx: &Texturing, mip: &MipMap| {
+            let width = self.footprint.filter(|_| bounce == 0).map(|f| {
+                let cos = hit.normal.dot(wo).abs().max(1e-3);
+                (p - f.eye).length() * f.per_metre / cos.sqrt()
+            });
+            tx.value_at(mip, hit.tri, self.scene.mesh.triangle(hit.tri as usize), p, width)
+        };
+        let texturing = self.scene.texturing.as_deref();
+        let mut emitted = 0.0;
+        if material.emission > 0.0 {
+            let scale = match texturing.and_then(|t| Some((t, t.emission_of(hit.material)?))) {
+                None => 1.0,
+                Some((tx, mip)) => texel(tx, mip),
+            };
+            emitted = beta * material.emission * scale;
+        }
         let textured;
-        let bsdf = match self.scene.texturing.as_deref().and_then(|t| Some((t, t.base_of(hit.material)?))) {
+        let bsdf = match texturing.and_then(|t| Some((t, t.base_of(hit.material)?))) {
             None => own,
             Some((tx, mip)) => {
-                // Camera hits: the pixel's footprint on the surface, √(area) of its
-                // projection (width / √cosθ); bounces: the finest level.
-                let width = self.footprint.filter(|_| bounce == 0).map(|f| {
-                    let cos = hit.normal.dot(wo).abs().max(1e-3);
-                    (p - f.eye).length() * f.per_metre / cos.sqrt()
-                });
-                let corners = self.scene.mesh.triangle(hit.tri as usize);
-                textured = own.with_base(tx.value_at(mip, hit.tri, corners, p, width));
+                textured = own.with_base(texel(tx, mip));
                 &textured
             }
         };
@@ -410,7 +426,7 @@ impl<'a> PathContext<'a> {
             }
         }
         if !self.indirect || bounce + 1 == self.depth || bsdf.is_black() {
-            return Scatter { shadow, next: None };
+            return Scatter { emitted, shadow, next: None };
         }
         let u = rng.next_2d();
         let (wi_l, weight) = match self.sampler {
@@ -424,22 +440,22 @@ impl<'a> PathContext<'a> {
             }
             SamplerKind::Brdf => match bsdf.sample(wo_l, u, rng.next_1d()) {
                 Some(s) if s.pdf > 0.0 => (s.wi, s.f_cos / s.pdf),
-                _ => return Scatter { shadow, next: None },
+                _ => return Scatter { emitted, shadow, next: None },
             },
         };
         let mut beta = beta * weight;
         if beta <= 0.0 || !beta.is_finite() {
-            return Scatter { shadow, next: None };
+            return Scatter { emitted, shadow, next: None };
         }
         // Russian roulette from the second indirect bounce on: a path whose throughput
         // fell below 1 survives with probability `beta` and carries 1 afterwards —
         // unbiased, and low-throughput paths stop costing rays.
         if self.roulette && bounce >= 1 && beta < 1.0 {
             if rng.next_1d() >= beta {
-                return Scatter { shadow, next: None };
+                return Scatter { emitted, shadow, next: None };
             }
             beta = 1.0;
         }
-        Scatter { shadow, next: Some((Ray { origin, dir: basis.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
+        Scatter { emitted, shadow, next: Some((Ray { origin, dir: basis.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
     }
 }

@@ -276,6 +276,7 @@ impl TileJob<'_> {
                     continue;
                 };
                 let sc = ctx.scatter(&p.ray, hit, p.beta, bounce, &mut p.rng);
+                p.l += sc.emitted;
                 if let Some((ray, contribution)) = sc.shadow {
                     shadows.push((i, ray, contribution));
                 }

@@ -1,10 +1,12 @@
-//! Base-colour textures: per-triangle UVs, mip-mapped band images, and the footprint
+//! Base-colour and emission textures: per-triangle UVs, mip-mapped band images, and the footprint
 //! rule that keeps a frame the pixel's box average of its texture (docs/brdf.md,
 //! "Textures").
 //!
 //! - A texture holds the material's base colour at hilcam's band, linear, already
 //!   multiplied by the material's factor (`Kd`, `baseColorFactor`): the value replaces the
-//!   BRDF's base (`Bsdf::with_base`).
+//!   BRDF's base (`Bsdf::with_base`). An emission texture holds the emitted radiance's
+//!   multiplier (linear, times the material's emission factor), which scales
+//!   `Material::emission`.
 //! - Texture coordinates `(s, t)` have `t = 0` at the image's top row (glTF's UV as is;
 //!   OBJ's `v` flipped at load).
 //! - Camera hits are prefiltered over the pixel's footprint on the surface scaled by
@@ -46,6 +48,8 @@ pub struct Texturing {
     pub textures: Vec<Texture>,
     /// Per scene material: the texture holding its base colour, if any.
     pub base: Vec<Option<u32>>,
+    /// Per scene material: the texture scaling its emission, if any.
+    pub emission: Vec<Option<u32>>,
     /// Per triangle (the mesh's order): `(s, t)` at its three corners; zero for triangles
     /// of untextured materials.
     pub uv: Vec<[Vec2; 3]>,
@@ -61,7 +65,18 @@ impl Texturing {
     /// The base-colour texture of material `material`, if it has one.
     #[inline]
     pub fn base_of(&self, material: u32) -> Option<&MipMap> {
-        match self.base.get(material as usize) {
+        self.texture(&self.base, material)
+    }
+
+    /// The emission texture of material `material`, if it has one.
+    #[inline]
+    pub fn emission_of(&self, material: u32) -> Option<&MipMap> {
+        self.texture(&self.emission, material)
+    }
+
+    #[inline]
+    fn texture(&self, slots: &[Option<u32>], material: u32) -> Option<&MipMap> {
+        match slots.get(material as usize) {
             Some(Some(t)) => Some(&self.textures[*t as usize].mip),
             _ => None,
         }
@@ -110,6 +125,7 @@ mod tests {
         let t = Texturing {
             textures: vec![Texture { name: "t".into(), mip: mip.clone() }],
             base: vec![Some(0)],
+            emission: vec![None],
             uv: vec![[Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)]],
             filter: TextureFilter::Mip,
         };
