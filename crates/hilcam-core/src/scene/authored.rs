@@ -16,6 +16,10 @@ pub struct AuthoredBsdf {
     pub base_texture: Option<super::texture_file::TextureRef>,
     /// What the surface emits (MTL `Ke`, glTF `emissiveFactor`), if anything.
     pub emission: Option<AuthoredEmission>,
+    /// GGX roughness and metallic textures (glTF `metallicRoughnessTexture`'s G and B,
+    /// MTL `map_Pr`, `map_Pm`): values read linearly, times the factor.
+    pub roughness_texture: Option<super::texture_file::TextureRef>,
+    pub metallic_texture: Option<super::texture_file::TextureRef>,
 }
 
 /// `c` over its band value (the mean of the three): the texture factor of a colour
@@ -28,7 +32,10 @@ pub fn over_band(c: [f32; 3]) -> [f32; 3] {
 impl AuthoredBsdf {
     /// True when a texture is named (base colour or emission): the triangles need UVs.
     pub fn is_textured(&self) -> bool {
-        self.base_texture.is_some() || self.emission.as_ref().is_some_and(|e| e.texture.is_some())
+        self.base_texture.is_some()
+            || self.emission.as_ref().is_some_and(|e| e.texture.is_some())
+            || self.roughness_texture.is_some()
+            || self.metallic_texture.is_some()
     }
 }
 
@@ -52,7 +59,24 @@ pub struct AuthoredEmission {
 /// # Errors
 /// [`BsdfError`] naming the out-of-range parameter.
 pub fn metallic_roughness(base: f32, metallic: f32, roughness: f32, ior: f32) -> Result<Bsdf, BsdfError> {
-    let g = if metallic == 1.0 {
+    metallic_roughness_textured(base, metallic, roughness, ior, false)
+}
+
+/// [`metallic_roughness`]; with `metallic_textured` always glTF's blend, which keeps the
+/// base colour for both parts (a texel may turn a metal factor into a plastic).
+///
+/// # Errors
+/// [`BsdfError`] naming the out-of-range parameter.
+pub fn metallic_roughness_textured(
+    base: f32,
+    metallic: f32,
+    roughness: f32,
+    ior: f32,
+    metallic_textured: bool,
+) -> Result<Bsdf, BsdfError> {
+    let g = if metallic_textured {
+        Ggx::blend(base, metallic, roughness, ior)
+    } else if metallic == 1.0 {
         Ggx::conductor(roughness, ConductorFresnel::Schlick { f0: base })
     } else if metallic == 0.0 {
         Ggx::plastic(roughness, base, ior)

@@ -485,8 +485,12 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                 }
                 materials.push(Material { name: name.clone(), bsdf: built.bsdf, emission });
                 let mat = (materials.len() - 1) as u32;
-                let textures =
-                    [(Slot::Base, built.base_texture), (Slot::Emission, built.emission.and_then(|e| e.texture))];
+                let textures = [
+                    (Slot::Base, built.base_texture),
+                    (Slot::Emission, built.emission.and_then(|e| e.texture)),
+                    (Slot::Roughness, built.roughness_texture),
+                    (Slot::Metallic, built.metallic_texture),
+                ];
                 for (slot, t) in textures {
                     let Some(t) = t else { continue };
                     if loaded.uv.is_empty() {

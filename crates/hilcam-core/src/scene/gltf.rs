@@ -7,16 +7,18 @@
 //! - Refused, naming the file: primitives other than triangles, Draco
 //!   (`KHR_draco_mesh_compression`) and quantized (`KHR_mesh_quantization`, or any
 //!   non-float position) meshes, indices past the vertex count, unreadable buffers.
-//! - `baseColorTexture` and `emissiveTexture` with texture coordinate set 0 are used (UV
-//!   origin the image's top-left, sRGB, times `baseColorFactor` / `emissiveFactor`;
-//!   `scene::texture_file`); emission is `emissiveFactor` × `KHR_materials_emissive_strength`
+//! - `baseColorTexture`, `metallicRoughnessTexture` (G roughness, B metallic, linear) and
+//!   `emissiveTexture` with texture coordinate set 0 are used (UV origin the image's
+//!   top-left, times their factors; colours sRGB; `scene::texture_file`); emission is `emissiveFactor` × `KHR_materials_emissive_strength`
 //!   relative to sunlit white (`authored::AuthoredEmission`); `KHR_materials_ior` sets the
 //!   dielectric's index.
 //! - Reported (a note naming the file and the material), never silently dropped: every
 //!   other texture reference and texture set, alpha, single-sided materials, every other
 //!   extension used, animations and skins.
 
-use super::authored::{AuthoredBsdf, AuthoredEmission, MIN_ROUGHNESS, metallic_roughness, over_band};
+use super::authored::{
+    AuthoredBsdf, AuthoredEmission, MIN_ROUGHNESS, metallic_roughness, metallic_roughness_textured, over_band,
+};
 use super::model::{AuthoredMaterials, ModelMesh};
 use super::texture_file::{ImageSource, TextureRef};
 use crate::render::bsdf::GLTF_DIELECTRIC_IOR;
@@ -168,7 +170,14 @@ fn materials(
     }
     // glTF's default material: base colour 1, metallic 1, roughness 1.
     let bsdf = metallic_roughness(1.0, 1.0, 1.0, GLTF_DIELECTRIC_IOR).map_err(|e| e.to_string());
-    built.push(bsdf.map(|bsdf| AuthoredBsdf { bsdf, notes: Vec::new(), base_texture: None, emission: None }));
+    built.push(bsdf.map(|bsdf| AuthoredBsdf {
+        bsdf,
+        notes: Vec::new(),
+        base_texture: None,
+        emission: None,
+        roughness_texture: None,
+        metallic_texture: None,
+    }));
     names.push("default".to_string());
     (built, names)
 }
@@ -198,15 +207,26 @@ fn material(
     let base_texture = pbr
         .base_color_texture()
         .and_then(|info| texture_ref("baseColorTexture", &info, [r, g, b], &at, path, buffers, &mut notes));
+    // Roughness from G, metallic from B, read linearly, times the factors.
+    let mr = pbr
+        .metallic_roughness_texture()
+        .and_then(|info| texture_ref("metallicRoughnessTexture", &info, [1.0; 3], &at, path, buffers, &mut notes));
+    let value = |t: &TextureRef, channel: usize, factor: f32| TextureRef {
+        factor: [factor; 3],
+        channel: Some(channel),
+        ..t.clone()
+    };
+    let roughness_texture = mr.as_ref().map(|t| value(t, 1, pbr.roughness_factor()));
+    let metallic_texture = mr.as_ref().map(|t| value(t, 2, metallic));
     let textures = [
-        ("metallicRoughnessTexture", pbr.metallic_roughness_texture().map(|t| t.texture().index())),
         ("normalTexture", m.normal_texture().map(|t| t.texture().index())),
         ("occlusionTexture", m.occlusion_texture().map(|t| t.texture().index())),
     ];
     for (what, tex) in textures {
         if let Some(t) = tex {
-            notes
-                .push(format!("`{what}` (texture {t}) ignored: only base-colour and emissive textures are used: {at}"));
+            notes.push(format!(
+                "`{what}` (texture {t}) ignored: base-colour, metallic-roughness and emissive textures are used: {at}"
+            ));
         }
     }
     let emission = emission(m, &at, path, buffers, &mut notes)?;
@@ -224,8 +244,9 @@ fn material(
     if !m.double_sided() {
         notes.push(format!("`doubleSided` false ignored: hilcam's surfaces are two-sided: {at}"));
     }
-    let bsdf = metallic_roughness(base, metallic, roughness, ior).map_err(|e| format!("{at}: {e}"))?;
-    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission })
+    let bsdf = metallic_roughness_textured(base, metallic, roughness, ior, metallic_texture.is_some())
+        .map_err(|e| format!("{at}: {e}"))?;
+    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission, roughness_texture, metallic_texture })
 }
 
 /// Largest emissive strength taken (`KHR_materials_emissive_strength`): 1e6 × sunlit
@@ -291,7 +312,7 @@ fn texture_ref(
         ));
     }
     match image_source(&t.source(), path, buffers) {
-        Ok(source) => Some(TextureRef { source, factor, at: at.to_string() }),
+        Ok(source) => Some(TextureRef { source, factor, channel: None, at: at.to_string() }),
         Err(e) => {
             notes.push(format!("`{what}` (texture {}) ignored: {e}: {at}", t.index()));
             None

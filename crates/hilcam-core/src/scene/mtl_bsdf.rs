@@ -4,10 +4,12 @@
 //!
 //! - A colour is reduced to hilcam's one band as the mean of its three values (the
 //!   camera's 450–750 nm band spans blue, green and red about equally).
-//! - With the PBR extension (`Pr` or `Pm`): GGX, roughness `Pr` (default 1, α = Pr²),
+//! - With the PBR extension (`Pr`, `Pm`, `map_Pr` or `map_Pm`): GGX, roughness `Pr` (default 1, α = Pr²),
 //!   metallic `Pm` (default 0), base colour `Kd` (default 1): `Pm` 1 is a conductor with
 //!   Schlick F0 = `Kd`, `Pm` 0 a rough plastic (index `Ni`, default 1.5) over Lambert
-//!   `Kd`, between them glTF's blend. `Ks` and `Ns` are then unused.
+//!   `Kd`, between them glTF's blend. `Ks` and `Ns` are then unused. `map_Pr` and
+//!   `map_Pm` give them texel by texel (an image's first channel, linear, times `Pr`,
+//!   `Pm`; 1 where absent).
 //! - Without it: Lambert `Kd` when `Ks` is absent or black; otherwise a rough plastic over
 //!   Lambert `Kd` whose coating reflects F0 = `Ks` at normal incidence (index
 //!   `(1 + √F0)/(1 − √F0)`, F0 at most 0.36 = index 4) with the Blinn–Phong exponent `Ns`
@@ -16,7 +18,7 @@
 //! - `Ke r g b` (≥ 0, may exceed 1) is emission relative to sunlit white (E/π,
 //!   `authored::AuthoredEmission`); `map_Ke` its texture (sRGB, times `Ke`).
 
-use super::authored::{AuthoredBsdf, AuthoredEmission, MIN_ROUGHNESS, metallic_roughness, over_band};
+use super::authored::{AuthoredBsdf, AuthoredEmission, MIN_ROUGHNESS, metallic_roughness_textured, over_band};
 use super::mtl::{MtlKey, MtlMaterial};
 use super::texture_file::{ImageSource, TextureRef};
 use crate::render::bsdf::{Bsdf, Ggx, Lambert};
@@ -100,13 +102,16 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
     let mut notes = Vec::new();
     let mut used: Vec<&str> = vec!["Kd"];
     let base = m.get("Kd").map(|k| band(m, k)).transpose()?.unwrap_or(1.0);
-    let pbr = m.get("Pr").is_some() || m.get("Pm").is_some();
+    let pbr = ["Pr", "Pm", "map_Pr", "map_Pm"].iter().any(|k| m.get(k).is_some());
+    // `map_Pr` and `map_Pm`: one channel (the first; a grey image's), linear, times `Pr`, `Pm`.
+    let mut value_maps = [None, None];
     let bsdf = if pbr {
-        used.extend(["Pr", "Pm", "Ni"]);
+        used.extend(["Pr", "Pm", "Ni", "map_Pr", "map_Pm"]);
         let mut roughness = match m.get("Pr") {
             Some(k) => unit(m, k, scalar(m, k)?)?,
             None => 1.0,
         };
+        let rough_factor = roughness;
         if roughness < MIN_ROUGHNESS {
             let k = m.get("Pr").expect("Pr below 1 was given");
             notes.push(format!(
@@ -119,6 +124,7 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
             Some(k) => unit(m, k, scalar(m, k)?)?,
             None => 0.0,
         };
+        let metal_factor = if m.get("Pm").is_some() { metallic } else { 1.0 };
         let mut ior = crate::render::bsdf::GLTF_DIELECTRIC_IOR;
         if let Some(k) = m.get("Ni") {
             let v = scalar(m, k)?;
@@ -134,7 +140,13 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
             }
         }
         used.extend(["Ks", "Ns"]);
-        metallic_roughness(base, metallic, roughness, ior).map_err(|e| format!("{}: {e}", m.at(m.line)))?
+        for (slot, (key, factor)) in value_maps.iter_mut().zip([("map_Pr", rough_factor), ("map_Pm", metal_factor)]) {
+            if let Some(k) = m.get(key) {
+                *slot = Some(TextureRef { channel: Some(0), ..map_file(m, k, [factor; 3], &mut notes)? });
+            }
+        }
+        metallic_roughness_textured(base, metallic, roughness, ior, value_maps[1].is_some())
+            .map_err(|e| format!("{}: {e}", m.at(m.line)))?
     } else {
         used.extend(["Ks", "Ns"]);
         let ks = m.get("Ks").map(|k| band(m, k)).transpose()?.unwrap_or(0.0);
@@ -186,7 +198,8 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
             notes.push(format!("`{}` ignored: {}", k.key, m.at(k.line)));
         }
     }
-    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission })
+    let [roughness_texture, metallic_texture] = value_maps;
+    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission, roughness_texture, metallic_texture })
 }
 
 /// `Kd`'s r g b, the factor of `map_Kd` (white without `Kd`).
@@ -219,7 +232,12 @@ fn map_file(m: &MtlMaterial, k: &MtlKey, factor: [f32; 3], notes: &mut Vec<Strin
         args => args.join(" "),
     };
     let dir = m.file.parent().unwrap_or(std::path::Path::new("."));
-    Ok(TextureRef { source: ImageSource::File(dir.join(file.replace('\\', "/"))), factor, at: m.at(k.line) })
+    Ok(TextureRef {
+        source: ImageSource::File(dir.join(file.replace('\\', "/"))),
+        factor,
+        channel: None,
+        at: m.at(k.line),
+    })
 }
 
 #[cfg(test)]

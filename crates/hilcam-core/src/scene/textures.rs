@@ -4,6 +4,7 @@
 
 use super::Material;
 use super::texture_file::{TextureRef, load_texture};
+use crate::render::bsdf::{Bsdf, CoatingFamily};
 use crate::render::texture::{TextureFilter, Texturing};
 
 /// What a texture gives its material.
@@ -13,6 +14,10 @@ pub enum Slot {
     Base,
     /// The emission's multiplier.
     Emission,
+    /// GGX roughness (α = roughness²).
+    Roughness,
+    /// GGX metallic weight.
+    Metallic,
 }
 
 impl Slot {
@@ -20,6 +25,8 @@ impl Slot {
         match self {
             Slot::Base => "base-colour texture",
             Slot::Emission => "emission texture",
+            Slot::Roughness => "roughness texture",
+            Slot::Metallic => "metallic texture",
         }
     }
 }
@@ -32,7 +39,17 @@ pub fn build(
     filter: TextureFilter,
 ) -> Option<Texturing> {
     let n = materials.len();
-    let mut t = Texturing { textures: Vec::new(), base: vec![None; n], emission: vec![None; n], uv, filter };
+    let mut t = Texturing {
+        textures: Vec::new(),
+        base: vec![None; n],
+        emission: vec![None; n],
+        roughness: vec![None; n],
+        metallic: vec![None; n],
+        coating: vec![None; n],
+        coatings: Vec::new(),
+        uv,
+        filter,
+    };
     let mut loaded: Vec<(TextureRef, u32)> = Vec::new();
     for (mat, slot, r) in textured {
         // The same image with the same factor is decoded once.
@@ -61,20 +78,49 @@ pub fn build(
                     let instead = match slot {
                         Slot::Base => "the material's factor is used",
                         Slot::Emission => "the emission's factor is used",
+                        Slot::Roughness => "the material's roughness factor is used",
+                        Slot::Metallic => "the material's metallic factor is used",
                     };
                     tracing::warn!(material = %materials[mat as usize].name, "{e}; {instead}");
                     continue;
                 }
             },
         };
-        match slot {
-            Slot::Base => t.base[mat as usize] = Some(index),
-            Slot::Emission => t.emission[mat as usize] = Some(index),
-        }
+        let slots = match slot {
+            Slot::Base => &mut t.base,
+            Slot::Emission => &mut t.emission,
+            Slot::Roughness => &mut t.roughness,
+            Slot::Metallic => &mut t.metallic,
+        };
+        slots[mat as usize] = Some(index);
     }
+    coating_tables(materials, &mut t);
     if t.textures.is_empty() {
         return None;
     }
     tracing::info!(textures = t.textures.len(), bytes = t.bytes(), "textures and UVs in memory");
     Some(t)
+}
+
+/// The coating tables of each GGX material whose textured roughness or metallic weight
+/// lets its base show through a coating of varying roughness (one family per index).
+fn coating_tables(materials: &[Material], t: &mut Texturing) {
+    for (i, m) in materials.iter().enumerate() {
+        let Bsdf::Ggx(g) = &m.bsdf else { continue };
+        let (rough, metal) = (t.roughness[i].is_some(), t.metallic[i].is_some());
+        // The base shows where metallic < 1 (the factor, or a texel under it).
+        let base_shows = g.rho > 0.0 && (g.metallic < 1.0 || metal);
+        if !(rough || metal) || !base_shows {
+            continue;
+        }
+        let family = match t.coatings.iter().position(|f| f.eta == g.eta) {
+            Some(k) => k,
+            None => {
+                t.coatings.push(CoatingFamily::new(g.eta));
+                tracing::info!(eta = g.eta, "coating tables for textured roughness");
+                t.coatings.len() - 1
+            }
+        };
+        t.coating[i] = Some(family as u32);
+    }
 }

@@ -97,6 +97,20 @@ impl CoatingAlbedo {
         }
     }
 
+    /// `(1 − w) a + w b`, node by node (its integrals are linear in the nodes too): the
+    /// coating between two tabulated roughnesses (`coating_family`).
+    pub fn blend(a: &CoatingAlbedo, b: &CoatingAlbedo, w: f32) -> CoatingAlbedo {
+        debug_assert_eq!(a.coupling, b.coupling);
+        let l = |x: f32, y: f32| x + w * (y - x);
+        CoatingAlbedo {
+            v: std::array::from_fn(|j| l(a.v[j], b.v[j])),
+            coupling: a.coupling,
+            mean: l(a.mean, b.mean),
+            norm: l(a.norm, b.norm),
+            t_mean: l(a.t_mean, b.t_mean),
+        }
+    }
+
     /// The table's value at μ by linear interpolation, μ clamped to [0, 1].
     #[inline]
     fn lerp(&self, mu: f32) -> f32 {

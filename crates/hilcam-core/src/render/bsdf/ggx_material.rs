@@ -14,6 +14,7 @@
 //! of GGX visible-normal sampling and the cosine warp, chosen by estimated albedos.
 
 use super::coating::{CoatingAlbedo, Coupling};
+use super::coating_family::CoatingFamily;
 use super::diffuse_lobe::{mixture_pdf, spec_share};
 use super::fresnel::{ConductorFresnel, dielectric};
 use super::ggx::{GgxDistribution, MIN_ALPHA};
@@ -154,6 +155,30 @@ impl Ggx {
         let base_shows = metallic < 1.0 && rho > 0.0;
         let coating = if base_shows { CoatingAlbedo::coupled(dist, eta, coupling) } else { CoatingAlbedo::NONE };
         Ok(Ggx { dist, metallic, conductor, rho, eta, coating })
+    }
+
+    /// This material where textures give its roughness (α = roughness², at least the
+    /// smoothest GGX) and metallic weight (glTF's `metallicRoughnessTexture`, MTL
+    /// `map_Pr`/`map_Pm`); with a `family` (the material's textures need one) the coating
+    /// comes from it at the hit's roughness.
+    #[inline]
+    pub fn with_roughness_metallic(
+        &self,
+        roughness: Option<f32>,
+        metallic: Option<f32>,
+        family: Option<&CoatingFamily>,
+    ) -> Ggx {
+        let mut g = *self;
+        if let Some(m) = metallic {
+            g.metallic = m.clamp(0.0, 1.0);
+        }
+        if let Some(r) = roughness {
+            g.dist = GgxDistribution { alpha: (r * r).clamp(MIN_ALPHA, 1.0) };
+        }
+        if let Some(f) = family {
+            g.coating = f.at(g.dist.alpha.sqrt());
+        }
+        g
     }
 
     /// Scene-file model name.

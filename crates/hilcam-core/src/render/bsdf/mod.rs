@@ -19,6 +19,7 @@
 
 mod blinn_phong;
 mod coating;
+mod coating_family;
 mod cook_torrance;
 mod diffuse_lobe;
 pub mod fresnel;
@@ -31,6 +32,7 @@ mod spec;
 
 pub use blinn_phong::BlinnPhong;
 pub use coating::Coupling;
+pub use coating_family::CoatingFamily;
 pub use cook_torrance::{BeckmannLobe, CookTorrance};
 pub use diffuse_lobe::{DiffuseLobe, SpecularLobe};
 pub use fresnel::{ConductorFresnel, Metal};
@@ -147,6 +149,22 @@ impl Bsdf {
                 Bsdf::Ggx(g)
             }
             other => other,
+        }
+    }
+
+    /// This BRDF with a textured roughness and metallic weight
+    /// ([`Ggx::with_roughness_metallic`]); the other models have neither and stay as
+    /// they are.
+    #[inline]
+    pub fn with_roughness_metallic(
+        &self,
+        roughness: Option<f32>,
+        metallic: Option<f32>,
+        family: Option<&CoatingFamily>,
+    ) -> Bsdf {
+        match self {
+            Bsdf::Ggx(g) => Bsdf::Ggx(g.with_roughness_metallic(roughness, metallic, family)),
+            other => *other,
         }
     }
 

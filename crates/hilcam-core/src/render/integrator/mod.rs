@@ -406,11 +406,23 @@ impl<'a> PathContext<'a> {
             emitted = beta * material.emission * scale;
         }
         let textured;
-        let bsdf = match texturing.and_then(|t| Some((t, t.base_of(hit.material)?))) {
+        let bsdf = match texturing {
             None => own,
-            Some((tx, mip)) => {
-                textured = own.with_base(texel(tx, mip));
-                &textured
+            Some(tx) => {
+                let base = tx.base_of(hit.material).map(|mip| texel(tx, mip));
+                let rm = tx.roughness_metallic_of(hit.material);
+                if base.is_none() && rm.is_none() {
+                    own
+                } else {
+                    let mut b = base.map_or(*own, |v| own.with_base(v));
+                    if let Some(rm) = rm {
+                        let r = rm.roughness.map(|mip| texel(tx, mip));
+                        let m = rm.metallic.map(|mip| texel(tx, mip));
+                        b = b.with_roughness_metallic(r, m, rm.coating);
+                    }
+                    textured = b;
+                    &textured
+                }
             }
         };
         let origin = self.spawn(p, hit.tri, hit.normal, n);

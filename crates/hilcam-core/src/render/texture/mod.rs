@@ -50,10 +50,24 @@ pub struct Texturing {
     pub base: Vec<Option<u32>>,
     /// Per scene material: the texture scaling its emission, if any.
     pub emission: Vec<Option<u32>>,
+    /// Per scene material: the textures giving its GGX roughness and metallic weight, and
+    /// the coating tables a varying roughness needs (an index into `coatings`).
+    pub roughness: Vec<Option<u32>>,
+    pub metallic: Vec<Option<u32>>,
+    pub coating: Vec<Option<u32>>,
+    pub coatings: Vec<crate::render::bsdf::CoatingFamily>,
     /// Per triangle (the mesh's order): `(s, t)` at its three corners; zero for triangles
     /// of untextured materials.
     pub uv: Vec<[Vec2; 3]>,
     pub filter: TextureFilter,
+}
+
+/// A material's roughness and metallic textures (either may be absent) and its coating
+/// tables ([`Texturing::roughness_metallic_of`]).
+pub struct RoughnessMetallic<'a> {
+    pub roughness: Option<&'a MipMap>,
+    pub metallic: Option<&'a MipMap>,
+    pub coating: Option<&'a crate::render::bsdf::CoatingFamily>,
 }
 
 /// The pixel footprint's scale for `spp` samples per pixel: `max(1/8, 1/√spp)`.
@@ -72,6 +86,18 @@ impl Texturing {
     #[inline]
     pub fn emission_of(&self, material: u32) -> Option<&MipMap> {
         self.texture(&self.emission, material)
+    }
+
+    /// The roughness and metallic textures of material `material` and its coating tables,
+    /// if it has any of them.
+    #[inline]
+    pub fn roughness_metallic_of(&self, material: u32) -> Option<RoughnessMetallic<'_>> {
+        let (r, m) = (self.texture(&self.roughness, material), self.texture(&self.metallic, material));
+        if r.is_none() && m.is_none() {
+            return None;
+        }
+        let coating = self.coating.get(material as usize).copied().flatten().map(|i| &self.coatings[i as usize]);
+        Some(RoughnessMetallic { roughness: r, metallic: m, coating })
     }
 
     #[inline]
@@ -109,7 +135,9 @@ impl Texturing {
 
     /// Bytes held: every level of every texture, and the UVs.
     pub fn bytes(&self) -> usize {
-        self.textures.iter().map(|t| t.mip.bytes()).sum::<usize>() + self.uv.len() * std::mem::size_of::<[Vec2; 3]>()
+        self.textures.iter().map(|t| t.mip.bytes()).sum::<usize>()
+            + self.uv.len() * std::mem::size_of::<[Vec2; 3]>()
+            + self.coatings.len() * crate::render::bsdf::CoatingFamily::BYTES
     }
 }
 
@@ -126,6 +154,10 @@ mod tests {
             textures: vec![Texture { name: "t".into(), mip: mip.clone() }],
             base: vec![Some(0)],
             emission: vec![None],
+            roughness: vec![None],
+            metallic: vec![None],
+            coating: vec![None],
+            coatings: Vec::new(),
             uv: vec![[Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)]],
             filter: TextureFilter::Mip,
         };
