@@ -15,7 +15,9 @@ What it does
 2. Exports the hilcam scene to a Mitsuba 3 scene dict with the same conventions (see
    `mitsuba_scene`): box pixel filter, face normals, two-sided Lambert, directional sun of
    irradiance E, path tracer with max_depth = depth + 1 and hidden emitters, pinhole
-   camera with the same field of view, principal point and image orientation.
+   camera with the same field of view, principal point and image orientation. A material
+   the MTL authors (no [materials] table) exports if it is Lambert; its `map_Kd` becomes
+   a `bitmap` (bilinear, repeating) on the OBJ's `vt` (`mitsuba_bitmap`).
 3. Verifies the conventions (mean radiance, image agreement, analytic plate radiance, and
    an asymmetric two-material scene with rotations and a principal-point offset) and
    exits non-zero if they disagree, before any timing.

@@ -188,7 +188,7 @@ fn the_shipped_textured_plate_converges_to_the_box_average_of_its_png() {
     // 256 spp: the footprint is already its floor, 1/8 px (0.35 texel: level 0, no blur).
     s.render.spp = hilcam_core::render::integrator::Spp::whole(256);
     s.render.adaptive = false;
-    let png = image::open("scenes/textured_plate/checks.png").unwrap().to_luma8();
+    let png = image::open("scenes/textured/checks.png").unwrap().to_luma8();
     let n = png.width() as usize;
     assert_eq!(png.height() as usize, n);
     let srgb = |v: u8| {
@@ -230,17 +230,17 @@ fn the_shipped_textured_plate_converges_to_the_box_average_of_its_png() {
 }
 
 #[test]
-fn the_shipped_textured_plate_files_are_what_the_script_writes() {
+fn the_shipped_textured_targets_are_what_the_script_writes() {
     let dir = tempfile::tempdir().unwrap();
     let out = std::process::Command::new("python3")
-        .arg("scripts/make_textured_plate.py")
+        .arg("scripts/make_textured_targets.py")
         .arg(dir.path())
         .output()
-        .expect("python3 runs scripts/make_textured_plate.py");
+        .expect("python3 runs scripts/make_textured_targets.py");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for f in ["plate.obj", "plate.mtl", "checks.png"] {
-        let shipped = std::fs::read(Path::new("scenes/textured_plate").join(f)).unwrap();
-        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/textured_plate/{f} is stale");
+    for f in ["plate.obj", "sphere.obj", "checks.mtl", "checks.png"] {
+        let shipped = std::fs::read(Path::new("scenes/textured").join(f)).unwrap();
+        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/textured/{f} is stale");
     }
 }
 
