@@ -15,7 +15,9 @@ What it does
 2. Exports the hilcam scene to a Mitsuba 3 scene dict with the same conventions (see
    `mitsuba_scene`): box pixel filter, face normals, two-sided Lambert, directional sun of
    irradiance E, path tracer with max_depth = depth + 1 and hidden emitters, pinhole
-   camera with the same field of view, principal point and image orientation.
+   camera with the same field of view, principal point and image orientation. A material
+   the MTL authors (no [materials] table) exports if it is Lambert; its `map_Kd` becomes
+   a `bitmap` (bilinear, repeating) on the OBJ's `vt` (`mitsuba_bitmap`).
 3. Verifies the conventions (mean radiance, image agreement, analytic plate radiance, and
    an asymmetric two-material scene with rotations and a principal-point offset) and
    exits non-zero if they disagree, before any timing.
@@ -165,13 +167,15 @@ class MeshPart:
     faces: list  # [(i, j, k)] 0-based
     material: str
     to_world: list[list[float]]  # 4×4, OBJ → body frame
+    uvs: list = field(default_factory=list)  # [(u, v)] the OBJ's `vt`
+    uv_faces: list | None = None  # [(i, j, k)] into uvs, per face; None: no texture coordinates
 
 
 @dataclass
 class HilcamScene:
     path: Path
     parts: list[MeshPart]
-    materials: dict[str, float | dict]  # name → Lambert ρ, or a GGX conductor (export_material)
+    materials: dict[str, float | dict]  # name → Lambert ρ, a GGX material or a texture (export_material, mtl_material)
     lambertized: dict[str, str] = field(default_factory=dict)
     distortion: dict = field(default_factory=dict)  # the camera's non-zero Brown–Conrady terms (dropped)
     sun_irradiance: float = 593.1
@@ -201,6 +205,8 @@ class HilcamScene:
             out.append("[[mesh]]")
             out += [f"{k} = {v(x)}" for k, x in e.items()]
         for name, m in self.materials.items():
+            if isinstance(m, dict) and "texture" in m:
+                continue  # authored in the MTL, which the rewritten scene's absolute `obj` still finds
             out.append(f"[materials.{v(name)}]")
             if isinstance(m, dict):
                 out += [f"{k} = {v(x)}" for k, x in m["hilcam"].items()]
@@ -252,41 +258,68 @@ def euler_xyz_fixed(deg):
     return matmul(Rz, matmul(Ry, Rx))
 
 
-def read_mtl_names(path: Path) -> set[str] | None:
+def read_mtl(path: Path) -> dict[str, dict[str, list[str]]] | None:
+    """Each `newmtl` block of an MTL as {key: words after it} (the last occurrence wins)."""
     try:
         text = path.read_text()
     except OSError:
         return None
-    return {ln.split(None, 1)[1].strip() for ln in text.splitlines() if ln.startswith("newmtl ")}
+    mats, cur = {}, None
+    for ln in text.splitlines():
+        t = ln.split()
+        if not t or t[0].startswith("#"):
+            continue
+        if t[0] == "newmtl":
+            # "" (no MTL key) holds the MTL's folder, which `map_Kd` is relative to.
+            cur = mats.setdefault(ln.split(None, 1)[1].strip(), {"": [str(path.parent)]})
+        elif cur is not None:
+            cur[t[0]] = t[1:]
+    return mats
 
 
-def read_obj(path: Path):
-    """Positions and fan-triangulated faces grouped by MTL material name (tobj's rules:
-    a `usemtl` name missing from the material library, or no `usemtl`, is `default`)."""
-    positions, groups = [], {}
+@dataclass
+class ObjFile:
+    positions: list
+    uvs: list
+    groups: dict  # material name → [((i, j, k), (ti, tj, tk) | None)]
+    mtl: dict  # material name → its MTL block (read_mtl)
+
+
+def read_obj(path: Path) -> ObjFile:
+    """Positions, `vt` and fan-triangulated faces (with their `vt` indices) grouped by MTL
+    material name (tobj's rules: a `usemtl` name missing from the material library, or no
+    `usemtl`, is `default`)."""
+    positions, uvs, groups = [], [], {}
     current = "default"
-    mtl_names: set[str] | None = None
+    mtl: dict = {}
     for ln in path.read_text().splitlines():
         t = ln.split()
         if not t:
             continue
         if t[0] == "v":
             positions.append(tuple(float(x) for x in t[1:4]))
+        elif t[0] == "vt":
+            uvs.append((float(t[1]), float(t[2]) if len(t) > 2 else 0.0))
         elif t[0] == "mtllib":
-            mtl_names = read_mtl_names(path.parent / ln.split(None, 1)[1].strip())
+            mtl = read_mtl(path.parent / ln.split(None, 1)[1].strip()) or {}
         elif t[0] == "usemtl":
             name = ln.split(None, 1)[1].strip()
-            current = name if mtl_names and name in mtl_names else "default"
+            current = name if name in mtl else "default"
         elif t[0] == "f":
-            idx = []
+            idx, tex = [], []
             for c in t[1:]:
-                i = int(c.split("/")[0])
+                w = c.split("/")
+                i = int(w[0])
                 idx.append(i - 1 if i > 0 else len(positions) + i)
+                j = int(w[1]) if len(w) > 1 and w[1] else None
+                tex.append(None if j is None else j - 1 if j > 0 else len(uvs) + j)
+            uv = None if None in tex else tex
             for k in range(1, len(idx) - 1):
-                groups.setdefault(current, []).append((idx[0], idx[k], idx[k + 1]))
+                tri_uv = (uv[0], uv[k], uv[k + 1]) if uv else None
+                groups.setdefault(current, []).append(((idx[0], idx[k], idx[k + 1]), tri_uv))
     if not groups:
         raise ExportError(f"{path}: no triangles")
-    return positions, groups
+    return ObjFile(positions, uvs, groups, mtl)
 
 
 # Material presets (src/bsdf/spec.rs `BsdfSpec::build`): the fields a preset supplies when
@@ -378,6 +411,31 @@ def export_material(name: str, spec: dict, lambertize: bool, overrides: dict[str
     return rho, f"{model} → Lambert ρ = {rho:g} ({why})"
 
 
+def mtl_material(name: str, block: dict[str, list[str]], obj: Path):
+    """A material the MTL authors (no [materials.NAME] table; src/scene/mtl_bsdf.rs): a
+    Lambert of `Kd`'s band (the mean of r g b, default 1), or with `map_Kd` a texture
+    times `Kd` (docs/scene.md, "Textures"). A GGX one (`Pr`, `Pm`, or a non-black `Ks`)
+    takes hilcam's energy coupling, which Mitsuba's roughplastic does not match."""
+
+    def rgb(key, default):
+        w = block.get(key)
+        if not w:
+            return default
+        v = [float(x) for x in w[:3]]
+        return tuple(v * 3 if len(v) == 1 else v)
+
+    if "Pr" in block or "Pm" in block or any(rgb("Ks", (0.0,))):
+        raise ExportError(
+            f"{obj}: MTL material `{name}` is GGX with hilcam's energy coupling, which Mitsuba's roughplastic "
+            f"does not match; give a [materials.{name}] table (a table replaces the material's texture too)"
+        )
+    kd = rgb("Kd", (1.0, 1.0, 1.0))
+    if "map_Kd" not in block:
+        return sum(kd) / 3
+    # hilcam: the last word is the file (options before it are ignored), beside the MTL.
+    return {"texture": Path(block[""][0]) / block["map_Kd"][-1], "factor": kd}
+
+
 def load_scene(path: Path, lambertize: bool = False, overrides: dict[str, float] | None = None) -> HilcamScene:
     src = tomllib.loads(path.read_text())
     base = path.parent
@@ -402,16 +460,27 @@ def load_scene(path: Path, lambertize: bool = False, overrides: dict[str, float]
     for k, e in enumerate(src.get("mesh", [])):
         raw.append(dict(e, obj=str((base / e["obj"]).resolve())))
         obj = base / e["obj"]
-        pos, groups = read_obj(obj)
+        of = read_obj(obj)
         s = float(e.get("scale", 1.0))
         R = euler_xyz_fixed(e.get("rotate_deg", [0.0, 0.0, 0.0]))
         t = e.get("translate", [0.0, 0.0, 0.0])
         M = [[R[i][j] * s for j in range(3)] + [t[i]] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
-        for mname, faces in groups.items():
+        for mname, faces in of.groups.items():
             target = e.get("material", mname)
             if target not in mats:
-                raise ExportError(f"{path}: mesh[{k}] ({obj}): material `{target}` has no [materials.{target}] entry")
-            parts.append(MeshPart(pos, faces, target, M))
+                # The table wins; else the OBJ's own MTL (the first file to define a name
+                # defines it for the scene, as hilcam does).
+                if target != mname or mname not in of.mtl:
+                    raise ExportError(f"{path}: mesh[{k}] ({obj}): material `{target}` has no [materials.{target}] entry")
+                mats[target] = mtl_material(target, of.mtl[mname], obj)
+            tris = [f for f, _ in faces]
+            uv_faces = [u for _, u in faces]
+            if isinstance(mats[target], dict) and "texture" in mats[target]:
+                if None in uv_faces:
+                    raise ExportError(f"{obj}: material `{target}` is textured but some of its faces have no `vt`")
+                parts.append(MeshPart(of.positions, tris, target, M, of.uvs, uv_faces))
+            else:
+                parts.append(MeshPart(of.positions, tris, target, M))
     pose = src.get("pose", {})
     rend = src.get("render", {})
     return HilcamScene(
@@ -453,8 +522,17 @@ def write_part_obj(part: MeshPart, path: Path) -> None:
         for i in used:
             x, y, z = part.positions[i]
             f.write(f"v {x!r} {y!r} {z!r}\n")
-        for a, b, c in part.faces:
-            f.write(f"f {remap[a] + 1} {remap[b] + 1} {remap[c] + 1}\n")
+        if part.uv_faces is None:
+            for a, b, c in part.faces:
+                f.write(f"f {remap[a] + 1} {remap[b] + 1} {remap[c] + 1}\n")
+            return
+        used_uv = sorted({i for f in part.uv_faces for i in f})
+        remap_uv = {old: new for new, old in enumerate(used_uv)}
+        for i in used_uv:
+            u, v = part.uvs[i]
+            f.write(f"vt {u!r} {v!r}\n")
+        for tri, uv in zip(part.faces, part.uv_faces):
+            f.write("f " + " ".join(f"{remap[a] + 1}/{remap_uv[t] + 1}" for a, t in zip(tri, uv)) + "\n")
 
 
 def mitsuba_scene(
@@ -544,10 +622,13 @@ def mitsuba_scene(
             "type": "obj",
             "filename": str(f),
             "face_normals": True,
+            # Mitsuba stores an OBJ `vt` (u, v) as (u, 1 − v) and its bitmap's v = 0 is the
+            # image's top row (both measured), so OBJ v = 0 is the bottom row, as in hilcam.
+            "flip_tex_coords": True,
             "to_world": T(p.to_world),
             "bsdf": {
                 "type": "twosided",
-                "material": mitsuba_material(sc.materials[p.material]),
+                "material": mitsuba_material(mi, sc.materials[p.material]),
             },
         }
     return d
@@ -558,11 +639,32 @@ def mitsuba_scene(
 # ---------------------------------------------------------------------------------------
 
 
-def mitsuba_material(m: float | dict) -> dict:
-    """Mitsuba's twin of an exported material (see export_material)."""
+def mitsuba_material(mi, m: float | dict) -> dict:
+    """Mitsuba's twin of an exported material (see export_material, mtl_material)."""
+    if isinstance(m, dict) and "texture" in m:
+        return {"type": "diffuse", "reflectance": mitsuba_bitmap(mi, m["texture"], m["factor"])}
     if isinstance(m, dict):
         return m["mitsuba"]
     return {"type": "diffuse", "reflectance": {"type": "spectrum", "value": m}}
+
+
+def mitsuba_bitmap(mi, path: Path, factor: tuple) -> dict:
+    """hilcam's band texture as Mitsuba's `bitmap` (bilinear, repeating, no mip-map: what
+    hilcam's prefiltered frame converges to, docs/brdf.md "Textures"). A one-channel image
+    under `Kd 1` is handed over as the file, Mitsuba sRGB-decoding it itself (raw = false);
+    any other is decoded by Mitsuba, multiplied by Kd and reduced to the mean of r g b as
+    hilcam does (Mitsuba's mono variant would take the luminance), then passed linear."""
+    import numpy as np
+
+    tex = {"type": "bitmap", "filter_type": "bilinear", "wrap_mode": "repeat"}
+    if not path.exists():
+        raise ExportError(f"texture {path} cannot be read")
+    bmp = mi.Bitmap(str(path))
+    if bmp.pixel_format() == mi.Bitmap.PixelFormat.Y and tuple(factor) == (1.0, 1.0, 1.0):
+        return dict(tex, filename=str(path), raw=False)
+    rgb = np.array(bmp.convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False))
+    band = (rgb * np.asarray(factor, dtype=np.float32)).mean(axis=2, keepdims=True)
+    return dict(tex, bitmap=mi.Bitmap(np.ascontiguousarray(band, dtype=np.float32)), raw=True)
 
 
 def read_pfm(path: Path):

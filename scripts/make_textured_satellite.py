@@ -59,16 +59,16 @@ def stored_zlib(data):
     return bytes(out + struct.pack(">I", zlib.adler32(data)))
 
 
+def png_chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
 def png(w, h, texel):
     """An 8-bit palette PNG (filter 0 on every row)."""
     raw = b"".join(b"\0" + bytes(texel(x, y) for x in range(w)) for y in range(h))
-
-    def chunk(kind, data):
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 3, 0, 0, 0))
-            + chunk(b"PLTE", bytes(c for rgb in PALETTE for c in rgb))
-            + chunk(b"IDAT", stored_zlib(raw)) + chunk(b"IEND", b""))
+    return (b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 3, 0, 0, 0))
+            + png_chunk(b"PLTE", bytes(c for rgb in PALETTE for c in rgb))
+            + png_chunk(b"IDAT", stored_zlib(raw)) + png_chunk(b"IEND", b""))
 
 
 def uv_of(p):

@@ -2,7 +2,8 @@
 //! computed here from the texture and the pinhole geometry:
 //! - a fine texture at high spp converges to each pixel's box average of the
 //!   bilinear texture (integrated exactly, texel by texel), and the mip-mapped 1-spp
-//!   frame varies far less over seeds than the unfiltered one;
+//!   frame varies far less over seeds than the unfiltered one; so does the shipped
+//!   scenes/textured_plate.toml, the scene compared with Mitsuba's `bitmap`, from its PNG;
 //! - orientation: OBJ's `v = 0` is the image's bottom row, glTF's UV origin its top-left,
 //!   and the same textured plate as OBJ + MTL and as GLB renders the same;
 //! - an sRGB 128 texel is albedo 0.2158 × `Kd`.
@@ -93,11 +94,30 @@ fn axis_weights(a: f64, b: f64, n: usize) -> Vec<(usize, f64)> {
         .collect()
 }
 
+/// A square plate of half-side `half` facing a pinhole camera (`side`² px, focal length
+/// `f_px` pixels, no principal-point offset) at `range`, its corner (x, y) at OBJ `vt`
+/// ((x + h)/2h, (y + h)/2h).
+#[derive(Clone, Copy)]
+struct PlateView {
+    half: f64,
+    side: u32,
+    f_px: f64,
+    range: f64,
+}
+
+/// The test plate of `write_obj` and `write_scene`.
+const VIEW: PlateView = PlateView { half: HALF, side: SIDE, f_px: F_PX, range: RANGE };
+
 /// Each pixel's box average of the bilinear texture `lin` (n × n, linear, row 0 at the
 /// image top) mapped by the OBJ's `vt`: s = (x + h)/2h, t = 1 − (y + h)/2h.
 fn box_average(lin: &[f64], n: usize, c: u32, r: u32) -> f64 {
-    let to_texel = |p: f64| (p + HALF) / (2.0 * HALF) * n as f64 - 0.5;
-    let edge = |i: u32| (f64::from(i) - f64::from(SIDE) / 2.0) / F_PX * RANGE;
+    box_average_in(&VIEW, lin, n, c, r)
+}
+
+fn box_average_in(view: &PlateView, lin: &[f64], n: usize, c: u32, r: u32) -> f64 {
+    let PlateView { half, side, f_px, range } = *view;
+    let to_texel = |p: f64| (p + half) / (2.0 * half) * n as f64 - 0.5;
+    let edge = |i: u32| (f64::from(i) - f64::from(side) / 2.0) / f_px * range;
     let xs = axis_weights(to_texel(edge(c)), to_texel(edge(c + 1)), n);
     // t = 1 − v: texel row coordinate n − 1 − (v·n − 0.5).
     let ys = axis_weights(n as f64 - 1.0 - to_texel(edge(r)), n as f64 - 1.0 - to_texel(edge(r + 1)), n);
@@ -161,6 +181,72 @@ fn a_fine_checkerboard_converges_to_each_pixels_box_average_of_the_texture() {
     let blurred = rel_rms(&sum, &want);
     eprintln!("one-pixel footprint, 64 × 1 spp: rms {blurred:.3e} off the box average");
     assert!(blurred > 5.0 * err, "{blurred} vs {err}");
+}
+
+#[test]
+fn the_shipped_textured_plate_converges_to_the_box_average_of_its_png() {
+    // scenes/textured_plate.toml, the scene benches/vs_mitsuba.py compares with Mitsuba's
+    // `bitmap` (docs/brdf.md, "Textures"), at the 128² of that comparison: the answer from
+    // the PNG itself, sRGB-decoded here, and the pinhole geometry.
+    let mut s = hilcam_core::scene::load(Path::new("scenes/textured_plate.toml")).unwrap_or_else(|e| panic!("{e}"));
+    s.camera = s.camera.scaled(Some(128), None);
+    // 256 spp: the footprint is already its floor, 1/8 px (0.35 texel: level 0, no blur).
+    s.render.spp = hilcam_core::render::integrator::Spp::whole(256);
+    s.render.adaptive = false;
+    let png = image::open("scenes/textured/checks.png").unwrap().to_luma8();
+    let n = png.width() as usize;
+    assert_eq!(png.height() as usize, n);
+    let srgb = |v: u8| {
+        let c = f64::from(v) / 255.0;
+        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    };
+    // `Kd 1`: ρ is the linear texel.
+    let lin: Vec<f64> = png.pixels().map(|p| srgb(p.0[0])).collect();
+    assert!(s.pose.attitude.abs_diff_eq(glam::DQuat::IDENTITY, 1e-12), "the plate faces the camera");
+    let view = PlateView {
+        half: 0.5,
+        side: s.camera.width,
+        f_px: s.camera.focal_mm * 1e3 / s.camera.pitch_um,
+        range: s.pose.position.z,
+    };
+    // Face normal −Z toward the camera; sun_dir points toward the sun.
+    let unit = f64::from(s.target.sun_irradiance) * -s.pose.sun_dir.z / std::f64::consts::PI;
+    let lo = (f64::from(view.side) / 2.0 - view.half * view.f_px / view.range) as u32 + 2;
+    let pixels: Vec<(u32, u32)> =
+        (lo..view.side - lo).flat_map(|r| (lo..view.side - lo).map(move |c| (c, r))).collect();
+    let want: Vec<f64> = pixels.iter().map(|&(c, r)| box_average_in(&view, &lin, n, c, r) * unit).collect();
+    let img = frame(&s);
+    let got: Vec<f64> = pixels.iter().map(|&(c, r)| img[(r * view.side + c) as usize]).collect();
+    let mean_want = want.iter().sum::<f64>() / want.len() as f64;
+    let mean_got = got.iter().sum::<f64>() / got.len() as f64;
+    let spread = want.iter().fold(0.0f64, |m, w| m.max((w - mean_want).abs())) / mean_want;
+    let err = rel_rms(&got, &want);
+    let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs()).fold(0.0, f64::max) / mean_want;
+    eprintln!(
+        "textured plate 128² 256 spp, {} px: mean {mean_got} vs {mean_want}, rms {err:.2e}, worst {worst:.2e}, \
+         pixel spread ±{spread:.3}",
+        pixels.len()
+    );
+    assert!(spread > 0.5, "the reference is too flat to test anything: ±{spread}");
+    // Measured: mean +1e-6, rms 3.0e-4, worst 3.3e-3: the samples' noise (the frame's own,
+    // seed to seed, is 5e-4 rms in benches/vs_mitsuba.py at this spp).
+    assert!(((mean_got - mean_want) / mean_want).abs() < 1e-4, "mean {mean_got} vs {mean_want}");
+    assert!(err < 1e-3 && worst < 1e-2, "rms {err}, worst {worst} (relative to the mean)");
+}
+
+#[test]
+fn the_shipped_textured_targets_are_what_the_script_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new("python3")
+        .arg("scripts/make_textured_targets.py")
+        .arg(dir.path())
+        .output()
+        .expect("python3 runs scripts/make_textured_targets.py");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for f in ["plate.obj", "sphere.obj", "checks.mtl", "checks.png"] {
+        let shipped = std::fs::read(Path::new("scenes/textured").join(f)).unwrap();
+        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/textured/{f} is stale");
+    }
 }
 
 #[test]
