@@ -38,6 +38,7 @@ mod silhouette;
 mod stars;
 mod sun_shadow;
 mod texture;
+mod texture_pbr;
 mod trade;
 mod truth;
 mod waves;

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 const E: f64 = 593.1;
 /// 48² px, f = 2000 px: at 10 m a pixel is 5 mm and the 0.2 m plate 40 px.
-const SIDE: u32 = 48;
+pub(super) const SIDE: u32 = 48;
 const F_PX: f64 = 2000.0;
 const RANGE: f64 = 10.0;
 const HALF: f64 = 0.1;
@@ -26,7 +26,7 @@ fn lambert_unit() -> f64 {
     E * 30f64.to_radians().cos() / std::f64::consts::PI
 }
 
-fn png(w: u32, h: u32, texel: impl Fn(u32, u32) -> u8) -> Vec<u8> {
+pub(super) fn png(w: u32, h: u32, texel: impl Fn(u32, u32) -> u8) -> Vec<u8> {
     let img = image::GrayImage::from_fn(w, h, |x, y| image::Luma([texel(x, y)]));
     let mut out = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png).unwrap();
@@ -34,7 +34,7 @@ fn png(w: u32, h: u32, texel: impl Fn(u32, u32) -> u8) -> Vec<u8> {
 }
 
 /// The plate as OBJ + MTL: corner (x, y) has `vt` ((x + h)/2h, (y + h)/2h).
-fn write_obj(dir: &Path, mtl: &str) {
+pub(super) fn write_obj(dir: &Path, mtl: &str) {
     let obj = format!(
         "mtllib panel.mtl\nv -{HALF} -{HALF} 0\nv {HALF} -{HALF} 0\nv {HALF} {HALF} 0\nv -{HALF} {HALF} 0\n\
          vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl panel\nf 1/1 3/3 2/2\nf 1/1 4/4 3/3\n"
@@ -48,7 +48,7 @@ fn write_scene(dir: &Path, name: &str, mesh: &str, spp: u32) -> PathBuf {
 }
 
 /// [`write_scene`] with the sun toward `sun` (camera frame).
-fn write_scene_lit(dir: &Path, name: &str, mesh: &str, spp: u32, sun: &str) -> PathBuf {
+pub(super) fn write_scene_lit(dir: &Path, name: &str, mesh: &str, spp: u32, sun: &str) -> PathBuf {
     let text = format!(
         "[camera]\nwidth = {SIDE}\nheight = {SIDE}\npitch_um = 20.0\nfocal_mm = 40.0\n\
          [[mesh]]\nobj = \"{mesh}\"\n[sun]\nirradiance = {E}\n\
@@ -60,13 +60,13 @@ fn write_scene_lit(dir: &Path, name: &str, mesh: &str, spp: u32, sun: &str) -> P
     p
 }
 
-fn frame(s: &Scene) -> Vec<f64> {
+pub(super) fn frame(s: &Scene) -> Vec<f64> {
     let (img, _) = render(s, &s.view(&s.camera, &s.pose), &RenderOptions::new(s.render, 0));
     img.data.iter().map(|&v| f64::from(v)).collect()
 }
 
 /// Pixels at least 2 px inside the plate's image.
-fn inner() -> impl Iterator<Item = (u32, u32)> {
+pub(super) fn inner() -> impl Iterator<Item = (u32, u32)> {
     let lo = (f64::from(SIDE) / 2.0 - HALF * F_PX / RANGE) as u32 + 2;
     let hi = SIDE - lo;
     (lo..hi).flat_map(move |r| (lo..hi).map(move |c| (c, r)))
@@ -280,7 +280,7 @@ fn quadrant_png() -> Vec<u8> {
 }
 
 /// Mean of each image quadrant's pixels 3 px inside the plate and its quadrant.
-fn quadrant_means(img: &[f64]) -> [[f64; 2]; 2] {
+pub(super) fn quadrant_means(img: &[f64]) -> [[f64; 2]; 2] {
     let mut q = [[(0.0, 0usize); 2]; 2];
     let mid = SIDE / 2;
     for (c, r) in inner() {
@@ -305,7 +305,7 @@ fn plate_glb(image: &[u8]) -> Vec<u8> {
 }
 
 /// [`plate_glb`] with the glTF `material` (its texture 0 is the PNG).
-fn plate_glb_with(image: &[u8], material: &str) -> Vec<u8> {
+pub(super) fn plate_glb_with(image: &[u8], material: &str) -> Vec<u8> {
     let mut bin = Vec::new();
     let corners = [[-HALF, -HALF], [HALF, -HALF], [HALF, HALF], [-HALF, HALF]];
     for [x, y] in corners {

@@ -52,8 +52,11 @@ pub fn build(
     };
     let mut loaded: Vec<(TextureRef, u32)> = Vec::new();
     for (mat, slot, r) in textured {
-        // The same image with the same factor is decoded once.
-        let same = loaded.iter().find(|(l, _)| l.source == r.source && l.factor == r.factor).map(|(_, i)| *i);
+        // The same image with the same factor and channel is decoded once.
+        let same = loaded
+            .iter()
+            .find(|(l, _)| l.source == r.source && l.factor == r.factor && l.channel == r.channel)
+            .map(|(_, i)| *i);
         let index = match same {
             Some(i) => i,
             None => match load_texture(&r) {
