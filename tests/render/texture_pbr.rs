@@ -93,3 +93,58 @@ fn each_half_of_a_metallic_roughness_texture_renders_as_the_plate_of_its_texels(
     let all: Vec<usize> = l.iter().chain(&r).copied().collect();
     assert!(worst(&obj, &tex, &all) < 1e-6, "MTL and glTF differ by {}", worst(&obj, &tex, &all));
 }
+
+/// A constant tangent-space normal map tilting the normal by `deg` toward +s (the
+/// image's right), 8-bit, and the unit normal its texel decodes to, (x, y, z).
+fn tilted_normal_png(deg: f64) -> (Vec<u8>, [f64; 3]) {
+    let (s, c) = deg.to_radians().sin_cos();
+    let code = |v: f64| ((v + 1.0) / 2.0 * 255.0).round() as u8;
+    let texel = [code(s), code(0.0), code(c)];
+    let img = image::RgbImage::from_pixel(16, 16, image::Rgb(texel));
+    let mut out = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png).unwrap();
+    let v = texel.map(|t| 2.0 * f64::from(t) / 255.0 - 1.0);
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    (out, v.map(|x| x / len))
+}
+
+#[test]
+fn a_tilted_normal_map_shades_a_lambert_plate_as_the_tilted_normal_says() {
+    // The plate of `texture.rs`: s runs along body +x, the image's "up" along body +y,
+    // and its front face looks at the camera (−z). A texel (x, y, z) therefore shades
+    // with n = normalize(x·x̂ + y·ŷ − z·ẑ), and a Lambert plate of ρ 0.5 under the sun
+    // toward (0.5, 0, −0.866) is ρ·E·max(0, n·sun)/π at every pixel.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sun = [0.5, 0.0, -0.8660254037844386f64];
+    let mut seen = Vec::new();
+    for deg in [20.0, -20.0, 0.0] {
+        let (image, [x, y, z]) = tilted_normal_png(deg);
+        std::fs::write(d.join("n.png"), &image).unwrap();
+        write_obj(d, "newmtl panel\nKd 0.5 0.5 0.5\nnorm n.png\n");
+        let (s, log) = crate::common::logs::with_log(|| load(d, "o.toml", "panel.obj"));
+        assert!(!log.contains("`norm` ignored"), "{log}");
+        let img = frame(&s);
+        let cos = (x * sun[0] + y * sun[1] - z * sun[2]).max(0.0);
+        let want = 0.5 * 593.1 * cos / std::f64::consts::PI;
+        let all: Vec<usize> = inner().map(|(c, r)| (r * SIDE + c) as usize).collect();
+        let worst = all.iter().map(|&i| (img[i] / want - 1.0).abs()).fold(0.0, f64::max);
+        eprintln!("tilt {deg}°: cos {cos:.5}, every pixel within {worst:e} of {want:.3}");
+        assert!(worst < 1e-5, "tilt {deg}°: off by {worst}");
+        seen.push(want);
+
+        // The same map as a glTF normalTexture on glTF's material, and on the same
+        // material from an MTL (`Pr 1`, `Pm 0`): the same pixels.
+        let m = r#"{"name":"panel","pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1.0],"metallicFactor":0.0,"roughnessFactor":1.0},"normalTexture":{"index":0},"doubleSided":true}"#;
+        std::fs::write(d.join("n.glb"), plate_glb_with(&image, m)).unwrap();
+        let glb = frame(&load(d, "g.toml", "n.glb"));
+        write_obj(d, "newmtl panel\nKd 0.5 0.5 0.5\nPr 1\nPm 0\nnorm n.png\n");
+        let obj = frame(&load(d, "o.toml", "panel.obj"));
+        let worst = all.iter().map(|&i| (glb[i] / obj[i] - 1.0).abs()).fold(0.0, f64::max);
+        assert!(worst < 1e-6, "tilt {deg}°: GLB and OBJ differ by {worst}");
+        seen.push(all.iter().map(|&i| glb[i]).sum::<f64>());
+    }
+    // +20° toward the sun is brighter than 0°, which is brighter than −20°.
+    assert!(seen[0] > seen[4] && seen[4] > seen[2], "{seen:?}");
+    assert!(seen[1] > seen[5] && seen[5] > seen[3], "GLB: {seen:?}");
+}

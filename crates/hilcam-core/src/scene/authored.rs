@@ -20,6 +20,9 @@ pub struct AuthoredBsdf {
     /// MTL `map_Pr`, `map_Pm`): values read linearly, times the factor.
     pub roughness_texture: Option<super::texture_file::TextureRef>,
     pub metallic_texture: Option<super::texture_file::TextureRef>,
+    /// A tangent-space normal map (glTF `normalTexture`, MTL `norm`) and the scale of its
+    /// tangent-plane components.
+    pub normal_texture: Option<(super::texture_file::TextureRef, f32)>,
 }
 
 /// `c` over its band value (the mean of the three): the texture factor of a colour
@@ -36,6 +39,7 @@ impl AuthoredBsdf {
             || self.emission.as_ref().is_some_and(|e| e.texture.is_some())
             || self.roughness_texture.is_some()
             || self.metallic_texture.is_some()
+            || self.normal_texture.is_some()
     }
 }
 

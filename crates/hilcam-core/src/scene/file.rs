@@ -491,7 +491,12 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
                     (Slot::Roughness, built.roughness_texture),
                     (Slot::Metallic, built.metallic_texture),
                 ];
-                for (slot, t) in textures {
+                let normal = built.normal_texture.into_iter().flat_map(|(t, scale)| {
+                    (0..3).map(move |axis| {
+                        (Slot::Normal { axis, scale }, Some(TextureRef { channel: Some(axis), ..t.clone() }))
+                    })
+                });
+                for (slot, t) in textures.into_iter().chain(normal) {
                     let Some(t) = t else { continue };
                     if loaded.uv.is_empty() {
                         tracing::warn!(material = %name, "texture `{}` ignored: {} has no texture coordinates (`vt`, TEXCOORD_0) for it; its factor is used: {}", t.name(), obj_path.display(), t.at);

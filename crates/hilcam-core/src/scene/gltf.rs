@@ -177,6 +177,7 @@ fn materials(
         emission: None,
         roughness_texture: None,
         metallic_texture: None,
+        normal_texture: None,
     }));
     names.push("default".to_string());
     (built, names)
@@ -204,13 +205,21 @@ fn material(
         roughness = MIN_ROUGHNESS;
     }
     // The base colour's and the emission's textures, with TEXCOORD_0.
-    let base_texture = pbr
-        .base_color_texture()
-        .and_then(|info| texture_ref("baseColorTexture", &info, [r, g, b], &at, path, buffers, &mut notes));
+    let base_texture = pbr.base_color_texture().and_then(|info| {
+        texture_ref("baseColorTexture", (info.texture(), info.tex_coord()), [r, g, b], &at, path, buffers, &mut notes)
+    });
     // Roughness from G, metallic from B, read linearly, times the factors.
-    let mr = pbr
-        .metallic_roughness_texture()
-        .and_then(|info| texture_ref("metallicRoughnessTexture", &info, [1.0; 3], &at, path, buffers, &mut notes));
+    let mr = pbr.metallic_roughness_texture().and_then(|info| {
+        texture_ref(
+            "metallicRoughnessTexture",
+            (info.texture(), info.tex_coord()),
+            [1.0; 3],
+            &at,
+            path,
+            buffers,
+            &mut notes,
+        )
+    });
     let value = |t: &TextureRef, channel: usize, factor: f32| TextureRef {
         factor: [factor; 3],
         channel: Some(channel),
@@ -218,16 +227,17 @@ fn material(
     };
     let roughness_texture = mr.as_ref().map(|t| value(t, 1, pbr.roughness_factor()));
     let metallic_texture = mr.as_ref().map(|t| value(t, 2, metallic));
-    let textures = [
-        ("normalTexture", m.normal_texture().map(|t| t.texture().index())),
-        ("occlusionTexture", m.occlusion_texture().map(|t| t.texture().index())),
-    ];
-    for (what, tex) in textures {
-        if let Some(t) = tex {
-            notes.push(format!(
-                "`{what}` (texture {t}) ignored: base-colour, metallic-roughness and emissive textures are used: {at}"
-            ));
-        }
+    // The normal map's r g b, linear; `scale` multiplies its tangent-plane components.
+    let normal_texture = m.normal_texture().and_then(|n| {
+        let scale = n.scale();
+        texture_ref("normalTexture", (n.texture(), n.tex_coord()), [1.0; 3], &at, path, buffers, &mut notes)
+            .map(|t| (t, scale))
+    });
+    if let Some(t) = m.occlusion_texture() {
+        notes.push(format!(
+            "`occlusionTexture` (texture {}) ignored: the path tracer computes occlusion itself: {at}",
+            t.texture().index()
+        ));
     }
     let emission = emission(m, &at, path, buffers, &mut notes)?;
     let mut ior = GLTF_DIELECTRIC_IOR;
@@ -246,7 +256,7 @@ fn material(
     }
     let bsdf = metallic_roughness_textured(base, metallic, roughness, ior, metallic_texture.is_some())
         .map_err(|e| format!("{at}: {e}"))?;
-    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission, roughness_texture, metallic_texture })
+    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission, roughness_texture, metallic_texture, normal_texture })
 }
 
 /// Largest emissive strength taken (`KHR_materials_emissive_strength`): 1e6 × sunlit
@@ -276,8 +286,9 @@ fn emission(
         }
         return Ok(None);
     }
-    let texture =
-        info.and_then(|info| texture_ref("emissiveTexture", &info, over_band(factor), at, path, buffers, notes));
+    let texture = info.and_then(|info| {
+        texture_ref("emissiveTexture", (info.texture(), info.tex_coord()), over_band(factor), at, path, buffers, notes)
+    });
     let relative = strength * (factor[0] + factor[1] + factor[2]) / 3.0;
     Ok(Some(AuthoredEmission { relative, texture }))
 }
@@ -287,19 +298,17 @@ fn emission(
 /// source).
 fn texture_ref(
     what: &str,
-    info: &gltf::texture::Info,
+    (t, tex_coord): (gltf::Texture, u32),
     factor: [f32; 3],
     at: &str,
     path: &Path,
     buffers: &[Vec<u8>],
     notes: &mut Vec<String>,
 ) -> Option<TextureRef> {
-    let t = info.texture();
-    if info.tex_coord() != 0 {
+    if tex_coord != 0 {
         notes.push(format!(
-            "`{what}` (texture {}) ignored: it uses texCoord {}, hilcam reads TEXCOORD_0 only: {at}",
-            t.index(),
-            info.tex_coord()
+            "`{what}` (texture {}) ignored: it uses texCoord {tex_coord}, hilcam reads TEXCOORD_0 only: {at}",
+            t.index()
         ));
         return None;
     }

@@ -190,6 +190,9 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
     used.extend(["Ke", "map_Ke"]);
     let base_texture = m.get("map_Kd").map(|k| map_file(m, k, kd_factor(m)?, &mut notes)).transpose()?;
     used.push("map_Kd");
+    // `norm`: a tangent-space normal map (the PBR extension's), r g b linear.
+    let normal_texture = m.get("norm").map(|k| map_file(m, k, [1.0; 3], &mut notes)).transpose()?.map(|t| (t, 1.0));
+    used.push("norm");
     // Every other key, once per material.
     let mut reported: Vec<&str> = Vec::new();
     for k in &m.keys {
@@ -199,7 +202,7 @@ pub fn bsdf_from_mtl(m: &MtlMaterial) -> Result<AuthoredBsdf, String> {
         }
     }
     let [roughness_texture, metallic_texture] = value_maps;
-    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission, roughness_texture, metallic_texture })
+    Ok(AuthoredBsdf { bsdf, notes, base_texture, emission, roughness_texture, metallic_texture, normal_texture })
 }
 
 /// `Kd`'s r g b, the factor of `map_Kd` (white without `Kd`).

@@ -79,7 +79,8 @@ fn load_obj_unnamed(path: &Path) -> Result<ModelMesh, String> {
         }
     };
     // UVs only when a material has a texture: OBJ's `v` = 0 is the image's bottom row.
-    let textured = mtl_defs.iter().any(|d| ["map_Kd", "map_Ke", "map_Pr", "map_Pm"].iter().any(|k| d.get(k).is_some()));
+    let textured =
+        mtl_defs.iter().any(|d| ["map_Kd", "map_Ke", "map_Pr", "map_Pm", "norm"].iter().any(|k| d.get(k).is_some()));
     let mut uv: Vec<[Vec2; 3]> = Vec::new();
     let mut names: Vec<String> = Vec::new();
     let mut out = TriMesh::default();

@@ -5,10 +5,10 @@
 use super::Material;
 use super::texture_file::{TextureRef, load_texture};
 use crate::render::bsdf::{Bsdf, CoatingFamily};
-use crate::render::texture::{TextureFilter, Texturing};
+use crate::render::texture::{NormalMap, TextureFilter, Texturing};
 
 /// What a texture gives its material.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Slot {
     /// The BRDF's base colour.
     Base,
@@ -18,6 +18,9 @@ pub enum Slot {
     Roughness,
     /// GGX metallic weight.
     Metallic,
+    /// Component `axis` (0 x, 1 y, 2 z) of a tangent-space normal map, whose tangent-plane
+    /// components are scaled by `scale`.
+    Normal { axis: usize, scale: f32 },
 }
 
 impl Slot {
@@ -27,6 +30,7 @@ impl Slot {
             Slot::Emission => "emission texture",
             Slot::Roughness => "roughness texture",
             Slot::Metallic => "metallic texture",
+            Slot::Normal { .. } => "normal map component",
         }
     }
 }
@@ -47,9 +51,12 @@ pub fn build(
         metallic: vec![None; n],
         coating: vec![None; n],
         coatings: Vec::new(),
+        normal: vec![None; n],
         uv,
         filter,
     };
+    let mut normal_parts = vec![[None; 3]; n];
+    let mut normal_scale = vec![1.0f32; n];
     let mut loaded: Vec<(TextureRef, u32)> = Vec::new();
     for (mat, slot, r) in textured {
         // The same image with the same factor and channel is decoded once.
@@ -83,6 +90,7 @@ pub fn build(
                         Slot::Emission => "the emission's factor is used",
                         Slot::Roughness => "the material's roughness factor is used",
                         Slot::Metallic => "the material's metallic factor is used",
+                        Slot::Normal { .. } => "the surface's own normal is used",
                     };
                     tracing::warn!(material = %materials[mat as usize].name, "{e}; {instead}");
                     continue;
@@ -94,8 +102,19 @@ pub fn build(
             Slot::Emission => &mut t.emission,
             Slot::Roughness => &mut t.roughness,
             Slot::Metallic => &mut t.metallic,
+            Slot::Normal { axis, scale } => {
+                normal_parts[mat as usize][axis] = Some(index);
+                normal_scale[mat as usize] = scale;
+                continue;
+            }
         };
         slots[mat as usize] = Some(index);
+    }
+    // A normal map needs all three of its components.
+    for (i, parts) in normal_parts.iter().enumerate() {
+        if let [Some(x), Some(y), Some(z)] = *parts {
+            t.normal[i] = Some(NormalMap { xyz: [x, y, z], scale: normal_scale[i] });
+        }
     }
     coating_tables(materials, &mut t);
     if t.textures.is_empty() {

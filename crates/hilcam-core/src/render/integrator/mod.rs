@@ -426,7 +426,14 @@ impl<'a> PathContext<'a> {
             }
         };
         let origin = self.spawn(p, hit.tri, hit.normal, n);
-        let basis = ShadingBasis::from_normal(n);
+        // A normal map tilts the shading frame; the geometric side `n` still decides what
+        // the sun and a bounce can reach. The back face shades with the mirrored normal.
+        let shading = texturing.and_then(|tx| {
+            let corners = self.scene.mesh.triangle(hit.tri as usize);
+            let front = tx.shading_normal(hit.material, hit.tri, corners, hit.normal, |mip| texel(tx, mip))?;
+            Some(if n == hit.normal { front } else { -front })
+        });
+        let basis = ShadingBasis::from_normal(shading.unwrap_or(n));
         let wo_l = basis.to_local(wo);
 
         let mut shadow = None;
@@ -459,6 +466,11 @@ impl<'a> PathContext<'a> {
         if beta <= 0.0 || !beta.is_finite() {
             return Scatter { emitted, shadow, next: None };
         }
+        let dir = basis.to_world(wi_l);
+        // Above the shading normal but into the surface: the path ends (pbrt's rule).
+        if shading.is_some() && dir.dot(n) <= 0.0 {
+            return Scatter { emitted, shadow, next: None };
+        }
         // Russian roulette from the second indirect bounce on: a path whose throughput
         // fell below 1 survives with probability `beta` and carries 1 afterwards —
         // unbiased, and low-throughput paths stop costing rays.
@@ -468,6 +480,6 @@ impl<'a> PathContext<'a> {
             }
             beta = 1.0;
         }
-        Scatter { emitted, shadow, next: Some((Ray { origin, dir: basis.to_world(wi_l), tmax: f32::INFINITY }, beta)) }
+        Scatter { emitted, shadow, next: Some((Ray { origin, dir, tmax: f32::INFINITY }, beta)) }
     }
 }

@@ -56,10 +56,20 @@ pub struct Texturing {
     pub metallic: Vec<Option<u32>>,
     pub coating: Vec<Option<u32>>,
     pub coatings: Vec<crate::render::bsdf::CoatingFamily>,
+    /// Per scene material: its tangent-space normal map, if any.
+    pub normal: Vec<Option<NormalMap>>,
     /// Per triangle (the mesh's order): `(s, t)` at its three corners; zero for triangles
     /// of untextured materials.
     pub uv: Vec<[Vec2; 3]>,
     pub filter: TextureFilter,
+}
+
+/// A tangent-space normal map (glTF `normalTexture`, MTL `norm`): three value textures,
+/// the image's r g b read linearly, and glTF's `scale` of the tangent-plane components.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalMap {
+    pub xyz: [u32; 3],
+    pub scale: f32,
 }
 
 /// A material's roughness and metallic textures (either may be absent) and its coating
@@ -86,6 +96,38 @@ impl Texturing {
     #[inline]
     pub fn emission_of(&self, material: u32) -> Option<&MipMap> {
         self.texture(&self.emission, material)
+    }
+
+    /// The shading normal at point `p` of triangle `tri` (corners `corners`) whose front
+    /// face has unit normal `n_front`, from material `material`'s normal map, if it has one:
+    /// `normalize(x·T + y·B + z·N)` with `(x, y, z) = (2·texel − 1)·(scale, scale, 1)`,
+    /// T the direction of increasing s and B of decreasing t (the image's "up", glTF's
+    /// and OpenGL's convention), both made orthonormal to N. `texel` looks a texture up.
+    #[inline]
+    pub fn shading_normal(
+        &self,
+        material: u32,
+        tri: u32,
+        corners: [Vec3; 3],
+        n_front: Vec3,
+        texel: impl Fn(&MipMap) -> f32,
+    ) -> Option<Vec3> {
+        let map = (*self.normal.get(material as usize)?)?;
+        let [ta, tb, tc] = self.uv[tri as usize];
+        let (e1, e2) = (corners[1] - corners[0], corners[2] - corners[0]);
+        let (d1, d2) = (tb - ta, tc - ta);
+        let det = d1.perp_dot(d2);
+        if det == 0.0 {
+            return None;
+        }
+        // ∂p/∂s and ∂p/∂t from the triangle's edges and their UV differences.
+        let dpds = (e1 * d2.y - e2 * d1.y) / det;
+        let dpdt = (e2 * d1.x - e1 * d2.x) / det;
+        let t = (dpds - n_front * n_front.dot(dpds)).normalize_or_zero();
+        let b = -(dpdt - n_front * n_front.dot(dpdt) - t * t.dot(dpdt)).normalize_or_zero();
+        let [x, y, z] = map.xyz.map(|i| 2.0 * texel(&self.textures[i as usize].mip) - 1.0);
+        let n = (t * (x * map.scale) + b * (y * map.scale) + n_front * z).normalize_or_zero();
+        (n != Vec3::ZERO && t != Vec3::ZERO && b != Vec3::ZERO).then_some(n)
     }
 
     /// The roughness and metallic textures of material `material` and its coating tables,
@@ -158,6 +200,7 @@ mod tests {
             metallic: vec![None],
             coating: vec![None],
             coatings: Vec::new(),
+            normal: vec![None],
             uv: vec![[Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)]],
             filter: TextureFilter::Mip,
         };
