@@ -868,7 +868,8 @@ def verify(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Pat
         f"Mitsuba {noise_b * 100:.3f} %, noise-corrected {corrected * 100:.3f} %"
     )
     checks.append(Check(f"{tag}: rel. RMSE hilcam vs Mitsuba (noise-corrected)", corrected, args.verify_tol))
-    checks.append(Check(f"{tag}: mean radiance ratio − 1", float(a[lit].mean() / b[lit].mean() - 1), args.verify_tol / 2))
+    mean_tol = args.verify_mean_tol if args.verify_mean_tol is not None else args.verify_tol / 2
+    checks.append(Check(f"{tag}: mean radiance ratio − 1", float(a[lit].mean() / b[lit].mean() - 1), mean_tol))
     inner = interior(a) & interior(b)
     planar = _planar_normal(sc)
     rhos = {sc.materials[p.material] for p in sc.parts if not isinstance(sc.materials[p.material], dict)}
@@ -1210,6 +1211,12 @@ def main() -> int:
     ap.add_argument("--verify-spp", type=int, default=1024)
     ap.add_argument("--verify-width", type=int, default=256)
     ap.add_argument("--verify-tol", type=float, default=0.02, help="limit on rel. RMSE between the renderers")
+    ap.add_argument(
+        "--verify-mean-tol",
+        type=float,
+        default=None,
+        help="limit on the relative difference of mean radiance (default: half of --verify-tol)",
+    )
     ap.add_argument("--verify-only", action="store_true")
     ap.add_argument("--skip-verify", action="store_true")
     ap.add_argument("--quick", action="store_true", help="128x128, spp 1..16, 2 reps, small reference")
