@@ -89,8 +89,10 @@ lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # ---------------------------------------------------------------------------
 
 # The bench build: the binary without the lab (--no-default-features) builds, and its
-# command line has no lab subcommand.
-cargo build --quiet --no-default-features --bin hilcam
+# command line has no lab subcommand. Without the lab hilcam-core's features differ, so it
+# is compiled again: unoptimised here (the checks below render nothing), which takes a
+# third of the time; dependencies keep their opt-level 3 artifacts and are reused.
+CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam
 if target/debug/hilcam bench --help >/dev/null 2>&1; then
   echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
   exit 1
@@ -113,6 +115,8 @@ if [[ "$lab_bvh_err" != *"$expected"* ]]; then
 fi
 rm -r "$lab_bvh_dir"
 echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
+# target/debug/hilcam is the optimised lab build again for the steps below.
+cargo build --quiet --bin hilcam
 lap "bench build (--no-default-features) + checks"
 
 # --- clusters (issue 25) -----------------------------------------------------
