@@ -4,4 +4,5 @@
 pub mod frames;
 pub mod logs;
 pub mod scenes;
+pub mod shipped;
 pub mod soup;

@@ -271,17 +271,11 @@ fn the_shipped_satellite_renders_the_same_from_its_glb_and_its_obj() {
 
 #[test]
 fn the_shipped_satellite_files_are_what_the_script_writes() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new("python3")
-        .arg("scripts/make_gltf_satellite.py")
-        .arg(dir.path())
-        .output()
-        .expect("python3 runs scripts/make_gltf_satellite.py");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for f in ["sat.glb", "sat.obj", "sat.mtl"] {
-        let shipped = std::fs::read(Path::new("scenes/gltf_satellite").join(f)).unwrap();
-        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/gltf_satellite/{f} is stale");
-    }
+    crate::common::shipped::assert_script_writes(
+        "scripts/make_gltf_satellite.py",
+        "scenes/gltf_satellite",
+        &["sat.glb", "sat.obj", "sat.mtl"],
+    );
 }
 
 /// Standard base64 with padding, for a data-URI buffer.

@@ -236,17 +236,11 @@ fn the_shipped_textured_plate_converges_to_the_box_average_of_its_png() {
 
 #[test]
 fn the_shipped_textured_targets_are_what_the_script_writes() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new("python3")
-        .arg("scripts/make_textured_targets.py")
-        .arg(dir.path())
-        .output()
-        .expect("python3 runs scripts/make_textured_targets.py");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for f in ["plate.obj", "sphere.obj", "checks.mtl", "checks.png"] {
-        let shipped = std::fs::read(Path::new("scenes/textured").join(f)).unwrap();
-        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/textured/{f} is stale");
-    }
+    crate::common::shipped::assert_script_writes(
+        "scripts/make_textured_targets.py",
+        "scenes/textured",
+        &["plate.obj", "sphere.obj", "checks.mtl", "checks.png"],
+    );
 }
 
 #[test]
@@ -494,17 +488,11 @@ fn the_shipped_textured_satellite_renders_the_same_from_its_glb_and_its_obj() {
 
 #[test]
 fn the_shipped_textured_satellite_files_are_what_the_script_writes() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new("python3")
-        .arg("scripts/make_textured_satellite.py")
-        .arg(dir.path())
-        .output()
-        .expect("python3 runs scripts/make_textured_satellite.py");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for f in ["sat.glb", "sat.obj", "sat.mtl", "cells.png"] {
-        let shipped = std::fs::read(Path::new("scenes/textured_satellite").join(f)).unwrap();
-        assert!(std::fs::read(dir.path().join(f)).unwrap() == shipped, "scenes/textured_satellite/{f} is stale");
-    }
+    crate::common::shipped::assert_script_writes(
+        "scripts/make_textured_satellite.py",
+        "scenes/textured_satellite",
+        &["sat.glb", "sat.obj", "sat.mtl", "cells.png"],
+    );
 }
 
 #[test]
