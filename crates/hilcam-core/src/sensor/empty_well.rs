@@ -8,8 +8,9 @@
 //! (Gaussian integrals over each code's interval of z, by Gauss–Legendre quadrature to
 //! ~1e-16) are tabulated once; a frame draws a pixel's code by inverting the table's
 //! cumulative sums with 32 random bits (each code's probability within 2⁻³² of the exact
-//! one, the resolution of a 32-bit uniform), through a guide table so that a draw reads
-//! one or two entries. That replaces a normal variate, a division and a rounding per
+//! one, the resolution of a 32-bit uniform): the top 12 bits index a table that holds
+//! the code outright for all but the few ranges a code boundary cuts, which a guide table
+//! and the sums settle. That replaces a normal variate, a division and a rounding per
 //! dark pixel.
 
 use super::adc::{Adc, Conversion};
