@@ -77,6 +77,10 @@ thread_local! {
 
 /// True when the CPU has AVX2 (checked once; cached by the standard library).
 fn avx2() -> bool {
+    #[cfg(test)]
+    if tests::BASELINE.with(|b| b.get()) {
+        return false;
+    }
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx2")
@@ -473,5 +477,45 @@ impl Frame<'_> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::render::film::{Pixels, RadianceImage};
+    use crate::sensor::{CameraPreset, Sensor};
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Set: this thread's frames take the baseline code whatever the CPU has.
+        pub(super) static BASELINE: Cell<bool> = const { Cell::new(false) };
+    }
+
+    #[test]
+    fn the_baseline_and_the_avx2_code_give_the_same_bytes() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/cameras/nav1024.toml");
+        let mut p = CameraPreset::load(std::path::Path::new(path)).unwrap();
+        (p.camera.width, p.camera.height) = (200, 90);
+        let sensor = Sensor::new(&p.camera, &p.sensor).unwrap();
+        // A lit disc on black, a variance that follows it.
+        let mut img = RadianceImage::new(200, 90, 0.0);
+        for (i, v) in img.data.iter_mut().enumerate() {
+            let (c, r) = ((i % 200) as f64 - 100.0, (i / 200) as f64 - 45.0);
+            if c * c + r * r < 900.0 && i % 29 != 0 {
+                *v = (0.05 + 0.8 * (i as f64 * 0.37).sin().abs()) as f32;
+            }
+        }
+        let var: Vec<f32> = img.data.iter().map(|l| l * l * 0.02).collect();
+        // One thread, so that the flag (per thread) covers every band.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let run = |baseline: bool| {
+            pool.install(|| {
+                BASELINE.with(|b| b.set(baseline));
+                sensor.apply_with_variance(&img, Some(&var), 3, 5e-3, 0.5).unwrap()
+            })
+        };
+        let (fast, base) = (run(false), run(true));
+        assert!(matches!(&base.pixels, Pixels::Mono16 { data, .. } if data.iter().any(|&d| d > 40 && d < 1023)));
+        assert_eq!(fast, base);
     }
 }
