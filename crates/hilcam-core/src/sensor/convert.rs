@@ -12,6 +12,7 @@
 //! kept apart and reduced in row order, so the bytes do not depend on the thread count.
 
 use super::adc::{Adc, Conversion};
+use super::dark_run;
 use super::detector::{Detector, FixedPattern, PixelCharge};
 use super::empty_well::EmptyWell;
 use super::mc_noise::McRow;
@@ -56,6 +57,38 @@ struct Frame<'a> {
     substitute: bool,
     /// How a pixel without charge reads (with a detector whose shot noise is on).
     well: Option<&'a EmptyWell>,
+}
+
+/// What every band of a frame reads.
+#[derive(Clone, Copy)]
+struct Band<'a> {
+    f: &'a Frame<'a>,
+    /// The optics over the whole image (radiance, variance), when they ran first.
+    whole: Option<&'a (Vec<f32>, Option<Vec<f32>>)>,
+    img: &'a RadianceImage,
+    variance: Option<&'a [f32]>,
+}
+
+thread_local! {
+    /// Each worker's rows, kept from band to band and frame to frame (not grown and
+    /// zeroed again for every piece of work rayon splits off).
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
+}
+
+/// True when the CPU has AVX2 (checked once; cached by the standard library).
+fn avx2() -> bool {
+    #[cfg(test)]
+    if tests::BASELINE.with(|b| b.get()) {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 /// One worker's rows, reused from band to band.
@@ -106,35 +139,56 @@ impl Sensor {
         };
         let mut dn = vec![0u16; w * h];
         let mut rows = vec![RowStats::default(); h];
-        dn.par_chunks_mut(BAND_ROWS * w).zip(rows.par_chunks_mut(BAND_ROWS)).enumerate().for_each_init(
-            Scratch::default,
-            |s, (band, (out, stats))| {
-                let r0 = band * BAND_ROWS;
-                let r1 = r0 + stats.len();
-                s.ensure(w);
-                match (&whole, &self.psf_plan) {
-                    (Some((rad, var)), _) => {
-                        for r in r0..r1 {
-                            let rad = &rad[r * w..(r + 1) * w];
-                            let var = var.as_ref().map(|v| &v[r * w..(r + 1) * w]);
-                            let vrow = var.map(|v| (v, nonzero_span(v)));
-                            f.row(r, (rad, nonzero_span(rad)), vrow, &mut out[(r - r0) * w..], &mut stats[r - r0]);
-                        }
+        let band = Band { f: &f, whole: whole.as_ref(), img, variance };
+        let avx2 = avx2();
+        dn.par_chunks_mut(BAND_ROWS * w).zip(rows.par_chunks_mut(BAND_ROWS)).enumerate().for_each(
+            |(b, (out, stats))| {
+                SCRATCH.with_borrow_mut(|s| {
+                    #[cfg(target_arch = "x86_64")]
+                    if avx2 {
+                        // SAFETY: `avx2()` found the CPU to have AVX2.
+                        return unsafe { self.band_avx2(&band, b * BAND_ROWS, s, out, stats) };
                     }
-                    (None, PsfPlan::Separable(psf)) => {
-                        self.band_separable(&f, psf, img, variance, r0, r1, s, out, stats)
-                    }
-                    (None, _) => {
-                        for r in r0..r1 {
-                            let rad = self.optics_row(&img.data[r * w..(r + 1) * w], r, false, &mut s.rad);
-                            let var = variance.map(|v| self.optics_row(&v[r * w..(r + 1) * w], r, true, &mut s.var));
-                            f.row(r, rad, var, &mut out[(r - r0) * w..], &mut stats[r - r0]);
-                        }
-                    }
-                }
+                    self.band(&band, b * BAND_ROWS, s, out, stats)
+                })
             },
         );
         Ok((dn, rows))
+    }
+
+    /// [`Sensor::band`] compiled for AVX2 (the noise hashes four pixels at a time); the
+    /// same arithmetic, so the same bits (Rust never fuses a multiply and an add).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn band_avx2(&self, band: &Band, r0: usize, s: &mut Scratch, out: &mut [u16], stats: &mut [RowStats]) {
+        self.band(band, r0, s, out, stats)
+    }
+
+    /// Convert the band of rows from `r0` (as many as `stats` has) into `out`.
+    #[inline(always)]
+    fn band(&self, band: &Band, r0: usize, s: &mut Scratch, out: &mut [u16], stats: &mut [RowStats]) {
+        let Band { f, whole, img, variance } = *band;
+        let w = img.width as usize;
+        let r1 = r0 + stats.len();
+        s.ensure(w);
+        match (whole, &self.psf_plan) {
+            (Some((rad, var)), _) => {
+                for r in r0..r1 {
+                    let rad = &rad[r * w..(r + 1) * w];
+                    let var = var.as_ref().map(|v| &v[r * w..(r + 1) * w]);
+                    let vrow = var.map(|v| (v, nonzero_span(v)));
+                    f.row(r, (rad, nonzero_span(rad)), vrow, &mut out[(r - r0) * w..], &mut stats[r - r0]);
+                }
+            }
+            (None, PsfPlan::Separable(psf)) => self.band_separable(f, psf, img, variance, r0, r1, s, out, stats),
+            (None, _) => {
+                for r in r0..r1 {
+                    let rad = self.optics_row(&img.data[r * w..(r + 1) * w], r, false, &mut s.rad);
+                    let var = variance.map(|v| self.optics_row(&v[r * w..(r + 1) * w], r, true, &mut s.var));
+                    f.row(r, rad, var, &mut out[(r - r0) * w..], &mut stats[r - r0]);
+                }
+            }
+        }
     }
 
     /// Input row `r` after the scale (τ cos⁴; `squared` for a variance), in `dst` or, with
@@ -152,6 +206,7 @@ impl Sensor {
 
     /// Output rows `r0..r1` through a separable PSF.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn band_separable(
         &self,
         f: &Frame,
@@ -203,6 +258,7 @@ impl Sensor {
     /// Scale input row `iy` (`squared` for a variance) and run the horizontal pass into
     /// `out`; returns the output's span.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn horizontal(
         &self,
         psf: &super::psf_band::SeparablePsf,
@@ -240,6 +296,7 @@ impl Scratch {
 impl Frame<'_> {
     /// Convert row `r`: radiance `rad` (zero outside its span), Monte Carlo variance `var`
     /// (likewise; None without a report), into `out`.
+    #[inline(always)]
     fn row(&self, r: usize, rad: (&[f32], Span), var: Option<(&[f32], Span)>, out: &mut [u16], st: &mut RowStats) {
         let w = rad.0.len();
         let lit = union(rad.1, var.map_or((0, 0), |v| v.1));
@@ -256,6 +313,7 @@ impl Frame<'_> {
 
     /// Pixels with neither light nor Monte Carlo variance, the first one's key `first`:
     /// [`Frame::pixel`]'s dark path with the fixed pattern's row at hand.
+    #[inline(always)]
     fn dark(&self, first: u64, out: &mut [u16], st: &mut RowStats) {
         let Some(d) = self.det else {
             for (i, o) in out.iter_mut().enumerate() {
@@ -284,8 +342,9 @@ impl Frame<'_> {
     /// A run of dark pixels read from the empty-well table: [`Frame::dark_pixel`] for each
     /// (the same draws and codes), with what most of them share taken out of the loop.
     /// Every mean dark charge is at most `dark_max`, so a first draw at or below
-    /// `1 − dark_max` is an empty well without computing the pixel's own mean; the run's
-    /// expected charge is summed apart, in four lanes (column mod 4).
+    /// `1 − dark_max` is an empty well without computing the pixel's own mean
+    /// ([`dark_run::run`]); the run's expected charge is summed apart, in four lanes
+    /// (column mod 4).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn dark_table_run(
@@ -300,29 +359,16 @@ impl Frame<'_> {
     ) {
         let empty = if dark_max < noise::POISSON_EXACT_BELOW { 1.0 - dark_max } else { -1.0 };
         let mut s = *st;
-        for (i, o) in out.iter_mut().enumerate() {
-            let p = first + i as u64;
-            let h = PixelStream::new(self.key, p, 0).next_u64();
-            let code = if (h as u32 as f64 + 0.5) * (1.0 / 4_294_967_296.0) <= empty {
-                well.draw((h >> 32) as u32)
-            } else {
-                // Rare (a probability of about `dark_max`): the pixel's own path, its sums
-                // but the expected charge (counted below with the others').
-                let e = s.expected;
-                let dn = self.dark_pixel(d, dark(i), p, &mut s);
-                s.expected = e;
-                *o = dn;
-                continue;
-            };
-            match code {
-                Conversion::InRange(_) => {}
-                Conversion::ClippedLow => s.low += 1,
-                Conversion::ClippedHigh(_) => s.high += 1,
-            }
-            let dn = code.dn();
-            s.dn += u64::from(dn);
-            *o = dn as u16;
-        }
+        let tally = dark_run::run(self.key, first, out, well, dark_run::empty_threshold(empty), |i, o| {
+            // Rare (a probability of about `dark_max`): the pixel's own path, its sums
+            // but the expected charge (counted below with the others').
+            let e = s.expected;
+            *o = self.dark_pixel(d, dark(i), first + i as u64, &mut s);
+            s.expected = e;
+        });
+        s.dn += tally.dn;
+        s.low += tally.low;
+        s.high += tally.high;
         let (mut lanes, mut max) = ([0.0f64; 4], [s.max_expected; 4]);
         let n4 = out.len() / 4 * 4;
         for c in (0..n4).step_by(4) {
@@ -431,5 +477,45 @@ impl Frame<'_> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::render::film::{Pixels, RadianceImage};
+    use crate::sensor::{CameraPreset, Sensor};
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Set: this thread's frames take the baseline code whatever the CPU has.
+        pub(super) static BASELINE: Cell<bool> = const { Cell::new(false) };
+    }
+
+    #[test]
+    fn the_baseline_and_the_avx2_code_give_the_same_bytes() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/cameras/nav1024.toml");
+        let mut p = CameraPreset::load(std::path::Path::new(path)).unwrap();
+        (p.camera.width, p.camera.height) = (200, 90);
+        let sensor = Sensor::new(&p.camera, &p.sensor).unwrap();
+        // A lit disc on black, a variance that follows it.
+        let mut img = RadianceImage::new(200, 90, 0.0);
+        for (i, v) in img.data.iter_mut().enumerate() {
+            let (c, r) = ((i % 200) as f64 - 100.0, (i / 200) as f64 - 45.0);
+            if c * c + r * r < 900.0 && i % 29 != 0 {
+                *v = (0.05 + 0.8 * (i as f64 * 0.37).sin().abs()) as f32;
+            }
+        }
+        let var: Vec<f32> = img.data.iter().map(|l| l * l * 0.02).collect();
+        // One thread, so that the flag (per thread) covers every band.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let run = |baseline: bool| {
+            pool.install(|| {
+                BASELINE.with(|b| b.set(baseline));
+                sensor.apply_with_variance(&img, Some(&var), 3, 5e-3, 0.5).unwrap()
+            })
+        };
+        let (fast, base) = (run(false), run(true));
+        assert!(matches!(&base.pixels, Pixels::Mono16 { data, .. } if data.iter().any(|&d| d > 40 && d < 1023)));
+        assert_eq!(fast, base);
     }
 }

@@ -8,8 +8,9 @@
 //! (Gaussian integrals over each code's interval of z, by Gauss–Legendre quadrature to
 //! ~1e-16) are tabulated once; a frame draws a pixel's code by inverting the table's
 //! cumulative sums with 32 random bits (each code's probability within 2⁻³² of the exact
-//! one, the resolution of a 32-bit uniform), through a guide table so that a draw reads
-//! one or two entries. That replaces a normal variate, a division and a rounding per
+//! one, the resolution of a 32-bit uniform): the top 12 bits index a table that holds
+//! the code outright for all but the few ranges a code boundary cuts, which a guide table
+//! and the sums settle. That replaces a normal variate, a division and a rounding per
 //! dark pixel.
 
 use super::adc::{Adc, Conversion};
@@ -30,6 +31,39 @@ pub struct EmptyWell {
     cum: Vec<u64>,
     /// `guide[k]`: the first code whose `cum` exceeds `k · 2²⁴`.
     guide: [u32; 256],
+    /// `fine[k]`: the code of every draw in `[k · 2²⁰, (k + 1) · 2²⁰)`, or [`STRADDLES`]
+    /// when a code boundary cuts that range (a few of the 4096) or there are 255 codes
+    /// or more.
+    fine: Vec<u8>,
+    /// Per code, what a run of draws sums ([`EmptyWell::tally`]).
+    tally: Vec<u64>,
+}
+
+/// A [`EmptyWell::fine`] entry that does not decide the code.
+const STRADDLES: u8 = u8::MAX;
+
+/// Draws summed into one `u64` by [`EmptyWell::tally`] before [`Tally::add`] takes them
+/// apart: the DN sum stays below 2³² (2¹⁶ × 2¹⁶) and each count below 2¹⁶.
+pub const TALLY_RUN: usize = 1 << 15;
+
+/// The counts a run of empty-well draws adds to a row's sums.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Tally {
+    /// Sum of the codes.
+    pub dn: u64,
+    /// Draws clipped at 0 and at the ADC maximum.
+    pub low: u64,
+    pub high: u64,
+}
+
+impl Tally {
+    /// Add a sum of at most [`TALLY_RUN`] [`EmptyWell::tally`] values.
+    #[inline(always)]
+    pub fn add(&mut self, packed: u64) {
+        self.dn += packed & 0xffff_ffff;
+        self.low += (packed >> 32) & 0xffff;
+        self.high += packed >> 48;
+    }
 }
 
 impl EmptyWell {
@@ -80,17 +114,58 @@ impl EmptyWell {
         for (k, g) in guide.iter_mut().enumerate() {
             *g = cum.partition_point(|&c| c <= (k as u64) << 24) as u32;
         }
-        Some(EmptyWell { codes: probs.into_iter().map(|(c, _)| c).collect(), cum, guide })
+        let fine = (0..4096u64)
+            .map(|k| {
+                let at = |u: u64| cum.partition_point(|&c| c <= u);
+                let (a, b) = (at(k << 20), at(((k + 1) << 20) - 1));
+                if a == b && a < STRADDLES as usize { a as u8 } else { STRADDLES }
+            })
+            .collect();
+        let tally = probs
+            .iter()
+            .map(|(c, _)| {
+                let (low, high) = match c {
+                    Conversion::InRange(_) => (0, 0),
+                    Conversion::ClippedLow => (1, 0),
+                    Conversion::ClippedHigh(_) => (0, 1),
+                };
+                u64::from(c.dn()) | low << 32 | high << 48
+            })
+            .collect();
+        Some(EmptyWell { codes: probs.into_iter().map(|(c, _)| c).collect(), cum, guide, fine, tally })
+    }
+
+    /// The index of the code of 32 uniform random bits `u`.
+    #[inline(always)]
+    fn index(&self, u: u32) -> usize {
+        match self.fine[(u >> 20) as usize] {
+            STRADDLES => self.search(u),
+            j => j as usize,
+        }
+    }
+
+    /// [`EmptyWell::index`] through the guide table and the cumulative sums.
+    #[inline(never)]
+    fn search(&self, u: u32) -> usize {
+        let mut j = self.guide[(u >> 24) as usize] as usize;
+        while u as u64 >= self.cum[j] {
+            j += 1;
+        }
+        j
     }
 
     /// The code of 32 uniform random bits `u`.
     #[inline(always)]
     pub fn draw(&self, u: u32) -> Conversion {
-        let mut j = self.guide[(u >> 24) as usize] as usize;
-        while u as u64 >= self.cum[j] {
-            j += 1;
-        }
-        self.codes[j]
+        self.codes[self.index(u)]
+    }
+
+    /// [`EmptyWell::draw`] packed for summing: the code's DN in the low 32 bits, 1 in
+    /// bit 32 when it clipped low, 1 in bit 48 when it clipped high (so that a sum of up
+    /// to [`TALLY_RUN`] of them is taken apart by [`Tally::add`]).
+    #[inline(always)]
+    pub fn tally(&self, u: u32) -> u64 {
+        self.tally[self.index(u)]
     }
 
     /// Each code with its probability (as tabulated, a multiple of 2⁻³²).
@@ -173,11 +248,26 @@ mod tests {
             }
             lo = c;
         }
+        // The fine table and the guided search agree on every 2²⁰-wide range's ends, and
+        // the tally packs each code.
+        for k in 0..4096u64 {
+            for u in [k << 20, ((k + 1) << 20) - 1, (k << 20) + 12345] {
+                assert_eq!(t.index(u as u32), t.search(u as u32), "{u}");
+            }
+        }
+        assert!(t.fine.iter().filter(|&&j| j == STRADDLES).count() < t.codes.len());
+        let mut sum = Tally::default();
+        sum.add(t.tally(0) + t.tally(u32::MAX) + t.tally(1 << 31));
+        let dn: u32 = [0, u32::MAX, 1 << 31].iter().map(|&u| t.draw(u).dn()).sum();
+        assert_eq!(sum, Tally { dn: u64::from(dn), low: 0, high: 0 });
         // No read noise: one code; an offset of 0 clips half the draws low.
         assert_eq!(EmptyWell::new(0.0, &adc).unwrap().codes, vec![Conversion::InRange(32)]);
         let zero = Adc::new(&AdcConfig { bits: 8, gain_e_per_dn: 1.0, offset_dn: 0.0 });
         let t = EmptyWell::new(3.0, &zero).unwrap();
         let low: f64 = t.codes().filter(|(c, _)| *c == Conversion::ClippedLow).map(|(_, p)| p).sum();
         assert!((low - gaussian_mass(-40.0, -0.5 / 3.0)).abs() < 3e-10, "{low}");
+        let mut sum = Tally::default();
+        sum.add(t.tally(0) + t.tally(0));
+        assert_eq!(sum, Tally { dn: 0, low: 2, high: 0 });
     }
 }

@@ -12,7 +12,8 @@
 //! - [`stream`]: each pixel's counter-based noise streams, keyed by (frame seed, pixel).
 //! - [`ziggurat`]: exact standard normal variates, fast.
 //! - [`noise`]: Poisson variates; the fixed pattern's normals.
-//! - [`empty_well`]: the DN of a pixel without charge, drawn from its exact distribution.
+//! - [`empty_well`]: the DN of a pixel without charge, drawn from its exact distribution;
+//!   `dark_run`: a run of such pixels, their draws hashed a chunk at a time.
 //! - [`adc`]: gain, offset, bit depth, clipping.
 //! - [`exposure`]: auto-exposure state across frames.
 //! - [`ptc`]: photon-transfer measurement (gain and read noise from flat fields).
@@ -35,6 +36,7 @@
 pub mod adc;
 pub mod config;
 mod convert;
+mod dark_run;
 pub mod detector;
 pub mod empty_well;
 pub mod exposure;

@@ -57,6 +57,18 @@ impl PixelStream {
         PixelStream { state: key.wrapping_add(n.wrapping_mul(GAMMA)) }
     }
 
+    /// The first draw of part `part` of each of the pixels `first..first + out.len()`,
+    /// in `out`: a loop without branches, which the compiler vectorises.
+    #[inline(always)]
+    pub fn first_draws(key: u64, first: u64, part: u64, out: &mut [u64]) {
+        // Pixel p + 1's streams start 2³² draws after pixel p's.
+        let step = GAMMA.wrapping_mul(1 << 32);
+        let s0 = PixelStream::new(key, first, part).state.wrapping_add(GAMMA);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = mix64(s0.wrapping_add(step.wrapping_mul(i as u64)));
+        }
+    }
+
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(GAMMA);
@@ -97,6 +109,20 @@ mod tests {
         };
         assert_eq!(PixelStream::new(7, 3, 1).next_u64(), skip(PixelStream::new(7, 3, 0), 1 << 31).next_u64());
         assert_eq!(PixelStream::new(7, 4, 0).next_u64(), skip(PixelStream::new(7, 3, 1), 1 << 31).next_u64());
+    }
+
+    #[test]
+    fn first_draws_are_each_pixels_first() {
+        let mut d = [0u64; 70];
+        let first = u32::MAX as u64 - 3;
+        PixelStream::first_draws(frame_key(4), first, 0, &mut d);
+        for (i, d) in d.iter().enumerate() {
+            assert_eq!(*d, PixelStream::new(frame_key(4), first + i as u64, 0).next_u64());
+        }
+        PixelStream::first_draws(frame_key(4), first, 1, &mut d);
+        for (i, d) in d.iter().enumerate() {
+            assert_eq!(*d, PixelNoise::new(frame_key(4), first + i as u64).read.next_u64());
+        }
     }
 
     #[test]
