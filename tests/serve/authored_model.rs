@@ -21,8 +21,7 @@ async fn served(scene: &str) -> Vec<u8> {
     let pose = hilcam_core::scene::load(Path::new(scene)).unwrap().pose;
     let (tx, rx) = tokio::sync::mpsc::channel(4);
     let server = start(cfg, Some(rx)).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
     tx.send(InputEvent::Pose { pose, arrival: Instant::now() }).await.unwrap();
     let f = reader.next().await;
     assert_eq!(f.meta.frame_seq, 0);

@@ -31,8 +31,7 @@ async fn a_pose_sent_over_a_pty_arrives_as_a_frame_where_the_pinhole_model_puts_
     let input = InputConfig::Serial(SerialInput { device, baud: 921_600 });
     let cfg = config(sphere_scene(dir.path(), 96, 16), input, TriggerConfig::default(), GovernorConfig::default());
     let server = start(cfg, None).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
 
     // Target off-axis; the sun straight behind the camera along the line of sight, so the
     // lit disk is symmetric about the projected centre.
@@ -249,8 +248,7 @@ async fn run_with_policy(policy: Policy, budget_ms: f64, spp: u32) -> (Vec<Frame
     let cfg = config(sphere_scene(dir.path(), 128, spp), InputConfig::default(), TriggerConfig::default(), gov);
     let (tx, rx) = mpsc::channel(16);
     let server = start(cfg, Some(rx)).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
     let mut frames = Vec::new();
     for seq in 1..=10u32 {
         let p = pose(seq, DVec3::new(0.0, 0.0, 10.0), DVec3::NEG_Z);
@@ -317,8 +315,7 @@ async fn a_fractional_budget_reaches_the_frame_headers_and_the_metrics() {
     cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
     let (tx, rx) = mpsc::channel(16);
     let server = start(cfg, Some(rx)).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
     for seq in 1..=3u32 {
         let p = pose(seq, DVec3::new(0.0, 0.0, 10.0), DVec3::NEG_Z);
         tx.send(InputEvent::Pose { pose: p, arrival: Instant::now() }).await.unwrap();
@@ -350,8 +347,7 @@ async fn sensor_quality_frames_report_their_monte_carlo_noise_in_the_log_and_the
     cfg.record = Some(RecordSection { dir: Some(dir.path().join("rec")), session: None, format: ImageFormat::Pfm });
     let (tx, rx) = mpsc::channel(16);
     let server = start(cfg, Some(rx)).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
     for seq in 1..=3u32 {
         let p = pose(seq, DVec3::new(0.1 * f64::from(seq), 0.0, 8.0), DVec3::new(0.3, 0.2, -1.0).normalize());
         tx.send(InputEvent::Pose { pose: p, arrival: Instant::now() }).await.unwrap();
@@ -376,20 +372,6 @@ async fn sensor_quality_frames_report_their_monte_carlo_noise_in_the_log_and_the
         (report.scheduler.mc_lit_pixels, report.scheduler.mc_above_bound, report.scheduler.mc_k),
         (lit, above, 0.25)
     );
-}
-
-/// GET /metrics as text.
-async fn metrics_text(addr: std::net::SocketAddr) -> String {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
-    s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).await.unwrap();
-    text
-}
-
-fn metric(text: &str, series: &str) -> Option<u64> {
-    text.lines().find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -491,8 +473,7 @@ async fn start_with_fault(
 async fn a_render_panic_is_counted_and_the_next_pose_renders_the_same_bytes_as_a_fresh_pipeline() {
     let dir = tempfile::tempdir().unwrap();
     let (tx, server, mut faulted) = start_with_fault(dir.path(), |i| i == 1, None).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
     let send = |seq: u32, z: f64| {
         let tx = tx.clone();
         async move {

@@ -564,8 +564,7 @@ async fn a_clients_exposure_time_is_the_integration_time_of_the_next_frames() {
     cfg.output.gige = Some(GigeConfig { address: ip, ..GigeConfig::default() });
     let (tx, rx) = tokio::sync::mpsc::channel(4);
     let server = serve_common::start(cfg, Some(rx)).await;
-    let mut reader = serve_common::Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = serve_common::Reader::subscribed(&server.info).await;
     let frame_at = |seq: u32| {
         let tx = tx.clone();
         async move {

@@ -29,8 +29,7 @@ async fn a_clients_roi_and_exposure_are_what_serve_renders_and_the_session_repla
     cfg.record = Some(toml::from_str::<RecordSection>(&format!("session = {session:?}")).unwrap());
     let (tx, rx) = tokio::sync::mpsc::channel(4);
     let server = serve_common::start(cfg, Some(rx)).await;
-    let mut reader = serve_common::Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = serve_common::Reader::subscribed(&server.info).await;
 
     let p = glam::DVec3::new(0.8, -0.5, 10.0);
     let pose = serve_common::pose(1, p, -p);

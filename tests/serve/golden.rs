@@ -72,8 +72,7 @@ fn outputs() -> BTreeMap<String, u32> {
         cfg.width = Some(WIDTH);
         let (tx, rx) = tokio::sync::mpsc::channel(4);
         let server = start(cfg, Some(rx)).await;
-        let mut reader = Reader::connect(server.info.stream).await;
-        tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+        let mut reader = Reader::subscribed(&server.info).await;
         for (k, s) in flyaround().iter().enumerate() {
             tx.send(InputEvent::Pose { pose: s.to_pose(k as u32), arrival: Instant::now() }).await.unwrap();
             let f = reader.next().await;

@@ -80,8 +80,7 @@ async fn a_planet_sent_over_serial_lands_where_the_pinhole_puts_it_and_bad_plane
     let mut cfg = config(scene, input, TriggerConfig::default(), GovernorConfig::default());
     cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
     let server = start(cfg, None).await;
-    let mut reader = Reader::connect(server.info.stream).await;
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut reader = Reader::subscribed(&server.info).await;
 
     let target = DVec3::new(0.8, -0.5, 10.0); // projects at (64, 38), 20 px radius
     let mut w = SerialWriter::new(master, "test pty");

@@ -67,6 +67,8 @@ pub fn config(scene: PathBuf, input: InputConfig, trigger: TriggerConfig, govern
     cfg.trigger = trigger;
     cfg.governor = governor;
     cfg.metrics.print_interval_s = 60.0;
+    // Scraped by `Reader::subscribed` to know when the server lists a new client.
+    cfg.metrics.listen = Some("127.0.0.1:0".parse().unwrap());
     cfg.validate().unwrap();
     cfg
 }
@@ -101,6 +103,22 @@ pub struct Reader {
 impl Reader {
     pub async fn connect(addr: std::net::SocketAddr) -> Reader {
         Reader { s: TcpStream::connect(addr).await.unwrap(), buf: Vec::new() }
+    }
+
+    /// Connect and wait until the server lists this client (its `hilcam_stream_clients`
+    /// gauge grows; a bounded poll, not a guess at how long that takes), so that every
+    /// frame published after this returns reaches it. Needs the metrics listener
+    /// ([`config`] turns it on).
+    pub async fn subscribed(info: &ServeInfo) -> Reader {
+        let metrics = info.metrics.expect("Reader::subscribed needs the server's metrics listener");
+        let before = stream_clients(metrics).await;
+        let reader = Reader::connect(info.stream).await;
+        let deadline = Instant::now() + PATIENCE;
+        while stream_clients(metrics).await <= before {
+            assert!(Instant::now() < deadline, "the server never listed the new stream client");
+            tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+        }
+        reader
     }
 
     pub async fn next(&mut self) -> Frame {
@@ -148,4 +166,24 @@ pub fn pixel_bytes(p: &hilcam_core::render::film::Pixels) -> Vec<u8> {
         Pixels::Mono16 { data, .. } => data.iter().flat_map(|v| v.to_le_bytes()).collect(),
         Pixels::Float32(d) => d.iter().flat_map(|v| v.to_le_bytes()).collect(),
     }
+}
+
+/// GET /metrics from `addr` as text.
+pub async fn metrics_text(addr: std::net::SocketAddr) -> String {
+    use tokio::io::AsyncWriteExt;
+    let mut s = TcpStream::connect(addr).await.unwrap();
+    s.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).await.unwrap();
+    text
+}
+
+/// The value of the un-labelled series `series` in a metrics text.
+pub fn metric(text: &str, series: &str) -> Option<u64> {
+    text.lines().find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
+}
+
+/// Stream clients the server lists now.
+async fn stream_clients(metrics: std::net::SocketAddr) -> u64 {
+    metric(&metrics_text(metrics).await, "hilcam_stream_clients").unwrap_or(0)
 }

@@ -48,6 +48,7 @@ queue_depth = 64
 session = "run1.session.jsonl"
 [metrics]
 print_interval_s = 60.0
+listen = "127.0.0.1:0"
 "#,
         scene.display()
     );
@@ -97,8 +98,7 @@ async fn a_recorded_session_re_renders_bit_identical_to_the_stream() {
     let embed = Embed { inputs: Some(rx), ready: Some(ready_tx), max_frames: Some(FRAMES as u64), ..Embed::default() };
     let server = tokio::spawn(run(cfg.clone(), embed, std::future::pending::<()>()));
     let info = tokio::time::timeout(PATIENCE, ready_rx).await.unwrap().unwrap();
-    let mut reader = Reader::connect(info.stream).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    let mut reader = Reader::subscribed(&info).await;
     let sender = tokio::spawn(async move {
         let mut tick = tokio::time::interval(Duration::from_millis(5));
         for seq in 1.. {
