@@ -113,11 +113,7 @@ impl Reader {
         let metrics = info.metrics.expect("Reader::subscribed needs the server's metrics listener");
         let before = stream_clients(metrics).await;
         let reader = Reader::connect(info.stream).await;
-        let deadline = Instant::now() + PATIENCE;
-        while stream_clients(metrics).await <= before {
-            assert!(Instant::now() < deadline, "the server never listed the new stream client");
-            tokio::time::sleep(std::time::Duration::from_millis(2)).await;
-        }
+        wait_stream_clients(info, before + 1).await;
         reader
     }
 
@@ -181,6 +177,16 @@ pub async fn metrics_text(addr: std::net::SocketAddr) -> String {
 /// The value of the un-labelled series `series` in a metrics text.
 pub fn metric(text: &str, series: &str) -> Option<u64> {
     text.lines().find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
+}
+
+/// Wait (a bounded poll) until the server lists at least `n` stream clients.
+pub async fn wait_stream_clients(info: &ServeInfo, n: u64) {
+    let metrics = info.metrics.expect("waiting for stream clients needs the server's metrics listener");
+    let deadline = Instant::now() + PATIENCE;
+    while stream_clients(metrics).await < n {
+        assert!(Instant::now() < deadline, "the server never listed {n} stream clients");
+        tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+    }
 }
 
 /// Stream clients the server lists now.

@@ -21,7 +21,7 @@ use hilcam_core::sink::{ImageFormat, RecvOptions, receive};
 use serialport::SerialPort;
 use std::path::Path;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 use tokio::io::AsyncReadExt;
 
 const WIDTH: u32 = 96;
@@ -101,7 +101,8 @@ async fn serve(dir: &Path, truth: &str) -> Run {
         progress: None,
     };
     let recv = tokio::spawn(receive(server.info.stream, opts));
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    // The reader, the skipper and `recv`.
+    wait_stream_clients(&server.info, 3).await;
     let mut w = SerialWriter::new(master, "test pty");
     let mut frames = Vec::new();
     for k in 0..FRAMES {
