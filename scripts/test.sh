@@ -3,6 +3,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# --quick: the inner loop — the setup (cached after the first run), `cargo test` and the
+# docs' examples; not the Python module, the vcan VM, fuzzing, the bench build or the
+# Slurm cluster (docs/testing.md).
+quick=false
+case "${1:-}" in
+  --quick) quick=true ;;
+  "") ;;
+  *) echo "usage: scripts/test.sh [--quick]" >&2; exit 2 ;;
+esac
+
 # Wall time of each step, printed at the end (also when a step fails).
 laps=()
 lap_start=$SECONDS
@@ -59,6 +69,10 @@ lap "cargo test --all-targets (build + run)"
 # binary is built above; docs/testing.md, "Docs that run").
 cargo test --test cli docs:: -- --nocapture
 lap "docs' examples (tests/cli/docs.rs)"
+if $quick; then
+  echo "test.sh: --quick: skipped the Python module, SocketCAN, fuzzing, the bench build and Slurm"
+  exit 0
+fi
 
 # The Python module (issue 38): the wheel built by the project's own script (maturin, the
 # dev profile, sharing target/ with the build above), pip-installed into a fresh venv; its
