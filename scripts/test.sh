@@ -106,6 +106,12 @@ lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # command line has no lab subcommand. Without the lab hilcam-core's features differ, so it
 # is compiled again: unoptimised here (the checks below render nothing), which takes a
 # third of the time; dependencies keep their opt-level 3 artifacts and are reused.
+# `cargo test` built target/debug/hilcam (the lab build, its dependencies' features
+# unified with the tests'); it is kept aside and put back after, rather than rebuilt: a
+# plain `cargo build` unifies features without the dev-dependencies and recompiled
+# half the tree (~150 s).
+lab_bin=$(mktemp)
+cp target/debug/hilcam "$lab_bin"
 CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam
 if target/debug/hilcam bench --help >/dev/null 2>&1; then
   echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
@@ -130,7 +136,8 @@ fi
 rm -r "$lab_bvh_dir"
 echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
 # target/debug/hilcam is the optimised lab build again for the steps below.
-cargo build --quiet --bin hilcam
+cp "$lab_bin" target/debug/hilcam
+rm "$lab_bin"
 lap "bench build (--no-default-features) + checks"
 
 # --- clusters (issue 25) -----------------------------------------------------
@@ -138,6 +145,6 @@ lap "bench build (--no-default-features) + checks"
 # daemons, fails if one is left), an array with a scancel'd and resubmitted task, merged
 # and compared byte for byte with a local replay; the Kubernetes manifest against the
 # schema, offline (docs/cluster.md).
-scripts/slurm/test-cluster.sh
+HILCAM_BIN=$PWD/target/debug/hilcam scripts/slurm/test-cluster.sh
 scripts/k8s/validate.sh
 lap "Slurm cluster + Kubernetes manifest"
