@@ -136,7 +136,7 @@ fi
 rm -r "$lab_bvh_dir"
 echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
 # target/debug/hilcam is the optimised lab build again for the steps below.
-cp "$lab_bin" target/debug/hilcam
+cp --remove-destination "$lab_bin" target/debug/hilcam  # not through the hard link into deps/
 rm "$lab_bin"
 lap "bench build (--no-default-features) + checks"
 
