@@ -141,6 +141,31 @@ fn inner_of(img: &[f64]) -> Vec<f64> {
     inner().map(|(c, r)| img[(r * SIDE + c) as usize]).collect()
 }
 
+/// How a frame's pixels `got` agree with the answer `want`: both means, the answer's
+/// largest departure from its mean (relative: a flat answer tests nothing), the RMS and the
+/// largest difference relative to the answer's mean.
+struct Agreement {
+    mean_got: f64,
+    mean_want: f64,
+    spread: f64,
+    err: f64,
+    worst: f64,
+}
+
+impl Agreement {
+    fn of(got: &[f64], want: &[f64]) -> Self {
+        let mean_want = want.iter().sum::<f64>() / want.len() as f64;
+        let mean_got = got.iter().sum::<f64>() / got.len() as f64;
+        Agreement {
+            mean_got,
+            mean_want,
+            spread: want.iter().fold(0.0f64, |m, w| m.max((w - mean_want).abs())) / mean_want,
+            err: rel_rms(got, want),
+            worst: got.iter().zip(want).map(|(g, w)| (g - w).abs()).fold(0.0, f64::max) / mean_want,
+        }
+    }
+}
+
 /// Root-mean-square of `a − b` relative to the mean of `b`.
 fn rel_rms(a: &[f64], b: &[f64]) -> f64 {
     let mean = b.iter().sum::<f64>() / b.len() as f64;
@@ -152,11 +177,7 @@ fn a_fine_checkerboard_converges_to_each_pixels_box_average_of_the_texture() {
     let dir = tempfile::tempdir().unwrap();
     let (s, want) = checker_scene(dir.path(), 4096);
     let got = inner_of(&frame(&s));
-    let mean_want = want.iter().sum::<f64>() / want.len() as f64;
-    let mean_got = got.iter().sum::<f64>() / got.len() as f64;
-    let spread = want.iter().fold(0.0f64, |m, w| m.max((w - mean_want).abs())) / mean_want;
-    let err = rel_rms(&got, &want);
-    let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs()).fold(0.0, f64::max) / mean_want;
+    let Agreement { mean_got, mean_want, spread, err, worst } = Agreement::of(&got, &want);
     eprintln!(
         "checker 4096 spp: mean {mean_got} vs {mean_want}, rms {err:.2e}, worst {worst:.2e}, pixel spread ±{spread:.3}"
     );
@@ -217,11 +238,7 @@ fn the_shipped_textured_plate_converges_to_the_box_average_of_its_png() {
     let want: Vec<f64> = pixels.iter().map(|&(c, r)| box_average_in(&view, &lin, n, c, r) * unit).collect();
     let img = frame(&s);
     let got: Vec<f64> = pixels.iter().map(|&(c, r)| img[(r * view.side + c) as usize]).collect();
-    let mean_want = want.iter().sum::<f64>() / want.len() as f64;
-    let mean_got = got.iter().sum::<f64>() / got.len() as f64;
-    let spread = want.iter().fold(0.0f64, |m, w| m.max((w - mean_want).abs())) / mean_want;
-    let err = rel_rms(&got, &want);
-    let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs()).fold(0.0, f64::max) / mean_want;
+    let Agreement { mean_got, mean_want, spread, err, worst } = Agreement::of(&got, &want);
     eprintln!(
         "textured plate 128² 256 spp, {} px: mean {mean_got} vs {mean_want}, rms {err:.2e}, worst {worst:.2e}, \
          pixel spread ±{spread:.3}",

@@ -152,22 +152,6 @@ impl Bsdf {
         }
     }
 
-    /// This BRDF with a textured roughness and metallic weight
-    /// ([`Ggx::with_roughness_metallic`]); the other models have neither and stay as
-    /// they are.
-    #[inline]
-    pub fn with_roughness_metallic(
-        &self,
-        roughness: Option<f32>,
-        metallic: Option<f32>,
-        family: Option<&CoatingFamily>,
-    ) -> Bsdf {
-        match self {
-            Bsdf::Ggx(g) => Bsdf::Ggx(g.with_roughness_metallic(roughness, metallic, family)),
-            other => *other,
-        }
-    }
-
     /// True if `f_r` is zero everywhere (no indirect work needed).
     pub fn is_black(&self) -> bool {
         match self {

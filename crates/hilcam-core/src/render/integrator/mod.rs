@@ -6,6 +6,7 @@
 //! (depth 1 = direct only; Mitsuba's `max_depth` = depth + 1). Surfaces are two-sided:
 //! the shading normal is flipped to face the incoming ray. Shading uses face normals.
 
+use crate::render::bsdf::Bsdf;
 use crate::render::geometry::{Hit, Ray};
 use crate::render::planet::{Eclipse, PlacedPlanet};
 use crate::render::sampling::{
@@ -415,10 +416,11 @@ impl<'a> PathContext<'a> {
                     own
                 } else {
                     let mut b = base.map_or(*own, |v| own.with_base(v));
-                    if let Some(rm) = rm {
+                    // Only GGX has a roughness and a metallic weight.
+                    if let (Some(rm), Bsdf::Ggx(g)) = (rm, &b) {
                         let r = rm.roughness.map(|mip| texel(tx, mip));
                         let m = rm.metallic.map(|mip| texel(tx, mip));
-                        b = b.with_roughness_metallic(r, m, rm.coating);
+                        b = Bsdf::Ggx(g.with_roughness_metallic(r, m, rm.coating));
                     }
                     textured = b;
                     &textured
