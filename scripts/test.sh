@@ -110,8 +110,8 @@ lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # unified with the tests'); it is kept aside and put back after, rather than rebuilt: a
 # plain `cargo build` unifies features without the dev-dependencies and recompiled
 # half the tree (~150 s).
-lab_bin=$(mktemp)
-cp target/debug/hilcam "$lab_bin"
+lab_keep=$(mktemp -d)
+cp -p target/debug/hilcam "$lab_keep/hilcam"
 CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam
 if target/debug/hilcam bench --help >/dev/null 2>&1; then
   echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
@@ -136,8 +136,8 @@ fi
 rm -r "$lab_bvh_dir"
 echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
 # target/debug/hilcam is the optimised lab build again for the steps below.
-cp --remove-destination "$lab_bin" target/debug/hilcam  # not through the hard link into deps/
-rm "$lab_bin"
+cp -p --remove-destination "$lab_keep/hilcam" target/debug/hilcam  # not through cargo's hard link
+rm -r "$lab_keep"
 lap "bench build (--no-default-features) + checks"
 
 # --- clusters (issue 25) -----------------------------------------------------
