@@ -159,13 +159,23 @@ fn shadow_edges_and_occlusion_match_a_dense_supersampling() {
     assert!((sum_got / sum_ref - 1.0).abs() < 1e-3, "flux {sum_got} vs {sum_ref}");
 }
 
-/// A plate and a smaller plate in front, at depth 2 (the indirect path included).
+/// A Lambert plate and a smaller glossy plate in front: at depth 2 the cache holds the
+/// diffuse parts' indirect light and a path per pixel the glossy lobe's.
 fn two_plates(depth: u32) -> (hilcam_core::scene::Scene, hilcam_core::render::camera::CameraModel) {
     let cam = camera(128, 96, 20.0, 30.0);
     let mut mesh = square(0.0, 0.0, 0.0, 1.0, 0);
-    mesh.append(&square(0.2, 0.1, -0.3, 0.4, 0));
+    mesh.append(&square(0.2, 0.1, -0.3, 0.4, 1));
     let pose = Pose { sun_dir: sun_at_incidence(20.0), ..Pose::ahead(3.0) };
-    (scene(mesh, vec![lambert("paint", 0.8)], cam.clone(), pose, hybrid(depth, 9)), cam)
+    let glossy = hilcam_core::scene::Material::new(
+        "glossy",
+        toml::from_str::<hilcam_core::render::bsdf::BsdfSpec>(
+            "model = \"blinn_phong\"\nrho_d = 0.3\nrho_s = 1.0\nalpha = 20.0\nnormalized = true",
+        )
+        .unwrap()
+        .build()
+        .unwrap(),
+    );
+    (scene(mesh, vec![lambert("paint", 0.8), glossy], cam.clone(), pose, hybrid(depth, 9)), cam)
 }
 
 #[test]
@@ -180,14 +190,14 @@ fn same_bytes_whatever_the_thread_count() {
     assert_eq!(bytes(&a), bytes(&run(2, 7)));
     assert_eq!(bytes(&a), bytes(&run(3, 7)));
     assert!(a.data.iter().any(|&v| v > 0.0));
-    // The indirect path's numbers follow the frame index.
+    // The glossy lobe's path follows the frame index.
     assert_ne!(bytes(&a), bytes(&run(2, 8)));
 }
 
 #[test]
 fn same_bytes_whatever_came_before() {
-    // The shadow-cell memo is kept from frame to frame; a frame after other poses and
-    // suns must equal the same frame rendered first.
+    // The shadow classes and the indirect cache are kept from frame to frame; a frame
+    // after other poses and suns must equal the same frame rendered first.
     let (s, cam) = two_plates(2);
     let settings = s.render;
     let options = RenderOptions::new(settings, 3);

@@ -18,6 +18,7 @@ mod fold;
 mod ggx;
 mod gltf;
 mod hybrid;
+mod hybrid_cache;
 mod limits;
 mod mc_noise;
 mod mc_ptc;

@@ -199,10 +199,11 @@ fn read_reference(path: &Path) -> Option<Reference> {
 
 fn print_header() {
     println!(
-        "{:<18} {:>7} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>15}",
+        "{:<18} {:>7} {:>9} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>15}",
         "row",
         "spp",
         "render ms",
+        "first ms",
         "sensor ms",
         "frame ms",
         "fps",
@@ -218,10 +219,11 @@ fn print_header() {
 fn print_row(row: &Row, r: &RowResult) {
     let j = &r.judgement;
     println!(
-        "{:<18} {:>7.2} {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>8.2} {:>8.2} {:>8} {:>8.2} {:>9.3} {:>15}",
+        "{:<18} {:>7.2} {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>8.2} {:>8.2} {:>8} {:>8.2} {:>9.3} {:>15}",
         row.label,
         r.spp,
         r.render_s * 1e3,
+        r.first_render_s * 1e3,
         r.sensor_s * 1e3,
         r.frame_s() * 1e3,
         1.0 / r.frame_s(),

@@ -164,6 +164,25 @@ impl Bsdf {
         }
     }
 
+    /// `f_r = ρd/π + f_rest`: the Lambertian part's ρd and the rest (None when the rest
+    /// reflects nothing), for estimators that take the view-independent diffuse part
+    /// apart (the hybrid frame's irradiance cache). None for GGX, whose diffuse and
+    /// specular parts are coupled through the coating's Fresnel terms.
+    pub fn diffuse_split(&self) -> Option<(f32, Option<Bsdf>)> {
+        fn rest<L: SpecularLobe>(d: &DiffuseLobe<L>) -> Option<DiffuseLobe<L>> {
+            (!d.lobe.is_black()).then_some(DiffuseLobe { rho_d: 0.0, ..*d })
+        }
+        match self {
+            Bsdf::Lambert(b) => Some((b.rho, None)),
+            Bsdf::BlinnPhong(b) => Some((b.rho_d, rest(b).map(|d| Bsdf::BlinnPhong(BlinnPhong(d))))),
+            Bsdf::ImprovedBlinnPhong(b) => {
+                Some((b.rho_d, rest(b).map(|d| Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong(d)))))
+            }
+            Bsdf::CookTorrance(b) => Some((b.rho_d, rest(b).map(|d| Bsdf::CookTorrance(CookTorrance(d))))),
+            Bsdf::Ggx(_) => None,
+        }
+    }
+
     /// `Some(ρ)` if this is a pure Lambertian BRDF (`f_r = ρ/π`), for fast paths.
     pub fn is_lambertian(&self) -> Option<f32> {
         match self {
@@ -234,5 +253,38 @@ pub(crate) fn check_finite_nonneg(model: &'static str, field: &'static str, v: f
         Ok(())
     } else {
         Err(BsdfError::Invalid { model, field, value: v, reason: "must be finite and ≥ 0" })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The diffuse part and the rest add up to the whole BRDF in every direction, and the
+    /// rest alone samples only its lobe.
+    #[test]
+    fn the_diffuse_split_adds_up_to_the_brdf() {
+        let models = [
+            Bsdf::Lambert(Lambert { rho: 0.6 }),
+            Bsdf::BlinnPhong(BlinnPhong::new(0.05, 2.0, 2000.0).unwrap().normalized()),
+            Bsdf::ImprovedBlinnPhong(ImprovedBlinnPhong::gold_polyimide().normalized()),
+            Bsdf::CookTorrance(CookTorrance::new(0.1, 0.15, 0.9, 1.0).unwrap().normalized()),
+        ];
+        let mut rng = crate::render::sampling::Rng::from_state(3);
+        for b in models {
+            let (rho_d, rest) = b.diffuse_split().expect("a diffuse-plus-lobe model");
+            for _ in 0..2000 {
+                let wo = crate::render::sampling::cosine_hemisphere(rng.next_2d());
+                let wi = crate::render::sampling::cosine_hemisphere(rng.next_2d());
+                let parts = rho_d * std::f32::consts::FRAC_1_PI * wi.z + rest.map_or(0.0, |r| r.eval_cos(wo, wi));
+                let whole = b.eval_cos(wo, wi);
+                assert!((parts - whole).abs() <= 1e-5 * whole.max(1.0), "{b:?}: {parts} ≠ {whole}");
+                if let Some(s) = rest.and_then(|r| r.sample(wo, rng.next_2d(), rng.next_1d())) {
+                    assert!(s.pdf > 0.0 && s.f_cos >= 0.0);
+                }
+            }
+            assert_eq!(rest.is_none(), matches!(b, Bsdf::Lambert(_)));
+        }
+        assert!(Bsdf::Ggx(Ggx::plastic(0.3, 0.5, 1.5).unwrap()).diffuse_split().is_none());
     }
 }

@@ -16,6 +16,7 @@
 
 pub mod area;
 pub mod cells;
+pub mod indirect_cache;
 pub mod pattern;
 mod sample_loops;
 pub mod setup;
@@ -37,6 +38,8 @@ pub struct HybridBuffers {
     setup: Setup,
     /// The cells' sun classes, kept while the sun's direction in the body frame stays.
     shadows: shadow::ShadowMemo,
+    /// The diffuse parts' indirect light per cell, kept likewise.
+    indirect: indirect_cache::IndirectCache,
 }
 
 /// What a hybrid frame did.
@@ -52,6 +55,10 @@ pub struct HybridStats {
     pub classify_rays: u64,
     /// Covered pixels whose shares are exact areas (`tile::exact_shares`).
     pub exact_pixels: u64,
+    /// Cell sides whose indirect light was estimated in this frame (0 once every cell
+    /// the view reaches is kept), and the rays that took (also in `rays`).
+    pub cache_cells: u64,
+    pub cache_rays: u64,
 }
 
 /// Render `rect` of `view` into `img` (whose other pixels the caller has set). None when
@@ -70,7 +77,7 @@ pub fn render(
     if view.motion.is_some() || target.planet.is_some() || target.texturing.is_some() || target.any_emitting() {
         return None;
     }
-    let HybridBuffers { setup, shadows } = buffers;
+    let HybridBuffers { setup, shadows, indirect } = buffers;
     if !setup.build(target, view, rect) {
         return None;
     }
@@ -79,11 +86,17 @@ pub fn render(
     let classify_rays = shadows.update(&ctx);
     let rest_settings = RenderSettings { depth: settings.depth.saturating_sub(1).max(1), ..*settings };
     let rest = PathContext::new(target, view.sun, &rest_settings);
+    let rest = (settings.depth > 1 && ctx.indirect).then_some(&rest);
+    if rest.is_some() {
+        indirect.update(&ctx, settings);
+    }
     let shader = shade::Shader {
         view,
         ctx: &ctx,
-        rest: (settings.depth > 1 && ctx.indirect).then_some(&rest),
+        rest,
         memo: shadows,
+        cache: rest.map(|_| &*indirect),
+        paths: settings.spp.floor(),
         seed: settings.seed,
         frame,
     };
@@ -146,5 +159,8 @@ pub fn render(
             a.exact_pixels += b.exact_pixels;
             a
         });
-    Some(HybridStats { triangles: setup.tris.len() as u64, classify_rays, ..stats })
+    let (cache_cells, cache_rays) = indirect.take_counts();
+    let mut rays = stats.rays;
+    rays.bounce += cache_rays;
+    Some(HybridStats { triangles: setup.tris.len() as u64, classify_rays, cache_cells, cache_rays, rays, ..stats })
 }

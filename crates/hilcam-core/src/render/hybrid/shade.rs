@@ -2,17 +2,21 @@
 //! once (flat facets under a parallel sun: the BRDF term is constant over a fragment but
 //! for the view direction, whose change across a pixel enters only at second order), its
 //! visibility from the cell's class ([`super::shadow`]) or, over a partly shadowed cell,
-//! sample by sample; and the indirect light of one path from one coverage sample.
+//! sample by sample; the diffuse part of indirect light per fragment from the body-frame
+//! cache ([`super::indirect_cache`]); and the rest of the indirect light (a glossy lobe's,
+//! or a whole GGX surface's) from one path at one coverage sample.
 
 use super::cells::barycentric;
+use super::indirect_cache::IndirectCache;
 use super::pattern::SAMPLES;
 use super::shadow::{Class, ShadowMemo};
 use super::tile::{Fragment, NONE};
+use crate::render::bsdf::Bsdf;
 use crate::render::camera::View;
 use crate::render::geometry::shadow_packet::PACKET;
 use crate::render::geometry::{Hit, Ray};
 use crate::render::integrator::{PathContext, RayCounts};
-use crate::render::sampling::{Rng, ShadingBasis};
+use crate::render::sampling::{Rng, SampleSource, ShadingBasis};
 use glam::{DVec3, Vec3};
 
 /// The frame's constants for shading.
@@ -22,6 +26,10 @@ pub struct Shader<'a> {
     /// The paths' continuation after their first surface (depth − 1), when depth > 1.
     pub rest: Option<&'a PathContext<'a>>,
     pub memo: &'a ShadowMemo,
+    /// The diffuse parts' indirect light, when `rest` is some.
+    pub cache: Option<&'a IndirectCache>,
+    /// Paths per pixel for the indirect light the cache does not hold (`spp`, ≤ 64).
+    pub paths: u32,
     pub seed: u64,
     pub frame: u64,
 }
@@ -168,37 +176,55 @@ impl Shader<'_> {
         lit as f32 / tested as f32
     }
 
-    /// The sun's light leaving fragment `f` (of triangle `tri`) toward the camera.
+    /// The sun's light leaving fragment `f` (of triangle `tri`, seen at its mean point
+    /// `s`) toward the camera.
     #[inline]
-    fn direct(&self, px: &PixelSamples, f: &Fragment, tri: u32, counts: &mut RayCounts) -> f32 {
-        let Some(s) = self.surface(tri, px.ideal(f.mean[0], f.mean[1])) else { return 0.0 };
-        let l = self.sun_term(&s);
+    fn direct(&self, px: &PixelSamples, f: &Fragment, tri: u32, s: &Surface, counts: &mut RayCounts) -> f32 {
+        let l = self.sun_term(s);
         if l <= 0.0 {
             return 0.0;
         }
         match self.class_over(tri, px) {
             Class::Lit => l,
             Class::Dark => 0.0,
-            Class::Partial => l * self.lit_share(px, f.setup, tri, &s, counts),
+            Class::Partial => l * self.lit_share(px, f.setup, tri, s, counts),
         }
     }
 
-    /// Indirect light leaving `s` toward the camera: one bounce sampled from its BRDF and
-    /// the rest of a path (its direct light is the fragment's, not counted here).
+    /// The indirect light the diffuse part of `s`'s material reflects toward the camera:
+    /// ρd times the cache's mean incoming radiance at `s`'s cell. 0 without a cache or for
+    /// a material with no separable diffuse part (GGX: its path carries all of it).
     #[inline]
-    fn indirect(&self, s: &Surface, key: u64, counts: &mut RayCounts) -> f32 {
+    fn cached_diffuse(&self, s: &Surface) -> f32 {
+        let (Some(cache), Some(rest)) = (self.cache, self.rest) else { return 0.0 };
+        let target = self.ctx.scene;
+        let bsdf = &target.materials[target.mesh.material[s.tri as usize] as usize].bsdf;
+        let Some((rho_d, _)) = bsdf.diffuse_split().filter(|d| d.0 > 0.0) else { return 0.0 };
+        let (n, _) = self.facing(s);
+        rho_d * cache.radiance_over_pi(rest, s.tri, s.p, target.normals[s.tri as usize], n)
+    }
+
+    /// Indirect light leaving `s` toward the camera that the cache does not hold: one
+    /// bounce sampled from the BRDF (or, with the cache, from the BRDF less its diffuse
+    /// part) and the rest of a path (its direct light is the fragment's, not counted here).
+    #[inline]
+    fn indirect(&self, s: &Surface, key: u64, path: u32, counts: &mut RayCounts) -> f32 {
         let Some(rest) = self.rest else { return 0.0 };
-        let mut rng = Rng::for_sample(self.seed, self.frame, key, 0x1_0000);
+        let mut rng = Rng::for_sample(self.seed, self.frame, key, 0x1_0000 + path);
         let ray = Ray { origin: s.p, dir: s.dir, tmax: f32::INFINITY };
         let target = self.ctx.scene;
-        let hit = Hit {
-            tri: s.tri,
-            t: 0.0,
-            normal: target.normals[s.tri as usize],
-            material: target.mesh.material[s.tri as usize],
+        let material = target.mesh.material[s.tri as usize];
+        let split = self.cache.and_then(|_| target.materials[material as usize].bsdf.diffuse_split());
+        let next = match split {
+            // Lambert: the cache holds all of it.
+            Some((_, None)) => return 0.0,
+            Some((_, Some(lobe))) => self.lobe_bounce(s, &lobe, &mut rng),
+            None => {
+                let hit = Hit { tri: s.tri, t: 0.0, normal: target.normals[s.tri as usize], material };
+                self.ctx.scatter(&ray, &hit, 1.0, 0, &mut rng).next
+            }
         };
-        let sc = self.ctx.scatter(&ray, &hit, 1.0, 0, &mut rng);
-        match sc.next {
+        match next {
             Some((ray, beta)) => {
                 counts.bounce += 1;
                 beta * rest.radiance(ray, &mut rng, counts, &mut ())
@@ -206,11 +232,25 @@ impl Shader<'_> {
             None => 0.0,
         }
     }
+
+    /// The next ray and weight of a path leaving `s` by `lobe` (a BRDF's specular part),
+    /// drawn from its own sampler; None when the sample carries nothing.
+    fn lobe_bounce(&self, s: &Surface, lobe: &Bsdf, rng: &mut Rng) -> Option<(Ray, f32)> {
+        let (n, _) = self.facing(s);
+        let basis = ShadingBasis::from_normal(n);
+        let sample = lobe.sample(basis.to_local(-s.dir), rng.next_2d(), rng.next_1d())?;
+        let weight = sample.f_cos / sample.pdf;
+        if !(sample.pdf > 0.0 && weight > 0.0 && weight.is_finite()) {
+            return None;
+        }
+        let origin = self.ctx.spawn(s.p, s.tri, self.ctx.scene.normals[s.tri as usize], n);
+        Some((Ray { origin, dir: basis.to_world(sample.wi), tmax: f32::INFINITY }, weight))
+    }
 }
 
 /// The radiance of pixel (`row`, `col`) from its `fragments` (setup indices mapped to
 /// mesh triangles by `tri_of`, each with its share) and the `background`'s share;
-/// indirect light from a path at its sample 0.
+/// indirect light from the cache per fragment and from paths at its first coverage samples.
 pub fn pixel(
     shader: &Shader,
     tri_of: &dyn Fn(u32) -> u32,
@@ -222,13 +262,26 @@ pub fn pixel(
 ) -> f32 {
     let mut l = background * shader.ctx.scene.background;
     for f in fragments {
-        l += f.weight * shader.direct(px, f, tri_of(f.setup), counts);
+        let tri = tri_of(f.setup);
+        let Some(s) = shader.surface(tri, px.ideal(f.mean[0], f.mean[1])) else { continue };
+        l += f.weight * (shader.direct(px, f, tri, &s, counts) + shader.cached_diffuse(&s));
     }
-    if shader.rest.is_some() && px.ids[0] != NONE {
-        let tri = tri_of(px.ids[0]);
-        if let Some(s) = shader.surface(tri, px.ideal(px.sx[0], px.sy[0])) {
-            l += shader.indirect(&s, shader.view.pixel_key(row, col), counts);
+    // The rest of the indirect light: the mean of paths from the pixel's first `paths`
+    // coverage samples (a random subset of its strata); a sample on the background adds 0.
+    if shader.rest.is_some() {
+        let n = shader.paths.clamp(1, SAMPLES as u32);
+        let key = shader.view.pixel_key(row, col);
+        let mut sum = 0.0;
+        for k in 0..n as usize {
+            if px.ids[k] == NONE {
+                continue;
+            }
+            let tri = tri_of(px.ids[k]);
+            if let Some(s) = shader.surface(tri, px.ideal(px.sx[k], px.sy[k])) {
+                sum += shader.indirect(&s, key, k as u32, counts);
+            }
         }
+        l += sum / n as f32;
     }
     l
 }
