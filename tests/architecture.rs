@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 /// hilcam-core's top-level modules, earliest layer first: a module may import (via
 /// `crate::`) only modules listed before it. `lib.rs` documents the same order.
 const LAYERS: &[&str] = &[
-    "heap", "metrics", "pose", "link", "render", "sensor", "scene", "pipeline", "frame", "session", "sink", "replay",
-    "serve",
+    "heap", "metrics", "pose", "link", "render", "sensor", "scene", "pipeline", "frame", "session", "sink", "rig",
+    "replay", "serve",
 ];
 
 /// Crates the product core must not depend on: the command line and the lab's.

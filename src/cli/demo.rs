@@ -86,6 +86,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         metrics: MetricsSection { listen: None, print_interval_s: 2.0 },
         output: OutputSection { gige: gige.clone(), ..Default::default() },
         live: Default::default(),
+        cameras: Vec::new(),
     };
     cfg.validate().map_err(|(f, m)| anyhow::anyhow!("{f}: {m}"))?;
 

@@ -12,6 +12,7 @@ mod pose_common;
 mod codec;
 mod docs_protocol;
 mod random_stream;
+mod rig_time;
 mod serial_pty;
 mod slcan_pty;
 mod trajectories;

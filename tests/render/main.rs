@@ -31,6 +31,7 @@ mod numerics;
 mod obj_faces;
 mod planet;
 mod primary_raster;
+mod rig;
 mod sensor;
 mod sensor_fused;
 mod sensor_noise;

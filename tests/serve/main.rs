@@ -33,6 +33,7 @@ mod moving_planet;
 mod netns;
 mod replay;
 mod replay_truth;
+mod rig;
 mod serve_truth;
 mod session;
 mod stream;

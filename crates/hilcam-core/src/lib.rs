@@ -20,6 +20,8 @@
 //! - [`frame`]: a rendered frame's metadata and the TCP frame wire codec.
 //! - [`session`]: session files: what `serve` received and rendered.
 //! - [`sink`]: frame sinks: TCP stream, recorder, null, GigE Vision ([`sink::gige`]).
+//! - [`rig`]: a camera rig: the chaser body frame, camera mounts, trigger groups and the
+//!   `[[camera]]` config (pure; serve does not drive a rig yet).
 //! - [`replay`]: offline replay of trajectories and sessions to files: resumable, sharded.
 //! - [`serve`]: the real-time scheduler, quality governor and the serving loop.
 
@@ -31,6 +33,7 @@ pub mod pipeline;
 pub mod pose;
 pub mod render;
 pub mod replay;
+pub mod rig;
 pub mod scene;
 pub mod sensor;
 pub mod serve;

@@ -84,6 +84,9 @@ pub enum ConfigError {
     Parse { path: PathBuf, message: String },
     #[error("{path}: {field}: {message}")]
     Field { path: PathBuf, field: &'static str, message: String },
+    /// A `[[camera]]` of a rig, named with its key (docs/rig.md).
+    #[error("{path}: {source}")]
+    Camera { path: PathBuf, source: crate::rig::config::CameraError },
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -108,6 +111,10 @@ pub struct ServeConfig {
     pub output: OutputSection,
     #[serde(default)]
     pub live: super::live::LiveConfig,
+    /// `[[camera]]`: a rig of cameras on the chaser (docs/rig.md). Empty: the scene's
+    /// camera alone, its pose given in its own frame (an identity mount).
+    #[serde(default, rename = "camera")]
+    pub cameras: Vec<crate::rig::config::CameraEntry>,
 }
 
 /// `[output]`: frame outputs beside the TCP stream.
@@ -381,7 +388,12 @@ impl ServeConfig {
             r.dir = r.dir.as_ref().map(|d| dir.join(d));
             r.session = r.session.as_ref().map(|s| dir.join(s));
         }
+        for c in &mut cfg.cameras {
+            c.resolve_paths(dir);
+        }
         cfg.validate().map_err(|(field, message)| ConfigError::Field { path: path.into(), field, message })?;
+        crate::rig::config::check(&cfg.cameras, cfg.stream.listen)
+            .map_err(|source| ConfigError::Camera { path: path.into(), source })?;
         Ok(cfg)
     }
 
@@ -433,6 +445,9 @@ impl ServeConfig {
         if !(self.metrics.print_interval_s.is_finite() && self.metrics.print_interval_s > 0.0) {
             return Err(("metrics.print_interval_s", "must be positive".into()));
         }
+        if !self.cameras.is_empty() {
+            self.check_rig_top_level()?;
+        }
         if self.live.enabled && self.metrics.listen.is_none() {
             return Err((
                 "live.enabled",
@@ -440,6 +455,36 @@ impl ServeConfig {
             ));
         }
         self.live.validate()
+    }
+
+    /// Top-level keys that a rig gives per camera instead: refused beside `[[camera]]`
+    /// rather than guessed at.
+    fn check_rig_top_level(&self) -> Result<(), (&'static str, String)> {
+        let per_camera = |key: &'static str, instead: &str| {
+            Err((key, format!("a rig ([[camera]]) gives this per camera: use each camera's `{instead}`")))
+        };
+        if self.width.is_some() {
+            return per_camera("width", "width");
+        }
+        if self.output.gige.is_some() {
+            return per_camera("output.gige", "output.gige");
+        }
+        if !self.output.truth.is_empty() {
+            return per_camera("output.truth", "output.truth");
+        }
+        if self.record.as_ref().is_some_and(|r| r.dir.is_some()) {
+            return per_camera("record.dir", "record.dir");
+        }
+        Ok(())
+    }
+
+    /// Each camera's name and mount: the `[[camera]]` entries, or without any the scene's
+    /// camera alone as `"camera"` with an identity mount (today's single camera).
+    pub fn camera_mounts(&self) -> Vec<(String, crate::rig::Mount)> {
+        if self.cameras.is_empty() {
+            return vec![("camera".into(), crate::rig::Mount::IDENTITY)];
+        }
+        self.cameras.iter().map(|c| (c.name.clone(), c.mount())).collect()
     }
 
     /// The frame budget: explicit, else one frame period, else 100 ms.

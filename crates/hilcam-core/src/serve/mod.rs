@@ -82,6 +82,14 @@ pub async fn run(
     mut embed: Embed,
     stop: impl std::future::Future + Send + 'static,
 ) -> anyhow::Result<ServeReport> {
+    if !cfg.cameras.is_empty() {
+        // Parsed and checked, not driven yet: refused rather than served as one camera.
+        anyhow::bail!(
+            "camera: this config describes a rig of {} cameras ([[camera]]); `hilcam serve` does not drive a rig \
+             yet (docs/rig.md)",
+            cfg.cameras.len()
+        );
+    }
     let shutdown = Shutdown::when(stop);
     let clock = SessionClock::now();
     let scene = Arc::new(crate::scene::load(&cfg.scene)?);
