@@ -24,7 +24,7 @@ use super::median;
 use hilcam_core::pipeline::{FramePipeline, FrameRequest};
 use hilcam_core::pose::Pose;
 use hilcam_core::render::film::RadianceImage;
-use hilcam_core::render::integrator::{QualityGoal, RenderSettings, Spp};
+use hilcam_core::render::integrator::{Method, QualityGoal, RenderSettings, Spp};
 use hilcam_core::sensor::{McNoiseStats, SensorError};
 use std::fmt::Write as _;
 
@@ -363,8 +363,8 @@ fn share_at(m: &McNoiseStats, pipeline: &FramePipeline, t_s: f64) -> Result<f64,
     })
 }
 
-/// The converged reference: `chunks` renders of `spp` samples in every pixel (not
-/// adaptive, seeds far from the rows'), averaged in photo-charge.
+/// The converged reference: `chunks` path-traced renders of `spp` samples in every pixel
+/// (not adaptive, seeds far from the rows'), averaged in photo-charge.
 pub fn reference(
     pipeline: &FramePipeline,
     pose: &Pose,
@@ -382,6 +382,7 @@ pub fn reference(
             adaptive: false,
             quality: QualityGoal::FIXED,
             seed: base.seed.wrapping_add(0x5eed_0000 + u64::from(c)),
+            method: Method::Path,
             ..*base
         };
         let (img, _) = pipeline.radiance(pose, &s, 0);

@@ -22,7 +22,7 @@ pub struct QualityArgs {
     /// Frames (seeds) per row, same pose and frame index (≥ 16 for the count).
     #[arg(long, default_value_t = 16)]
     pub seeds: u32,
-    /// Rows: `fixed:SPP` (the scene's sampling at SPP), `sensor:K:BUDGET`
+    /// Rows: `fixed:SPP` (the scene's sampling at SPP, path-traced), `sensor:K:BUDGET`
     /// (`quality = "sensor"`), `hybrid` (the scene's settings, `method = "hybrid"`),
     /// `scene` (the scene's own settings).
     #[arg(long, value_delimiter = ',', default_value = "fixed:1,fixed:4,sensor:0.5:256,scene")]
@@ -54,6 +54,7 @@ fn parse_row(spec: &str, base: &RenderSettings) -> anyhow::Result<Row> {
         ["fixed", spp] => RenderSettings {
             spp: spp.parse::<Spp>().map_err(|e| anyhow::anyhow!("row {spec:?}: {e}"))?,
             quality: QualityGoal { mode: QualityMode::Fixed, ..base.quality },
+            method: Method::Path,
             ..*base
         },
         ["sensor", k, budget] => RenderSettings {
@@ -62,6 +63,7 @@ fn parse_row(spec: &str, base: &RenderSettings) -> anyhow::Result<Row> {
                 mode: QualityMode::Sensor,
                 k: QualityGoal::parse_k(k).map_err(|e| anyhow::anyhow!("row {spec:?}: {e}"))?,
             },
+            method: Method::Path,
             ..*base
         },
         _ => anyhow::bail!("row {spec:?}: expected fixed:SPP, sensor:K:BUDGET, hybrid or scene"),

@@ -1,6 +1,7 @@
 //! The hybrid frame (`method = "hybrid"`): sub-pixel coverage by rasterisation, the sun's
-//! light per surface fragment, and indirect light by path tracing from one coverage sample
-//! per pixel.
+//! light per surface fragment, the diffuse parts' indirect light from a body-frame cache
+//! ([`indirect_cache`]) and the rest of it by path tracing from `spp` coverage samples per
+//! pixel.
 //!
 //! The pixel-area integral that a path tracer estimates with one random position per
 //! sample — where edges, creases and glints make most of a low-spp frame's noise — is here
@@ -12,7 +13,8 @@
 //! direction's change across a fragment (second order).
 //!
 //! Applies to an instant view (no motion over the exposure) with every vertex in front of
-//! the camera and no planet, texture or emitting surface; otherwise [`render`] returns None and the caller path-traces.
+//! the camera and no planet, texture or emitting surface; otherwise [`render`] returns
+//! None and the caller path-traces.
 
 pub mod area;
 pub mod cells;

@@ -65,9 +65,10 @@ pub enum Method {
     /// Monte Carlo path tracing: `spp` random positions per pixel, each a whole path.
     #[default]
     Path,
-    /// Sub-pixel coverage by rasterisation, the sun's light per surface fragment, indirect
-    /// light by path tracing from one coverage sample per pixel (`render::hybrid`); an
-    /// instant view without a planet or textures (else the frame is path-traced).
+    /// Sub-pixel coverage by rasterisation, the sun's light per surface fragment, the
+    /// diffuse parts' indirect light from a body-frame cache and the rest by `spp` paths
+    /// per pixel (`render::hybrid`); an instant view without a planet, textures or
+    /// emission (else the frame is path-traced).
     Hybrid,
 }
 
