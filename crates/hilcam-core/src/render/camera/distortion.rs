@@ -18,6 +18,8 @@
 use glam::DVec2;
 use serde::Deserialize;
 
+mod lanes;
+
 /// Brown–Conrady coefficients in normalised coordinates (x / f). All zero: no distortion.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -208,6 +208,18 @@ impl View {
         DVec3::new(u, v, 1.0)
     }
 
+    /// [`View::camera_dir`] of four points on row `y`, bit for bit (the lens inverted four
+    /// at a time, `Distortion::undistort4`).
+    pub fn camera_dirs4(&self, xs: [f64; 4], y: f64) -> [DVec3; 4] {
+        let v = (y - self.pp[1]) * self.inv_focal_px;
+        let uv = xs.map(|x| glam::DVec2::new((x - self.pp[0]) * self.inv_focal_px, v));
+        let ideal = match &self.distortion {
+            Some(d) => d.undistort4(uv),
+            None => uv,
+        };
+        ideal.map(|p| DVec3::new(p.x, p.y, 1.0))
+    }
+
     /// Continuous pixel coordinate where a camera-frame point projects (pinhole).
     pub fn project_camera_point(cam: &CameraModel, p: DVec3) -> Option<[f64; 2]> {
         (p.z > 0.0).then(|| {

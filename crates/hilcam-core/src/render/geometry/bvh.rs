@@ -198,6 +198,12 @@ impl Accel {
     /// Closest hit along the ray within `(0, tmax]`.
     #[inline]
     pub fn intersect(&self, r: &Ray) -> Option<Hit> {
+        self.closest(r).map(|(k, t)| self.primitive_hit(k, t))
+    }
+
+    /// [`Accel::intersect`] as the hit's primitive (BVH order) and `t`.
+    #[inline]
+    fn closest(&self, r: &Ray) -> Option<(u32, f32)> {
         if self.tris.is_empty() {
             return None;
         }
@@ -209,7 +215,7 @@ impl Accel {
             #[cfg(feature = "alt-bvh")]
             Tree::Alt(a) => a.intersect(ray, &mut hit, tris),
         };
-        found.then(|| self.primitive_hit(hit.primitive_id, hit.t))
+        found.then_some((hit.primitive_id, hit.t))
     }
 
     /// The tree's leaves (every primitive lies in exactly one).
@@ -307,6 +313,24 @@ impl Accel {
     pub fn intersect_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         use super::shadow_packet::PACKET;
         assert!(out.len() >= rays.len(), "{} rays, room for {} hits", rays.len(), out.len());
+        if rays.len() <= PACKET {
+            let mut prims = [None; PACKET];
+            self.closest_prims(rays, &mut prims);
+            for (o, p) in out.iter_mut().zip(&prims[..rays.len()]) {
+                *o = p.map(|(k, t)| self.primitive_hit(k, t));
+            }
+        } else {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                *o = self.intersect(r);
+            }
+        }
+    }
+
+    /// [`Accel::intersect_packet`] of up to eight rays, each hit as its primitive (BVH
+    /// order) and `t`: for callers that read the primitive's own data next
+    /// ([`Accel::primitive_hit`], [`Accel::primitive_v0`]).
+    pub fn closest_prims(&self, rays: &[Ray], out: &mut [Option<(u32, f32)>; super::shadow_packet::PACKET]) {
+        use super::shadow_packet::PACKET;
         let walked = match &self.tree {
             Tree::Bvh8(b) if !self.tris.is_empty() && rays.len() <= PACKET => {
                 let mut ob = [ObRay::new_inf(Vec3A::ZERO, Vec3A::X); PACKET];
@@ -320,15 +344,22 @@ impl Accel {
         match walked {
             Some((prim, t)) => {
                 for (i, o) in out[..rays.len()].iter_mut().enumerate() {
-                    *o = (prim[i] != super::closest_packet::MISS).then(|| self.primitive_hit(prim[i], t[i]));
+                    *o = (prim[i] != super::closest_packet::MISS).then_some((prim[i], t[i]));
                 }
             }
             None => {
                 for (r, o) in rays.iter().zip(out.iter_mut()) {
-                    *o = self.intersect(r);
+                    *o = self.closest(r);
                 }
             }
         }
+    }
+
+    /// Primitive `k`'s first vertex, the mesh's bit for bit, read from the triangle the
+    /// walk has just tested (the mesh's copy is two dependent cache misses away).
+    #[inline]
+    pub fn primitive_v0(&self, k: u32) -> Vec3 {
+        Vec3::from(self.tris[k as usize].v0)
     }
 }
 

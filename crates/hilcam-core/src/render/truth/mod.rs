@@ -15,6 +15,7 @@
 //! coordinates carry no f32 ray rounding (only the stored f32 of the channel).
 
 mod pass;
+mod planes;
 
 pub use pass::{render_truth, render_truth_reference, render_truth_with};
 

@@ -2,34 +2,31 @@
 //!
 //! Only pixels inside `View::pixel_rect` and marked by the BVH leaves' projected boxes
 //! (`cull::coverage`, both conservative) get a ray; every other pixel is a miss without
-//! one. Rows run in parallel, each writing its own slices of the channel planes; along a
-//! row the covered pixels' rays go eight at a time through one walk of the 8-wide tree
-//! ([`Accel::intersect_packet`]: each ray's `t` is the single-ray walk's bit for bit).
-//! Every pixel is a pure function of (target, view), so any thread count gives the same
-//! values.
+//! one. Bands of two rows run in parallel, each writing its own slices of the channel
+//! planes (`planes`); a band's covered pixels, their lens inverted four at a time, go in
+//! blocks of 4 × 2 through one walk of the 8-wide tree ([`Accel::closest_prims`]: each
+//! ray's `t` is the single-ray walk's bit for bit). Every pixel is a pure function of
+//! (target, view), so any thread count gives the same values.
+//!
+//! [`Accel::closest_prims`]: crate::render::geometry::Accel::closest_prims
 
-use super::{TruthChannel, TruthChannels, TruthImage};
+use super::planes::{self, Band, TruthPixel};
+use super::{TruthChannels, TruthImage};
 use crate::render::camera::{PixelRect, View};
 use crate::render::cull::coverage::Coverage;
 use crate::render::geometry::{Hit, Ray};
 use crate::render::target::Target;
-use glam::DVec3;
-use rayon::prelude::*;
+use glam::{DVec3, Vec3};
 
 /// Rays walked together (the 8-wide tree's packet).
 const PACKET: usize = 8;
 
-/// One row's slices of the channel planes (None for a channel not asked for).
-struct RowOut<'a> {
-    row: u32,
-    mask: &'a mut [u32],
-    depth: Option<&'a mut [f32]>,
-    normal: Option<[&'a mut [f32]; 3]>,
-    body: Option<[&'a mut [f32]; 3]>,
-}
+/// Image rows a packet spans: 4 × 2 pixels walk the tree with fewer node visits than
+/// 8 × 1 (`hilcam bench sensor`, docs/performance.md).
+const PACKET_ROWS: u32 = 2;
 
 /// The truth of `target` through `view` (its exposure-start instant): see the module
-/// doc. Rayon over rows; the same values for any thread count.
+/// doc. Rayon over bands of rows; the same values for any thread count.
 pub fn render_truth(target: &Target, view: &View, channels: TruthChannels) -> TruthImage {
     render_truth_with(target, view, channels, None)
 }
@@ -45,133 +42,116 @@ pub fn render_truth_with(
     coverage: Option<&Coverage>,
 ) -> TruthImage {
     let (width, height) = view.size();
-    let n = width as usize * height as usize;
-    // The planes start as misses.
-    let plane = |c, miss: f32| {
-        if !channels.contains(c) {
-            return Vec::new();
-        }
-        // Zeroed pages from the allocator, then filled by both threads.
-        vec![miss; n]
-    };
-    let planes3 = |c| [plane(c, f32::NAN), plane(c, f32::NAN), plane(c, f32::NAN)];
-    let mut out = TruthImage {
-        width,
-        height,
-        channels,
-        mask: vec![0; n],
-        materials: Some(super::materials_table(&target.materials).into()),
-        depth: plane(TruthChannel::Depth, f32::INFINITY),
-        normal: planes3(TruthChannel::Normal),
-        body_xyz: planes3(TruthChannel::BodyXyz),
-    };
-    let Some(rect) = (if target.accel.is_empty() { None } else { view.pixel_rect() }) else { return out };
+    let rect = if target.accel.is_empty() { None } else { view.pixel_rect() };
     let mut own = Coverage::default();
-    let coverage = coverage.or_else(|| own.from_leaf_boxes(target, view, rect).then_some(&own));
-    rows(&mut out, rect).into_par_iter().for_each(|mut r| trace_row(target, view, rect, coverage, &mut r));
+    let coverage = match rect {
+        Some(rect) => coverage.or_else(|| own.from_leaf_boxes(target, view, rect).then_some(&own)),
+        None => None,
+    };
+    let mut out = planes::fill(width, height, channels, PACKET_ROWS, |band| {
+        if let Some(rect) = rect {
+            trace_band(target, view, rect, coverage, band);
+        }
+    });
+    out.materials = Some(super::materials_table(&target.materials).into());
     out
 }
 
-/// The rows of `rect`, each with its slices of `out`'s planes.
-fn rows(out: &mut TruthImage, rect: PixelRect) -> Vec<RowOut<'_>> {
-    let w = out.width as usize;
-    let (r0, r1) = (rect.row0 as usize, rect.row1 as usize);
-    let [nx, ny, nz] = &mut out.normal;
-    let [bx, by, bz] = &mut out.body_xyz;
-    let mut depth = split(&mut out.depth, w, r0, r1);
-    let mut n = [split(nx, w, r0, r1), split(ny, w, r0, r1), split(nz, w, r0, r1)];
-    let mut b = [split(bx, w, r0, r1), split(by, w, r0, r1), split(bz, w, r0, r1)];
-    let mut rows = Vec::with_capacity(r1 - r0);
-    for (k, mask) in out.mask[r0 * w..r1 * w].chunks_mut(w).enumerate() {
-        let (depth, normal, body) = (depth.next().flatten(), three(&mut n), three(&mut b));
-        rows.push(RowOut { row: (r0 + k) as u32, mask, depth, normal, body });
-    }
-    rows
+/// One covered pixel whose ray enters the target's bounds.
+#[derive(Clone, Copy)]
+struct Pending {
+    row: u32,
+    col: u32,
+    /// Camera-frame direction of its centre.
+    dir: DVec3,
+    ray: Ray,
 }
 
-type Rows<'a> = std::vec::IntoIter<Option<&'a mut [f32]>>;
-
-/// Rows `r0..r1` of a plane `w` wide, or None per row for a channel not asked for.
-fn split(v: &mut [f32], w: usize, r0: usize, r1: usize) -> Rows<'_> {
-    let rows: Vec<_> = if v.is_empty() {
-        (r0..r1).map(|_| None).collect()
-    } else {
-        v[r0 * w..r1 * w].chunks_mut(w).map(Some).collect()
-    };
-    rows.into_iter()
-}
-
-/// The next row of three planes.
-fn three<'a>(p: &mut [Rows<'a>; 3]) -> Option<[&'a mut [f32]; 3]> {
-    let [x, y, z] = p.each_mut().map(|it| it.next().flatten());
-    Some([x?, y?, z?])
-}
-
-/// The covered pixels of one row (all of `rect`'s without a coverage), in packets along it.
-fn trace_row(target: &Target, view: &View, rect: PixelRect, coverage: Option<&Coverage>, r: &mut RowOut) {
-    let y = f64::from(r.row) + 0.5;
-    let mut cols = [0u32; PACKET];
-    let mut dirs = [DVec3::ZERO; PACKET];
-    let mut rays = [Ray { origin: glam::Vec3::ZERO, dir: glam::Vec3::Z, tmax: 0.0 }; PACKET];
-    let mut k = 0;
-    let mut visit = |col: u32, r: &mut RowOut| {
-        // One lens inversion per pixel: the ray and the f64 line share the direction.
-        let d = view.camera_dir(f64::from(col) + 0.5, y);
-        let Some(ray) = view.ray_along(d) else { return };
-        (cols[k], dirs[k], rays[k]) = (col, d, ray);
-        k += 1;
-        if k == PACKET {
-            write_hits(target, view, &cols, &dirs, &rays, r);
-            k = 0;
-        }
-    };
-    match coverage {
-        Some(c) => c.columns(r.row, rect.col0..rect.col1).for_each(|col| visit(col, r)),
-        None => (rect.col0..rect.col1).for_each(|col| visit(col, r)),
-    }
-    write_hits(target, view, &cols[..k], &dirs[..k], &rays[..k], r);
-}
-
-/// Trace `rays` (pixel columns `cols`, camera directions `dirs`) and write their hits.
-fn write_hits(target: &Target, view: &View, cols: &[u32], dirs: &[DVec3], rays: &[Ray], r: &mut RowOut) {
-    if rays.is_empty() {
+/// The covered pixels of `band`'s rows inside `rect` (all of `rect`'s without a
+/// coverage), walked in packets of [`PACKET`]: blocks of `PACKET / rows` columns, the
+/// band's rows in turn, so that a packet's pixels neighbour each other both ways.
+fn trace_band(target: &Target, view: &View, rect: PixelRect, coverage: Option<&Coverage>, band: &mut Band) {
+    let rows = band.row0.max(rect.row0)..(band.row0 + band.rows).min(rect.row1);
+    if rows.is_empty() {
         return;
     }
-    let mut hits = [None; PACKET];
-    target.accel.intersect_packet(rays, &mut hits);
-    for (i, hit) in hits[..rays.len()].iter().enumerate() {
-        let Some(hit) = hit else { continue };
-        let c = cols[i] as usize;
-        let p = pixel(target, view, dirs[i], &rays[i], hit);
-        r.mask[c] = p.mask;
-        if let Some(d) = r.depth.as_deref_mut() {
-            d[c] = p.depth;
-        }
-        for (plane, v) in [(&mut r.normal, p.normal), (&mut r.body, p.body)] {
-            if let Some(pl) = plane {
-                for a in 0..3 {
-                    pl[a][c] = v[a];
+    // Each row's covered columns and their directions.
+    let lines: Vec<(u32, Vec<u32>, Vec<DVec3>)> = rows
+        .map(|row| {
+            let cols: Vec<u32> = match coverage {
+                Some(c) => c.columns(row, rect.col0..rect.col1).collect(),
+                None => (rect.col0..rect.col1).collect(),
+            };
+            let dirs = directions(view, row, &cols);
+            (row, cols, dirs)
+        })
+        .collect();
+    let block = (PACKET / lines.len()).max(1) as u32;
+    let mut next = vec![0usize; lines.len()];
+    let none = Ray { origin: glam::Vec3::ZERO, dir: glam::Vec3::Z, tmax: 0.0 };
+    let mut packet = [Pending { row: 0, col: 0, dir: DVec3::ZERO, ray: none }; PACKET];
+    let mut k = 0;
+    // The leftmost block any row still has pixels in, each row's pixels there in turn.
+    while let Some(b) = lines.iter().zip(&next).filter_map(|((_, cols, _), &i)| cols.get(i)).map(|c| c / block).min() {
+        for ((row, cols, dirs), i) in lines.iter().zip(next.iter_mut()) {
+            while let Some(&col) = cols.get(*i).filter(|&&c| c / block == b) {
+                let dir = dirs[*i];
+                *i += 1;
+                let Some(ray) = view.ray_along(dir) else { continue };
+                packet[k] = Pending { row: *row, col, dir, ray };
+                k += 1;
+                if k == PACKET {
+                    write_hits(target, view, &packet, band);
+                    k = 0;
                 }
             }
         }
     }
+    write_hits(target, view, &packet[..k], band);
 }
 
-/// What one pixel-centre ray hits.
-struct TruthPixel {
-    mask: u32,
-    depth: f32,
-    normal: [f32; 3],
-    body: [f32; 3],
+/// [`View::camera_dir`] of the pixel centres `(col + 0.5, row + 0.5)` of `cols`, the lens
+/// inverted four at a time.
+fn directions(view: &View, row: u32, cols: &[u32]) -> Vec<DVec3> {
+    let y = f64::from(row) + 0.5;
+    let mut dirs = Vec::with_capacity(cols.len());
+    for quad in cols.chunks(4) {
+        // A short last chunk repeats its last column; the extra directions are dropped.
+        let x = |i: usize| f64::from(quad[i.min(quad.len() - 1)]) + 0.5;
+        let d = view.camera_dirs4([x(0), x(1), x(2), x(3)], y);
+        dirs.extend_from_slice(&d[..quad.len()]);
+    }
+    dirs
+}
+
+/// Trace the packet's rays and record their hits.
+fn write_hits(target: &Target, view: &View, packet: &[Pending], band: &mut Band) {
+    let Some(first) = packet.first() else { return };
+    let mut rays = [first.ray; PACKET];
+    for (r, p) in rays.iter_mut().zip(packet) {
+        *r = p.ray;
+    }
+    let mut prims = [None; PACKET];
+    let accel = &target.accel;
+    accel.closest_prims(&rays[..packet.len()], &mut prims);
+    for (p, prim) in packet.iter().zip(prims) {
+        if let Some((k, t)) = prim {
+            band.put(
+                p.row,
+                p.col,
+                &pixel(target, view, p.dir, &p.ray, accel.primitive_v0(k), &accel.primitive_hit(k, t)),
+            );
+        }
+    }
 }
 
 /// Truth of the pixel whose camera-frame direction is `d_cam` and whose f32 ray found
-/// `hit`: the hit point recomputed in f64 on that triangle's plane.
-fn pixel(target: &Target, view: &View, d_cam: DVec3, ray: &Ray, hit: &Hit) -> TruthPixel {
+/// `hit`: the hit point recomputed in f64 on that triangle's plane (through its first
+/// vertex `a`).
+fn pixel(target: &Target, view: &View, d_cam: DVec3, ray: &Ray, a: Vec3, hit: &Hit) -> TruthPixel {
     // The line in f64: camera centre `o`, direction `d` (render frame).
     let d = view.cam_to_render * d_cam;
     let o = view.origin;
-    let [a, _, _] = target.mesh.triangle(hit.tri as usize);
     let n = hit.normal.as_dvec3();
     let denom = n.dot(d);
     let s = n.dot(a.as_dvec3() - o) / denom;
@@ -214,7 +194,8 @@ pub fn render_truth_reference(target: &Target, view: &View, channels: TruthChann
             let (x, y) = (f64::from(col) + 0.5, f64::from(row) + 0.5);
             let Some(ray) = view.primary_ray(x, y) else { continue };
             let Some(hit) = target.accel.intersect(&ray) else { continue };
-            let p = pixel(target, view, view.camera_dir(x, y), &ray, &hit);
+            let [a, _, _] = target.mesh.triangle(hit.tri as usize);
+            let p = pixel(target, view, view.camera_dir(x, y), &ray, a, &hit);
             let i = (row * w + col) as usize;
             out.mask[i] = p.mask;
             out.depth[i] = p.depth;
