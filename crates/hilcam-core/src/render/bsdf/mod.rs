@@ -279,7 +279,7 @@ mod tests {
                 let parts = rho_d * std::f32::consts::FRAC_1_PI * wi.z + rest.map_or(0.0, |r| r.eval_cos(wo, wi));
                 let whole = b.eval_cos(wo, wi);
                 assert!((parts - whole).abs() <= 1e-5 * whole.max(1.0), "{b:?}: {parts} ≠ {whole}");
-                if let Some(s) = rest.and_then(|r| r.sample(wo, rng.next_2d(), rng.next_1d())) {
+                if let Some(s) = rest.and_then(|r| r.sample(wo, rng.next_2d(), rng.next_f32())) {
                     assert!(s.pdf > 0.0 && s.f_cos >= 0.0);
                 }
             }
