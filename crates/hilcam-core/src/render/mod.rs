@@ -210,6 +210,16 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
         *bands_used = 0;
         rays = h.rays;
         traced = h.covered_pixels;
+        if h.cache_cells > 0 || h.classify_rays > 0 {
+            // Why this frame is slower than the next ones (the sun moved in the body frame,
+            // the seed changed, or the view reached cells not yet estimated).
+            tracing::debug!(
+                classify_rays = h.classify_rays,
+                cache_cells = h.cache_cells,
+                cache_rays = h.cache_rays,
+                "hybrid: body-frame cells filled"
+            );
+        }
         samples = h.covered_pixels * crate::render::hybrid::pattern::SAMPLES as u64;
     }
     if let Some(rect) = rect.filter(|_| hybrid_frame.is_none()) {
