@@ -115,3 +115,14 @@ pub fn inner_pixels(img: &hilcam_core::render::film::RadianceImage, half_px: f64
     }
     v
 }
+
+/// Irradiance at `p` (normal `n`) from a uniformly bright polygon `v` of radiance 1,
+/// unoccluded: Lambert's formula, (1/2)·Σ γᵢ n·(Rᵢ × Rᵢ₊₁)/|Rᵢ × Rᵢ₊₁|.
+pub fn polygon_irradiance(p: DVec3, n: DVec3, v: &[DVec3]) -> f64 {
+    let mut sum = 0.0;
+    for i in 0..v.len() {
+        let (a, b) = ((v[i] - p).normalize(), (v[(i + 1) % v.len()] - p).normalize());
+        sum += a.dot(b).clamp(-1.0, 1.0).acos() * n.dot(a.cross(b).normalize());
+    }
+    (0.5 * sum).abs()
+}

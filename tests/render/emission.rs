@@ -6,6 +6,7 @@
 //!   bounce;
 //! - an MTL `Ke` is relative to sunlit white: `Ke` × E/π.
 
+use crate::common::scenes::polygon_irradiance;
 use glam::DVec3;
 use hilcam_core::render::{RenderOptions, render};
 use hilcam_core::scene::Scene;
@@ -75,17 +76,6 @@ fn an_mtl_ke_is_relative_to_sunlit_white() {
     let want = 0.4 * E / PI;
     let worst = frame(&s).iter().map(|v| (v / want - 1.0).abs()).fold(0.0, f64::max);
     assert!(worst <= 1e-5, "Ke 0.2 0.4 0.6: off {want} by {worst} (relative)");
-}
-
-/// Irradiance at `p` (surface normal `n`) from a uniformly emitting polygon `v` of
-/// radiance 1, unoccluded: Lambert's formula, (1/2)·Σ γᵢ n·(Rᵢ × Rᵢ₊₁)/|Rᵢ × Rᵢ₊₁|.
-fn polygon_irradiance(p: DVec3, n: DVec3, v: &[DVec3]) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..v.len() {
-        let (a, b) = ((v[i] - p).normalize(), (v[(i + 1) % v.len()] - p).normalize());
-        sum += a.dot(b).clamp(-1.0, 1.0).acos() * n.dot(a.cross(b).normalize());
-    }
-    (0.5 * sum).abs()
 }
 
 #[test]

@@ -95,17 +95,6 @@ fn lit_neighbour(b_spec: &str) -> (Scene, CameraModel, [DVec3; 4]) {
     (with_background(mesh, materials, &cam, pose, 0.0), cam, a)
 }
 
-/// Irradiance at `p` (normal `n`) from a uniformly bright polygon `v` of radiance 1,
-/// unoccluded: Lambert's formula, (1/2)·Σ γᵢ n·(Rᵢ × Rᵢ₊₁)/|Rᵢ × Rᵢ₊₁|.
-fn polygon_irradiance(p: DVec3, n: DVec3, v: &[DVec3]) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..v.len() {
-        let (a, b) = ((v[i] - p).normalize(), (v[(i + 1) % v.len()] - p).normalize());
-        sum += a.dot(b).clamp(-1.0, 1.0).acos() * n.dot(a.cross(b).normalize());
-    }
-    (0.5 * sum).abs()
-}
-
 /// The central 48 × 48 pixels (all on plate B) and the point of B each pixel centre sees.
 fn inner(img: &RadianceImage) -> Vec<(f64, DVec3)> {
     let mut v = Vec::new();
