@@ -4,7 +4,7 @@
 //! visibility from the cell's class ([`super::shadow`]) or, over a partly shadowed cell,
 //! sample by sample; the diffuse part of indirect light per fragment from the body-frame
 //! cache ([`super::indirect_cache`]); and the rest of the indirect light (a glossy lobe's,
-//! or a whole GGX surface's) from one path at one coverage sample.
+//! or a whole GGX surface's) from `spp` paths at the pixel's first coverage samples.
 
 use super::cells::barycentric;
 use super::indirect_cache::IndirectCache;
@@ -216,8 +216,7 @@ impl Shader<'_> {
         let material = target.mesh.material[s.tri as usize];
         let split = self.cache.and_then(|_| target.materials[material as usize].bsdf.diffuse_split());
         let next = match split {
-            // Lambert: the cache holds all of it.
-            Some((_, None)) => return 0.0,
+            Some((_, None)) => return 0.0, // Lambert: the cache holds all of it
             Some((_, Some(lobe))) => self.lobe_bounce(s, &lobe, &mut rng),
             None => {
                 let hit = Hit { tri: s.tri, t: 0.0, normal: target.normals[s.tri as usize], material };
@@ -231,6 +230,15 @@ impl Shader<'_> {
             }
             None => 0.0,
         }
+    }
+
+    /// Whether the cache holds all of triangle `tri`'s indirect light (a Lambert
+    /// material): its pixels' paths need not find their surface point.
+    #[inline]
+    fn cache_holds_all(&self, tri: u32) -> bool {
+        let target = self.ctx.scene;
+        let bsdf = &target.materials[target.mesh.material[tri as usize] as usize].bsdf;
+        self.cache.is_some() && matches!(bsdf.diffuse_split(), Some((_, None)))
     }
 
     /// The next ray and weight of a path leaving `s` by `lobe` (a BRDF's specular part),
@@ -277,6 +285,9 @@ pub fn pixel(
                 continue;
             }
             let tri = tri_of(px.ids[k]);
+            if shader.cache_holds_all(tri) {
+                continue;
+            }
             if let Some(s) = shader.surface(tri, px.ideal(px.sx[k], px.sy[k])) {
                 sum += shader.indirect(&s, key, k as u32, counts);
             }
