@@ -5,6 +5,7 @@ Usage (the wrapper scripts/bench-vs-mitsuba.sh builds hilcam in release first):
     python3 benches/vs_mitsuba.py scenes/sphere.toml --depth 4
     python3 benches/vs_mitsuba.py scenes/plate.toml --verify-only
     python3 benches/vs_mitsuba.py --quick            # 128×128, few spp, both scenes
+    python3 benches/vs_mitsuba.py --criterion        # equal sensor criterion (vs_mitsuba_criterion.py)
 
 What it does
 1. Bootstraps itself: if Mitsuba is not importable, it creates target/mitsuba-venv, installs
@@ -1166,7 +1167,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("scenes", nargs="*", type=Path, help="hilcam scene files (default: sphere and plate)")
     ap.add_argument("--depth", type=int, action="append", help="surface interactions (repeatable; default: the scene's)")
-    ap.add_argument("--spp", type=lambda s: [int(v) for v in s.split(",")], default=[1, 2, 4, 8, 16, 32, 64])
+    ap.add_argument(
+        "--spp",
+        type=lambda s: [int(v) for v in s.split(",")],
+        default=None,
+        help="spp ladder (default 1,2,4,8,16,32,64; with --criterion 1,2,4,8,16,36,64,144,256: square counts, which multijitter takes as given)",
+    )
     ap.add_argument(
         "--hilcam-spp",
         type=lambda s: [spp_number(v) for v in s.split(",")],
@@ -1175,7 +1181,23 @@ def main() -> int:
         help="budgets only hilcam renders, in the same alternation (fractions too, e.g. 1.25,1.5: "
         "hilcam's curve gets points between Mitsuba's whole sample counts)",
     )
-    ap.add_argument("--reps", type=int, default=3, help="repetitions per spp (median time)")
+    ap.add_argument(
+        "--reps",
+        type=int,
+        default=None,
+        help="repetitions per spp (median time; default 3); with --criterion: the first seeds, timed for "
+        "every renderer in the same rounds (default 5)",
+    )
+    ap.add_argument(
+        "--criterion",
+        action="store_true",
+        help="equal sensor criterion (issue 36): per spp, --seeds seeds of one pose from each renderer through "
+        "the scene camera's sensor chain (hilcam bench charge); the share of lit pixels whose σ over seeds "
+        "exceeds 0.5 σ_cam, and the time ratio at equal share (default scene satellite_matte, 256 px, "
+        "both Mitsuba samplers)",
+    )
+    ap.add_argument("--seeds", type=int, default=16, help="with --criterion: seeds per renderer and spp (>= 16 for the issue)")
+    ap.add_argument("--ref-chunks", type=int, default=4, help="with --criterion: reference chunks of --ref-spp per renderer")
     ap.add_argument("--width", type=int, default=None, help="image width (default: the camera's)")
     ap.add_argument("--height", type=int, default=None)
     ap.add_argument("--ref-spp", type=int, default=1024, help="spp of each half of the reference")
@@ -1227,6 +1249,12 @@ def main() -> int:
     args = ap.parse_args()
     if args.report:
         bootstrap()  # for matplotlib
+        import vs_mitsuba_criterion as crit
+
+        if crit.is_criterion_csv(args.report):
+            rows = crit.read_rows(args.report)
+            crit.plot_criterion(rows, crit.report_criterion(rows, args.report.stem), args.report.stem)
+            return 0
         with args.report.open() as f:
             rows = [
                 {k: (float(v) if k in ("time_s", "rel_rmse", "rel_rmse_raw", "ref_noise") else spp_number(v) if k == "spp" else int(v) if k in ("rep", "width", "height", "depth") else v) for k, v in r.items()}
@@ -1234,8 +1262,21 @@ def main() -> int:
             ]  # fmt: skip
         plot(rows, report(rows, args.report.stem), args.report.stem)
         return 0
+    if args.criterion:
+        args.sampler = list(dict.fromkeys(args.sampler or ["independent", "multijitter"]))
+        args.spp = args.spp or [1, 2, 4, 8, 16, 36, 64, 144, 256]
+        args.width = args.width or (None if args.height else 256)
+        args.scenes = args.scenes or [ROOT / "scenes" / "satellite_matte.toml"]
+        if args.quick:
+            args.width, args.spp, args.reps, args.ref_spp, args.ref_chunks = 128, [1, 2, 4, 8, 16, 64], 3, 256, 2
+            args.verify_width, args.verify_spp = 128, 1024
+        if args.seeds < 2:
+            log("error: --seeds must be >= 2 (16 or more for the issue's count)")
+            return 2
     args.sampler = list(dict.fromkeys(args.sampler or ["independent"]))
-    if args.quick:
+    args.spp = args.spp or [1, 2, 4, 8, 16, 32, 64]
+    args.reps = args.reps or (5 if args.criterion else 3)
+    if args.quick and not args.criterion:
         args.width, args.spp, args.reps, args.ref_spp = 128, [1, 2, 4, 8, 16], 2, 256
         args.verify_width, args.verify_spp = 128, 1024
     if not args.scenes:
@@ -1279,6 +1320,12 @@ def main() -> int:
                     for c in verify(args, mi, np, hp, sc, d, tmp, args.hilcam):
                         log(f"  [{'ok' if c.ok else 'FAIL'}] {c.name}: {c.value * 100:+.3f} % (limit {c.limit * 100:.2f} %)")
                         failed |= not c.ok
+            if args.criterion:
+                import vs_mitsuba_criterion as crit
+
+                log("\n== the criterion is `hilcam bench quality`'s (its own frames recounted here)")
+                for p in args.scenes:
+                    failed |= not crit.check_criterion(args, p, args.width or load_scene(p, args.lambertize, overrides).camera.width, args.hilcam, tmp)
             if failed:
                 log("\nFAILED: hilcam and Mitsuba disagree on the conventions; timing skipped.")
                 return 1
@@ -1288,7 +1335,12 @@ def main() -> int:
             sc = load_scene(p, args.lambertize, overrides)
             hp = hilcam_scene_file(p, sc, tmp)
             for d in args.depth or [sc.depth]:
-                bench(args, mi, np, hp, sc, d, tmp, args.hilcam)
+                if args.criterion:
+                    import vs_mitsuba_criterion as crit
+
+                    crit.bench_criterion(args, mi, np, p, hp, sc, d, tmp, args.hilcam)
+                else:
+                    bench(args, mi, np, hp, sc, d, tmp, args.hilcam)
     return 0
 
 

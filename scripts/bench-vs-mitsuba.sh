@@ -6,7 +6,10 @@
 #   scripts/bench-vs-mitsuba.sh                                   # sphere + plate, defaults
 #   scripts/bench-vs-mitsuba.sh scenes/sphere.toml --depth 4 --depth 2
 #   scripts/bench-vs-mitsuba.sh --quick                           # 128×128, ~30 s after setup
+#   scripts/bench-vs-mitsuba.sh --criterion                       # equal sensor criterion (issue 36)
+#   scripts/bench-vs-mitsuba.sh --criterion --quick               # the same at 128×128, ~2 min
 # Results: target/vs-mitsuba/<scene>_<W>x<H>_d<depth>_<sampler>.{csv,png}
+#          (--criterion: <scene>_<W>x<H>_d<depth>_criterion_<samplers>.{csv,png})
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --bin hilcam

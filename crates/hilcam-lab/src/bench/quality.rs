@@ -297,7 +297,8 @@ impl RowResult {
 }
 
 /// Render `seeds` frames of `settings` at `pose` (seeds `settings.seed + 1 …`, frame index
-/// `index`) through `pipeline` at integration time `t_s`, and judge them.
+/// `index`) through `pipeline` at integration time `t_s`, and judge them. `on_frame` is
+/// given each seed's index and radiance (what is judged) as it is made.
 ///
 /// # Errors
 /// The pipeline's.
@@ -311,7 +312,7 @@ pub fn measure_row(
     t_s: f64,
     reference: &Reference,
     conv: &Conversion,
-    mut progress: impl FnMut(u32),
+    mut on_frame: impl FnMut(u32, &RadianceImage),
 ) -> Result<Measured, SensorError> {
     let request = FrameRequest { integration_s: Some(t_s), roi: None };
     let mut sums = SeedSums::default();
@@ -327,7 +328,7 @@ pub fn measure_row(
         }
         let e = photo_charge(pipeline, pipeline.last_render().0, conv)?;
         sums.add(&e, pipeline.camera().width as usize);
-        progress(s);
+        on_frame(s, pipeline.last_render().0);
     }
     // Timed: frames after the last seed's, same seed, the next frame indices.
     let first = median(std::mem::take(&mut render));

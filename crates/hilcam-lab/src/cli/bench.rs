@@ -36,6 +36,10 @@ pub enum BenchKind {
     /// through render + sensor, the share of lit pixels whose noise (and whose RMS error
     /// against a converged reference) exceeds half the camera's own, with the frame rate.
     Quality(crate::cli::bench_quality::QualityArgs),
+    /// Radiance frames (PFM) through a scene camera's sensor chain to photo-charge, as
+    /// `bench quality` converts its own at the held exposure: for an outside judge
+    /// (benches/vs_mitsuba.py --criterion).
+    Charge(crate::cli::bench_quality::ChargeArgs),
     /// The fixed per-frame costs: the sensor stage and the ground-truth pass, each beside
     /// the frame it belongs to, measured in the same rounds.
     Sensor(SensorBenchArgs),
@@ -194,6 +198,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         BenchKind::Serve(s) => serve_bench(s),
         BenchKind::Effects(e) => effects(e),
         BenchKind::Quality(q) => crate::cli::bench_quality::run(q),
+        BenchKind::Charge(c) => crate::cli::bench_quality::run_charge(c),
         BenchKind::Sensor(s) => fixed_costs(s),
     }
 }

@@ -1,10 +1,11 @@
 //! `hilcam bench quality`: the independent judge of sensor-equivalent frames
 //! (`bench::quality`), row by row, with the frame rate of each.
 
-use crate::bench::quality::{Conversion, K, Reference, Row, RowResult, measure_row, reference, to_csv};
+use crate::bench::quality::{Conversion, K, Reference, Row, RowResult, measure_row, photo_charge, reference, to_csv};
 use crate::bench::trade_sensor::settle;
 use anyhow::Context;
 use hilcam_core::pipeline::FramePipeline;
+use hilcam_core::render::film::{read_pfm, write_radiance};
 use hilcam_core::render::integrator::{Method, QualityGoal, QualityMode, RenderSettings, Spp};
 use hilcam_core::scene::limits::checked_scaled_camera;
 use std::hash::{Hash, Hasher};
@@ -41,6 +42,34 @@ pub struct QualityArgs {
     /// over the bound (grey 128 at the bound, white at twice it or more).
     #[arg(long, default_value = "quality")]
     pub out: PathBuf,
+    /// Also write what was judged, for an outside judge to recount: each row's seed frames'
+    /// radiance (`DIR/<row>/seed<NN>.pfm`) and the reference (`DIR/reference.bin`: width
+    /// and height u32, spp u64, then each pixel's mean and mean's variance, e⁻ and e⁻², f64;
+    /// all little-endian, top row first).
+    #[arg(long)]
+    pub dump: Option<PathBuf>,
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// `hilcam bench charge`: radiance frames through a scene camera's sensor chain to
+/// photo-charge, as `bench quality` converts its own.
+#[derive(clap::Args, Debug)]
+pub struct ChargeArgs {
+    /// Scene file: its camera and sensor (and its pose and settings for the exposure).
+    #[arg(long, default_value = "scenes/satellite.toml")]
+    pub scene: PathBuf,
+    /// The camera at this many columns (same field of view), as `bench quality --width`.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Integration time, s (default: the auto-exposure settled on the scene's frames, as
+    /// `bench quality` settles it).
+    #[arg(long)]
+    pub integration_s: Option<f64>,
+    /// Radiance frames (.pfm) of the camera's size; each is written beside itself as
+    /// `<stem>.e64`: photo-charge, e⁻, f64 little-endian, top row first.
+    #[arg(required = true)]
+    pub frames: Vec<PathBuf>,
     #[arg(long)]
     pub threads: Option<usize>,
 }
@@ -80,7 +109,9 @@ pub fn run(a: QualityArgs) -> anyhow::Result<()> {
     let (pose, base) = (scene.pose, scene.render);
     let rows = a.rows.iter().map(|r| parse_row(r, &base)).collect::<anyhow::Result<Vec<_>>>()?;
     let key = reference_key(&scene, &camera, &a);
-    let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
+    if let Some(d) = &a.dump {
+        std::fs::create_dir_all(d).with_context(|| d.display().to_string())?;
+    }
     println!(
         "{}: {}x{}, depth {}; {} seeds per row; {} threads",
         a.scene.display(),
@@ -90,14 +121,7 @@ pub fn run(a: QualityArgs) -> anyhow::Result<()> {
         a.seeds,
         rayon::current_num_threads()
     );
-    let settled = settle(&mut pipeline, &pose, &base, 40, 0.01)?;
-    let t = settled.integration_s;
-    println!(
-        "auto-exposure {} after {} frames: integration {:.4} ms, held for every frame",
-        if settled.converged { "settled" } else { "NOT settled" },
-        settled.frames,
-        t * 1e3
-    );
+    let (mut pipeline, t) = settled_pipeline(scene, camera.clone())?;
     let conv = Conversion::of(&pipeline, t)
         .context("the judge needs a camera with a detector and DN output (its noise is the yardstick)")?;
     let reference = cached_reference(&a, key, || {
@@ -107,6 +131,10 @@ pub fn run(a: QualityArgs) -> anyhow::Result<()> {
             .map_err(anyhow::Error::from)
     })?;
     println!("reference: {} spp per pixel (not adaptive), its own variance from its chunks", reference.spp);
+    if let Some(d) = &a.dump {
+        let p = d.join("reference.bin");
+        write_reference(&p, &reference).with_context(|| p.display().to_string())?;
+    }
     println!(
         "bound: σ ≤ {K} × √(signal + dark + read² + gain²/12); floor {:.1} e⁻², quantisation {:.1} e⁻²",
         conv.floor_e2, conv.quant_e2
@@ -114,10 +142,21 @@ pub fn run(a: QualityArgs) -> anyhow::Result<()> {
     print_header();
     let mut results = Vec::new();
     for row in rows {
-        let m = measure_row(&mut pipeline, &pose, &row.settings, a.seeds, 0, t, &reference, &conv, |_| {})?;
-        print_row(&row, &m.result);
         let name: String =
             row.label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '.' { c } else { '_' }).collect();
+        let dir = a.dump.as_ref().map(|d| d.join(&name));
+        if let Some(d) = &dir {
+            std::fs::create_dir_all(d).with_context(|| d.display().to_string())?;
+        }
+        let mut written = Ok(());
+        let m = measure_row(&mut pipeline, &pose, &row.settings, a.seeds, 0, t, &reference, &conv, |s, img| {
+            if let (Some(d), Ok(())) = (&dir, &written) {
+                let p = d.join(format!("seed{s:02}.pfm"));
+                written = write_radiance(&p, img, None, false).map(|_| ()).with_context(|| p.display().to_string());
+            }
+        })?;
+        written?;
+        print_row(&row, &m.result);
         let png = PathBuf::from(format!("{}_{name}.png", a.out.display()));
         image::GrayImage::from_raw(camera.width, camera.height, m.map)
             .context("error map size")?
@@ -128,6 +167,57 @@ pub fn run(a: QualityArgs) -> anyhow::Result<()> {
     let csv = a.out.with_extension("csv");
     std::fs::write(&csv, to_csv(&results)).with_context(|| csv.display().to_string())?;
     println!("wrote {}", csv.display());
+    Ok(())
+}
+
+/// The pipeline of `scene` at `width` columns and the integration time `bench quality`
+/// holds: the auto-exposure settled on the scene's own frames (printed).
+fn settled_pipeline(
+    scene: hilcam_core::scene::Scene,
+    camera: hilcam_core::render::camera::CameraModel,
+) -> anyhow::Result<(FramePipeline, f64)> {
+    let (pose, base) = (scene.pose, scene.render);
+    let mut pipeline = FramePipeline::new(Arc::new(scene), camera)?;
+    let settled = settle(&mut pipeline, &pose, &base, 40, 0.01)?;
+    println!(
+        "auto-exposure {} after {} frames: integration {:.4} ms, held for every frame",
+        if settled.converged { "settled" } else { "NOT settled" },
+        settled.frames,
+        settled.integration_s * 1e3
+    );
+    Ok((pipeline, settled.integration_s))
+}
+
+/// `hilcam bench charge`: each frame's photo-charge (`bench::quality::photo_charge`, the
+/// conversion `bench quality` judges with), and the conversion's constants, printed as
+/// `name value` lines with every digit (`integration_s`, `e_per_radiance`, `full_well_e`,
+/// `floor_e2`, `quant_e2`, `k`).
+pub fn run_charge(a: ChargeArgs) -> anyhow::Result<()> {
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
+    }
+    let scene = hilcam_core::scene::load(&a.scene)?;
+    let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;
+    let (pipeline, t) = match a.integration_s {
+        Some(t) => (FramePipeline::new(Arc::new(scene), camera)?, t),
+        None => settled_pipeline(scene, camera)?,
+    };
+    let conv = Conversion::of(&pipeline, t)
+        .context("the conversion needs a camera with a detector and DN output (its noise is the yardstick)")?;
+    println!("integration_s {t:?}");
+    println!("e_per_radiance {:?}", conv.e_per_radiance);
+    println!("full_well_e {:?}", conv.full_well_e);
+    println!("floor_e2 {:?}", conv.floor_e2);
+    println!("quant_e2 {:?}", conv.quant_e2);
+    println!("k {K:?}");
+    for f in &a.frames {
+        let img = read_pfm(f).with_context(|| f.display().to_string())?;
+        let e = photo_charge(&pipeline, &img, &conv).with_context(|| f.display().to_string())?;
+        let out = f.with_extension("e64");
+        let bytes: Vec<u8> = e.iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(&out, bytes).with_context(|| out.display().to_string())?;
+    }
+    println!("wrote {} photo-charge images (.e64)", a.frames.len());
     Ok(())
 }
 
