@@ -1171,7 +1171,7 @@ def main() -> int:
         "--spp",
         type=lambda s: [int(v) for v in s.split(",")],
         default=None,
-        help="spp ladder (default 1,2,4,8,16,32,64; with --criterion 1,2,4,8,16,36,64,144,256: square counts, which multijitter takes as given)",
+        help="spp ladder (default 1,2,4,8,16,32,64; with --criterion 1,2,4,8,16,32,64,128,256; multijitter skips 32 and 128)",
     )
     ap.add_argument(
         "--hilcam-spp",
@@ -1186,7 +1186,7 @@ def main() -> int:
         type=int,
         default=None,
         help="repetitions per spp (median time; default 3); with --criterion: the first seeds, timed for "
-        "every renderer in the same rounds (default 5)",
+        "every renderer in the same rounds (default: all --seeds)",
     )
     ap.add_argument(
         "--criterion",
@@ -1264,18 +1264,18 @@ def main() -> int:
         return 0
     if args.criterion:
         args.sampler = list(dict.fromkeys(args.sampler or ["independent", "multijitter"]))
-        args.spp = args.spp or [1, 2, 4, 8, 16, 36, 64, 144, 256]
+        args.spp = args.spp or [1, 2, 4, 8, 16, 32, 64, 128, 256]
         args.width = args.width or (None if args.height else 256)
         args.scenes = args.scenes or [ROOT / "scenes" / "satellite_matte.toml"]
         if args.quick:
-            args.width, args.spp, args.reps, args.ref_spp, args.ref_chunks = 128, [1, 2, 4, 8, 16, 64], 3, 256, 2
+            args.width, args.spp, args.reps, args.ref_spp, args.ref_chunks = 128, [1, 2, 4, 8, 16, 64], 4, 256, 2
             args.verify_width, args.verify_spp = 128, 1024
         if args.seeds < 2:
             log("error: --seeds must be >= 2 (16 or more for the issue's count)")
             return 2
     args.sampler = list(dict.fromkeys(args.sampler or ["independent"]))
     args.spp = args.spp or [1, 2, 4, 8, 16, 32, 64]
-    args.reps = args.reps or (5 if args.criterion else 3)
+    args.reps = args.reps or (args.seeds if args.criterion else 3)
     if args.quick and not args.criterion:
         args.width, args.spp, args.reps, args.ref_spp = 128, [1, 2, 4, 8, 16], 2, 256
         args.verify_width, args.verify_spp = 128, 1024
