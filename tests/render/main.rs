@@ -19,6 +19,7 @@ mod ggx;
 mod gltf;
 mod hybrid;
 mod hybrid_cache;
+mod hybrid_caustics;
 mod limits;
 mod mc_noise;
 mod mc_ptc;

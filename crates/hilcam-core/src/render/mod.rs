@@ -217,6 +217,7 @@ pub fn render_into<L: RayLog + Default + Send + Sync>(
                 classify_rays = h.classify_rays,
                 cache_cells = h.cache_cells,
                 cache_rays = h.cache_rays,
+                caustic_photons = h.caustic_photons,
                 "hybrid: body-frame cells filled"
             );
         }

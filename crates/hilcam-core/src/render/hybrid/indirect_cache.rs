@@ -17,6 +17,7 @@
 //! cell is flat (its mean, not the irradiance's change across it). `hilcam bench quality`
 //! counts both against the camera's noise (docs/render.md).
 
+use super::caustics::{Caustics, path_diffuse};
 use super::cells::{Cells, barycentric};
 use crate::render::geometry::Ray;
 use crate::render::integrator::{PathContext, RayCounts, RenderSettings};
@@ -48,9 +49,12 @@ pub struct IndirectCache {
     pub cells: Cells,
     /// Per cell side (`2·cell + side`): f32 bits of the estimate, or [`EMPTY`].
     values: Vec<AtomicU32>,
+    /// The sunlight glossy parts reflect, when the target has any.
+    caustics: Option<Caustics>,
     /// Cell sides estimated and rays traced since [`IndirectCache::take_counts`].
     estimated: AtomicU64,
     rays: AtomicU64,
+    photons: AtomicU64,
 }
 
 impl IndirectCache {
@@ -79,6 +83,11 @@ impl IndirectCache {
         self.values.par_iter().for_each(|v| v.store(EMPTY, Ordering::Relaxed));
         self.values.resize_with(n, || AtomicU32::new(EMPTY));
         self.key = Some(key);
+        self.caustics = Caustics::trace(ctx, &self.cells, settings.seed);
+        if let Some(c) = &self.caustics {
+            self.photons.fetch_add(c.photons, Ordering::Relaxed);
+            self.rays.fetch_add(c.rays, Ordering::Relaxed);
+        }
     }
 
     /// The indirect irradiance over π at point `p` of triangle `tri`, on the side of
@@ -98,22 +107,32 @@ impl IndirectCache {
         // Two threads may both estimate a cell: they compute the same bits.
         let corners = self.cells.corners(tri, cell, v).unwrap_or(v);
         let seed = self.key.map_or(0, |k| k.3);
-        let (e, rays) = estimate(rest, tri, corners, n_face, n_out, seed, 2 * u64::from(cell) + u64::from(side));
+        let id = 2 * cell + side;
+        let split = self.caustics.is_some();
+        let (mut e, rays) = estimate(rest, tri, corners, n_face, n_out, seed, u64::from(id), split);
+        if let Some(c) = &self.caustics {
+            e += c.radiance_over_pi(tri, corners, v, n_face, n_out);
+        }
         slot.store(e.to_bits(), Ordering::Relaxed);
         self.estimated.fetch_add(1, Ordering::Relaxed);
         self.rays.fetch_add(rays, Ordering::Relaxed);
         e
     }
 
-    /// Cell sides estimated and rays traced since the last call (per frame).
-    pub fn take_counts(&self) -> (u64, u64) {
-        (self.estimated.swap(0, Ordering::Relaxed), self.rays.swap(0, Ordering::Relaxed))
+    /// Cell sides estimated, rays traced and caustic photons followed since the last call
+    /// (per frame).
+    pub fn take_counts(&self) -> (u64, u64, u64) {
+        let take = |a: &AtomicU64| a.swap(0, Ordering::Relaxed);
+        (take(&self.estimated), take(&self.rays), take(&self.photons))
     }
 }
 
 /// One cell side's mean incoming indirect radiance, cosine-weighted (= E/π): the mean of
 /// [`SAMPLES`] paths from uniform points of the cell (`corners`), directions stratified
-/// on a 16 × 16 grid of the cosine warp's square. Returns it and the rays traced.
+/// on a 16 × 16 grid of the cosine warp's square. With `split` (caustic photons carry the
+/// rest), the sun's light at a path's first surface is its diffuse part's alone. Returns
+/// the mean and the rays traced.
+#[allow(clippy::too_many_arguments)]
 fn estimate(
     rest: &PathContext,
     tri: u32,
@@ -122,6 +141,7 @@ fn estimate(
     n_out: Vec3,
     seed: u64,
     id: u64,
+    split: bool,
 ) -> (f32, u64) {
     let mut rng = Rng::for_sample(seed, STREAM, id, 0);
     let basis = ShadingBasis::from_normal(n_out);
@@ -136,7 +156,36 @@ fn estimate(
         let p = a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2);
         let origin = rest.spawn(p, tri, n_face, n_out);
         let ray = Ray { origin, dir: basis.to_world(cosine_hemisphere(u)), tmax: f32::INFINITY };
-        sum += f64::from(rest.radiance(ray, &mut rng, &mut counts, &mut ()));
+        let l = if split {
+            diffuse_sun_first(rest, ray, &mut rng, &mut counts)
+        } else {
+            rest.radiance(ray, &mut rng, &mut counts, &mut ())
+        };
+        sum += f64::from(l);
     }
     ((sum / f64::from(SAMPLES)) as f32, counts.total())
+}
+
+/// [`PathContext::radiance`] whose first surface reflects only its diffuse part of the
+/// sun's light (the caustic photons carry the rest); later surfaces reflect all of it.
+fn diffuse_sun_first(rest: &PathContext, ray: Ray, rng: &mut Rng, counts: &mut RayCounts) -> f32 {
+    counts.primary += 1;
+    let Some(hit) = rest.scene.accel.intersect(&ray) else { return rest.escaped(&ray) };
+    let sc = rest.scatter(&ray, &hit, 1.0, 0, rng);
+    let mut l = sc.emitted;
+    if let Some((shadow, _)) = sc.shadow {
+        let rho_d = path_diffuse(&rest.scene.materials[hit.material as usize].bsdf);
+        if rho_d > 0.0 && {
+            counts.shadow += 1;
+            !rest.occluded(&shadow)
+        } {
+            // The lit side's cosine: the shadow ray leaves only from a side facing the sun.
+            let cos = hit.normal.dot(rest.sun).abs();
+            l += rho_d * std::f32::consts::FRAC_1_PI * cos * rest.scene.sun_irradiance;
+        }
+    }
+    match sc.next {
+        Some((next, beta)) => rest.radiance_after(next, 1, beta, l, rng, counts, &mut ()),
+        None => l,
+    }
 }

@@ -17,6 +17,7 @@
 //! None and the caller path-traces.
 
 pub mod area;
+pub mod caustics;
 pub mod cells;
 pub mod indirect_cache;
 pub mod pattern;
@@ -61,6 +62,9 @@ pub struct HybridStats {
     /// the view reaches is kept), and the rays that took (also in `rays`).
     pub cache_cells: u64,
     pub cache_rays: u64,
+    /// Photons followed from the sun for the cache's caustics (0 when held, or when no
+    /// material is glossy).
+    pub caustic_photons: u64,
 }
 
 /// Render `rect` of `view` into `img` (whose other pixels the caller has set). None when
@@ -161,8 +165,8 @@ pub fn render(
             a.exact_pixels += b.exact_pixels;
             a
         });
-    let (cache_cells, cache_rays) = indirect.take_counts();
+    let (cache_cells, cache_rays, caustic_photons) = indirect.take_counts();
     let mut rays = stats.rays;
     rays.bounce += cache_rays;
-    Some(HybridStats { triangles: setup.tris.len() as u64, classify_rays, cache_cells, cache_rays, rays, ..stats })
+    Some(HybridStats { triangles: setup.tris.len() as u64, classify_rays, cache_cells, cache_rays, caustic_photons, rays, ..stats })
 }

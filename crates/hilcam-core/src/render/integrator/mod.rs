@@ -337,17 +337,27 @@ impl<'a> PathContext<'a> {
     /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻²: one path, traced to
     /// the end. The tile renderer (`crate::render`) runs the same steps wave by wave.
     #[inline]
-    pub fn radiance<L: RayLog, S: SampleSource>(
+    pub fn radiance<L: RayLog, S: SampleSource>(&self, ray: Ray, rng: &mut S, counts: &mut RayCounts, log: &mut L) -> f32 {
+        self.radiance_after(ray, 0, 1.0, 0.0, rng, counts, log)
+    }
+
+    /// [`PathContext::radiance`] from surface interaction `first` on, for a path that
+    /// arrives along `ray` with throughput `beta` having gathered `l` so far (a caller
+    /// that made the earlier interactions itself).
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn radiance_after<L: RayLog, S: SampleSource>(
         &self,
         mut ray: Ray,
+        first: u32,
+        mut beta: f32,
+        mut l: f32,
         rng: &mut S,
         counts: &mut RayCounts,
         log: &mut L,
     ) -> f32 {
         let scene = self.scene;
-        let mut l = 0.0f32;
-        let mut beta = 1.0f32;
-        for bounce in 0..self.depth {
+        for bounce in first..self.depth {
             if bounce == 0 {
                 counts.primary += 1;
             } else {
