@@ -22,10 +22,13 @@ lap() {
 }
 print_laps() {
   local rc=$?
+  bg_stop
   echo "test.sh: wall time by step"
   printf '  %s\n' "${laps[@]}"
   printf '  %-44s %5ds (exit %d)\n' "total" "$SECONDS" "$rc"
 }
+bg_pids=()
+bg_stop() { :; }
 trap print_laps EXIT
 
 # --- pose input (issue 4) -------------------------------------------------
@@ -74,16 +77,51 @@ if $quick; then
   exit 0
 fi
 
-# The Python module (issue 38): the wheel built by the project's own script (maturin, the
-# dev profile, sharing target/ with the build above), pip-installed into a fresh venv; its
-# tests compare it with the CLI binary built above (docs/python.md).
-# The Basilisk closed-loop examples run in their own cached venv (bsk, bsk-opnav 2.12.1)
-# with the same wheel installed (python/tests/test_basilisk.py).
-HILCAM_PY=$(scripts/build-python.sh)
-HILCAM_BSK_PY=$(scripts/setup-basilisk.sh target/wheels/hilcam-*.whl)
-HILCAM_BSK_PY="$HILCAM_BSK_PY" HILCAM_BIN="$PWD/target/debug/hilcam" \
-  "$HILCAM_PY" -m pytest python/tests -q -p no:cacheprovider
-lap "Python module (wheel build + pytest, Basilisk loops)"
+# The tail runs in two lanes. Background: fuzzing (its own target dir, fuzz/target) from
+# here, and the bench build once the wheel is built (both need target/'s lock). Foreground:
+# SocketCAN, the Python module, Slurm. Each background step writes a log, printed when
+# it ends; a failed one fails the run. The foreground steps use a copy of the lab binary
+# `cargo test` built ($lab_bin), since the bench build replaces target/debug/hilcam.
+lab_keep=$(mktemp -d)
+cp -p target/debug/hilcam "$lab_keep/hilcam"
+lab_bin=$lab_keep/hilcam
+bg_logs=$(mktemp -d)
+bg_pids=() bg_names=()
+bg_start() {   # bg_start NAME COMMAND...: COMMAND in the background, its own process group
+  local name=$1
+  shift
+  local n=${#bg_pids[@]}
+  set -m
+  # (The inner subshell keeps set -e in force inside a function given as COMMAND.)
+  ( start=$SECONDS; set +e; ( set -e; "$@" ); rc=$?
+    printf '%s\n' "$((SECONDS - start))" >"$bg_logs/$n.secs"; exit "$rc" ) \
+    </dev/null >"$bg_logs/$n.log" 2>&1 &
+  set +m
+  bg_pids+=($!)
+  bg_names+=("$name")
+  echo "test.sh: started in the background: $name"
+}
+bg_stop() {   # on an early exit: stop the background steps still running
+  local p
+  for p in "${bg_pids[@]}"; do kill -- "-$p" 2>/dev/null || true; done
+}
+bg_wait() {   # waits for every background step, prints its log and time; fails if one did
+  local i rc failed=0
+  for i in "${!bg_pids[@]}"; do
+    rc=0
+    wait "${bg_pids[$i]}" || rc=$?
+    echo "test.sh: --- ${bg_names[$i]} (background, exit $rc) ---"
+    cat "$bg_logs/$i.log"
+    laps+=("$(printf '%-44s %5ds' "${bg_names[$i]} [bg]" "$(cat "$bg_logs/$i.secs" 2>/dev/null || echo 0)")")
+    [ "$rc" = 0 ] || failed=1
+  done
+  bg_pids=()
+  return "$failed"
+}
+
+# Fuzz each decoder briefly (cargo-fuzz needs nightly features: RUSTC_BOOTSTRAP
+# lets the stable toolchain use them). HILCAM_FUZZ_SECONDS=0 skips, with a note.
+bg_start "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)" scripts/fuzz.sh "${HILCAM_FUZZ_SECONDS:-10}"
 
 # --- pose input (issue 4), continued --------------------------------------
 if [ "$vcan_mode" = vm ]; then
@@ -96,10 +134,6 @@ else
   cargo test --test can_socketcan -- --include-ignored
 fi
 lap "SocketCAN tests ($vcan_mode)"
-# Fuzz each decoder briefly (cargo-fuzz needs nightly features: RUSTC_BOOTSTRAP
-# lets the stable toolchain use them). HILCAM_FUZZ_SECONDS=0 skips, with a note.
-scripts/fuzz.sh "${HILCAM_FUZZ_SECONDS:-10}"
-lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # ---------------------------------------------------------------------------
 
 # The bench build: the binary without the lab (--no-default-features) builds, and its
@@ -107,44 +141,63 @@ lap "fuzz targets (build + ${HILCAM_FUZZ_SECONDS:-10} s each)"
 # is compiled again: unoptimised here (the checks below render nothing), which takes a
 # third of the time; dependencies keep their opt-level 3 artifacts and are reused.
 # `cargo test` built target/debug/hilcam (the lab build, its dependencies' features
-# unified with the tests'); it is kept aside and put back after, rather than rebuilt: a
-# plain `cargo build` unifies features without the dev-dependencies and recompiled
-# half the tree (~150 s).
-lab_keep=$(mktemp -d)
-cp -p target/debug/hilcam "$lab_keep/hilcam"
-CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam
-if target/debug/hilcam bench --help >/dev/null 2>&1; then
-  echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
-  exit 1
-fi
-target/debug/hilcam serve --help >/dev/null
-# Its BVH is bvh8 only: a scene asking for a lab layout is refused by file, line, field
-# and the feature to build with (not an unknown name, not a silent fallback).
-lab_bvh_dir=$(mktemp -d)
-printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' >"$lab_bvh_dir/t.obj"
-printf '[[mesh]]\nobj = "t.obj"\nmaterial = "paint"\n[materials.paint]\nmodel = "lambert"\nrho = 0.5\n[camera]\nwidth = 8\nheight = 8\npitch_um = 10.0\nfocal_mm = 20.0\n[render]\nbvh = "bvh4"\n' \
-  >"$lab_bvh_dir/s.toml"
-if lab_bvh_err=$(target/debug/hilcam render "$lab_bvh_dir/s.toml" --out "$lab_bvh_dir/out.png" 2>&1); then
-  echo "test.sh: the --no-default-features binary rendered a scene asking for bvh4" >&2
-  exit 1
-fi
-expected="$lab_bvh_dir/s.toml:13: render.bvh: this build has only bvh8; bvh4 is a lab layout, build with the \`lab\` feature"
-if [[ "$lab_bvh_err" != *"$expected"* ]]; then
-  printf 'test.sh: bench build: bvh4 refusal reads\n%s\nnot\n%s\n' "$lab_bvh_err" "$expected" >&2
-  exit 1
-fi
-rm -r "$lab_bvh_dir"
-echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
-# target/debug/hilcam is the optimised lab build again for the steps below.
-cp -p --remove-destination "$lab_keep/hilcam" target/debug/hilcam  # not through cargo's hard link
-rm -r "$lab_keep"
-lap "bench build (--no-default-features) + checks"
+# unified with the tests'); it is kept aside ($lab_bin) and put back after, rather than
+# rebuilt: a plain `cargo build` unifies features without the dev-dependencies and
+# recompiled half the tree (~150 s).
+bench_build() {
+  CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam
+  local dir
+  dir=$(mktemp -d)
+  cp -p target/debug/hilcam "$dir/hilcam"
+  # target/debug/hilcam is the optimised lab build again.
+  cp -p --remove-destination "$lab_bin" target/debug/hilcam  # not through cargo's hard link
+  local bench=$dir/hilcam
+  if "$bench" bench --help >/dev/null 2>&1; then
+    echo "test.sh: the --no-default-features binary still has the lab's 'bench' subcommand" >&2
+    return 1
+  fi
+  "$bench" serve --help >/dev/null
+  # Its BVH is bvh8 only: a scene asking for a lab layout is refused by file, line, field
+  # and the feature to build with (not an unknown name, not a silent fallback).
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' >"$dir/t.obj"
+  printf '[[mesh]]\nobj = "t.obj"\nmaterial = "paint"\n[materials.paint]\nmodel = "lambert"\nrho = 0.5\n[camera]\nwidth = 8\nheight = 8\npitch_um = 10.0\nfocal_mm = 20.0\n[render]\nbvh = "bvh4"\n' \
+    >"$dir/s.toml"
+  local err
+  if err=$("$bench" render "$dir/s.toml" --out "$dir/out.png" 2>&1); then
+    echo "test.sh: the --no-default-features binary rendered a scene asking for bvh4" >&2
+    return 1
+  fi
+  local expected="$dir/s.toml:13: render.bvh: this build has only bvh8; bvh4 is a lab layout, build with the \`lab\` feature"
+  if [[ "$err" != *"$expected"* ]]; then
+    printf 'test.sh: bench build: bvh4 refusal reads\n%s\nnot\n%s\n' "$err" "$expected" >&2
+    return 1
+  fi
+  rm -r "$dir"
+  echo "test.sh: bench build (--no-default-features) OK: serve present, lab subcommands and BVH layouts absent"
+}
+
+# The Python module (issue 38): the wheel built by the project's own script (maturin, the
+# dev profile, sharing target/ with the build above), pip-installed into a fresh venv; its
+# tests compare it with the CLI binary built above (docs/python.md).
+# The Basilisk closed-loop examples run in their own cached venv (bsk, bsk-opnav 2.12.1)
+# with the same wheel installed (python/tests/test_basilisk.py).
+HILCAM_PY=$(scripts/build-python.sh)
+# The wheel is built: target/ is free for the bench build.
+bg_start "bench build (--no-default-features) + checks" bench_build
+HILCAM_BSK_PY=$(scripts/setup-basilisk.sh target/wheels/hilcam-*.whl)
+HILCAM_BSK_PY="$HILCAM_BSK_PY" HILCAM_BIN="$lab_bin" \
+  "$HILCAM_PY" -m pytest python/tests -q -p no:cacheprovider
+lap "Python module (wheel build + pytest, Basilisk loops)"
 
 # --- clusters (issue 25) -----------------------------------------------------
 # A real single-node Slurm cluster (installs slurm-wlm + munge, starts and stops its own
 # daemons, fails if one is left), an array with a scancel'd and resubmitted task, merged
 # and compared byte for byte with a local replay; the Kubernetes manifest against the
 # schema, offline (docs/cluster.md).
-HILCAM_BIN=$PWD/target/debug/hilcam scripts/slurm/test-cluster.sh
+HILCAM_BIN=$lab_bin scripts/slurm/test-cluster.sh
 scripts/k8s/validate.sh
 lap "Slurm cluster + Kubernetes manifest"
+
+bg_wait
+lap "waiting for the background steps"
+rm -r "$lab_keep" "$bg_logs"
