@@ -165,7 +165,10 @@ fn a_near_mirror_lights_a_plate_with_its_albedo_times_the_sun() {
         (n, sum, sq) = (n + 1, sum + v, sq + ((v - want) / want).powi(2));
     }
     let (mean_err, rms) = (sum / n as f64 / want - 1.0, (sq / n as f64).sqrt());
-    println!("albedo {albedo:.5}; {n} pixels: mean {:.4} (want {want:.4}), error {mean_err:+.5}, rms {rms:.4}", sum / n as f64);
+    println!(
+        "albedo {albedo:.5}; {n} pixels: mean {:.4} (want {want:.4}), error {mean_err:+.5}, rms {rms:.4}",
+        sum / n as f64
+    );
     assert!(n > 500, "{n} pixels in the beam's interior");
     assert!(mean_err.abs() < 5e-3, "mean error {mean_err}");
     assert!(rms < 0.1, "per-pixel rms error {rms}");

@@ -168,5 +168,13 @@ pub fn render(
     let (cache_cells, cache_rays, caustic_photons) = indirect.take_counts();
     let mut rays = stats.rays;
     rays.bounce += cache_rays;
-    Some(HybridStats { triangles: setup.tris.len() as u64, classify_rays, cache_cells, cache_rays, caustic_photons, rays, ..stats })
+    Some(HybridStats {
+        triangles: setup.tris.len() as u64,
+        classify_rays,
+        cache_cells,
+        cache_rays,
+        caustic_photons,
+        rays,
+        ..stats
+    })
 }

@@ -337,7 +337,13 @@ impl<'a> PathContext<'a> {
     /// Radiance arriving along `ray` (a primary ray), W·sr⁻¹·m⁻²: one path, traced to
     /// the end. The tile renderer (`crate::render`) runs the same steps wave by wave.
     #[inline]
-    pub fn radiance<L: RayLog, S: SampleSource>(&self, ray: Ray, rng: &mut S, counts: &mut RayCounts, log: &mut L) -> f32 {
+    pub fn radiance<L: RayLog, S: SampleSource>(
+        &self,
+        ray: Ray,
+        rng: &mut S,
+        counts: &mut RayCounts,
+        log: &mut L,
+    ) -> f32 {
         self.radiance_after(ray, 0, 1.0, 0.0, rng, counts, log)
     }
 
