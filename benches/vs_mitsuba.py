@@ -1008,15 +1008,20 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         )
         log(f"  spp {spp:>4}: {times}")
 
+    write_csv(rows, tag)
+    summary = report(rows, tag)
+    plot(rows, summary, tag)
+    return rows
+
+
+def write_csv(rows: list[dict], tag: str) -> None:
+    """The rows as OUT_DIR/<tag>.csv (columns from the first row)."""
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     with (OUT_DIR / f"{tag}.csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     log(f"wrote {OUT_DIR / (tag + '.csv')}")
-    summary = report(rows, tag)
-    plot(rows, summary, tag)
-    return rows
 
 
 def mitsuba_spp(sampler: str, spp: int) -> int:

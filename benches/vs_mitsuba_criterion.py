@@ -35,6 +35,7 @@ from vs_mitsuba import (
     mitsuba_samplers,
     mitsuba_scene,
     timed,
+    write_csv,
 )
 
 K = 0.5
@@ -308,12 +309,7 @@ def bench_criterion(args, mi, np, sensor_scene: Path, hilcam_file: Path, sc, dep
             f"(bias {r['mean_bias'] * 100:+.3f} %)" for r in cur))  # fmt: skip
 
     log(f"timing done: {load()}")
-    OUT_DIR.mkdir(parents=True, exist_ok=True)
-    with (OUT_DIR / f"{tag}.csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    log(f"wrote {OUT_DIR / (tag + '.csv')}")
+    write_csv(rows, tag)
     summary = report_criterion(rows, tag)
     plot_criterion(rows, summary, tag)
     return rows
