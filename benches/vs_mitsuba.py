@@ -944,10 +944,8 @@ def interp_time(points: list[tuple[float, float]], err: float) -> float | None:
     return None
 
 
-def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path, exe: Path) -> list[dict]:
-    cam = sc.camera.scaled(args.width, args.height)
-    rr = "_rr" if args.roulette else ""
-    tag = f"{scene_path.stem}_{cam.width}x{cam.height}_d{depth}{rr}_{'+'.join(args.sampler)}"
+def make_renderers(args, mi, np, scene_path: Path, sc: HilcamScene, cam, depth: int, tmp: Path, exe: Path):
+    """hilcam as tested, hilcam for the reference, and Mitsuba per --sampler, on `cam`."""
     h = Hilcam(exe, scene_path, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette)
     # The reference's hilcam half samples every pixel alike (--no-adaptive): it must not
     # depend on the sampling under test (adaptive sampling is unbiased, but the reference
@@ -959,6 +957,14 @@ def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path
         smp: Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, smp, 1, tmp / "meshes", args.roulette))
         for smp in args.sampler
     }
+    return h, h_uniform, ms
+
+
+def bench(args, mi, np, scene_path: Path, sc: HilcamScene, depth: int, tmp: Path, exe: Path) -> list[dict]:
+    cam = sc.camera.scaled(args.width, args.height)
+    rr = "_rr" if args.roulette else ""
+    tag = f"{scene_path.stem}_{cam.width}x{cam.height}_d{depth}{rr}_{'+'.join(args.sampler)}"
+    h, h_uniform, ms = make_renderers(args, mi, np, scene_path, sc, cam, depth, tmp, exe)
 
     log(
         f"\n== {scene_path.name}: {cam.width}x{cam.height}, depth {depth}, hilcam {args.hilcam_sequence} sequence + "

@@ -28,12 +28,11 @@ from vs_mitsuba import (
     OUT_DIR,
     ExportError,
     Hilcam,
-    Mitsuba,
     interp_time,
     label,
     log,
     mitsuba_samplers,
-    mitsuba_scene,
+    make_renderers,
     timed,
     write_csv,
 )
@@ -218,14 +217,7 @@ def bench_criterion(args, mi, np, sensor_scene: Path, hilcam_file: Path, sc, dep
     (renderer, spp) by the sensor criterion; print the equal-criterion time ratios."""
     cam = sc.camera.scaled(args.width, args.height)
     tag = f"{sensor_scene.stem}_{cam.width}x{cam.height}_d{depth}_criterion_{'+'.join(args.sampler)}"
-    h = Hilcam(exe, hilcam_file, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette)
-    h_uniform = Hilcam(
-        exe, hilcam_file, cam, depth, args.hilcam_sampler, args.hilcam_sequence, tmp, args.roulette, adaptive=False
-    )
-    ms = {
-        smp: Mitsuba(mi, np, mitsuba_scene(mi, sc, cam, depth, smp, 1, tmp / "meshes", args.roulette))
-        for smp in args.sampler
-    }
+    h, h_uniform, ms = make_renderers(args, mi, np, hilcam_file, sc, cam, depth, tmp, exe)
     charge = Charge(exe, sensor_scene, cam.width)
     log(
         f"\n== equal sensor criterion: {sensor_scene.name} (rendered as a pinhole by both), {cam.width}x{cam.height}, "
