@@ -238,7 +238,7 @@ mod single_ray_reference {
     use hilcam_core::pipeline::FramePipeline;
     use hilcam_core::pose::Pose;
     use hilcam_core::render::integrator::{RenderSettings, Spp};
-    use hilcam_core::render::truth::{TruthChannels, TruthImage, render_truth, render_truth_reference};
+    use hilcam_core::render::truth::{TruthChannels, TruthImage, TruthPlanes, render_truth, render_truth_reference};
 
     fn bits(t: &TruthImage) -> Vec<u32> {
         let f = |v: &Vec<f32>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -250,18 +250,20 @@ mod single_ray_reference {
 
     /// The shipped satellite through the navigation camera's lens, at 256² and three
     /// attitudes and at its own 1024² (150 k pixels see it): every channel of every pixel
-    /// the reference's, bit for bit — computed anew, and with the coverage of the frame
-    /// just rendered through the same view.
+    /// the reference's, bit for bit — computed anew, with the coverage of the frame just
+    /// rendered through the same view, and into planes kept from every earlier truth
+    /// (other poses, sizes and channel sets).
     #[test]
     fn packets_and_shared_coverage_give_the_single_ray_truth_bit_for_bit() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/satellite.toml");
         let scene = std::sync::Arc::new(hilcam_core::scene::load(&path).unwrap());
+        let mut kept = TruthPlanes::default();
         for (width, turns) in [(256, &[0.0f64, 0.7, 2.1][..]), (1024, &[0.0][..])] {
-            check(&scene, width, turns);
+            check(&scene, width, turns, &mut kept);
         }
     }
 
-    fn check(scene: &std::sync::Arc<hilcam_core::scene::Scene>, width: u32, turns: &[f64]) {
+    fn check(scene: &std::sync::Arc<hilcam_core::scene::Scene>, width: u32, turns: &[f64], kept: &mut TruthPlanes) {
         let camera = scene.camera.scaled(Some(width), None);
         let all = TruthChannels::parse("depth,mask,normal,body_xyz").unwrap();
         let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..scene.render };
@@ -281,6 +283,17 @@ mod single_ray_reference {
                 want,
                 "{width}², pose {k}, shared"
             );
+            // Kept planes: after the earlier poses and sizes, and after a truth of fewer
+            // channels at a pose whose silhouette differs (the planes dropped then are
+            // filled anew, the others cleared where it hit).
+            let other = Pose { attitude: pose.attitude * DQuat::from_rotation_x(1.3), ..pose };
+            let some = TruthChannels::parse("depth,mask").unwrap();
+            let fewer = bits(pipeline.truth_into(&other, &Default::default(), some, kept).unwrap());
+            assert_eq!(fewer, bits(&pipeline.truth(&other, &Default::default(), some).unwrap()), "{width}², fewer");
+            let got = bits(pipeline.truth_into(&pose, &Default::default(), all, kept).unwrap());
+            assert_eq!(got, want, "{width}², pose {k}, kept planes");
+            let again = bits(pipeline.truth_into(&pose, &Default::default(), all, kept).unwrap());
+            assert_eq!(again, want, "{width}², pose {k}, kept planes, same pose again");
         }
     }
 }

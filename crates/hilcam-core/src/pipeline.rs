@@ -10,7 +10,7 @@ use crate::render::film::{Pixels, RadianceImage};
 use crate::render::integrator::RenderSettings;
 use crate::render::planet::Planet;
 use crate::render::sampling::mix64;
-use crate::render::truth::{TruthChannels, TruthImage, render_truth_with};
+use crate::render::truth::{TruthChannels, TruthImage, TruthPlanes, render_truth_into};
 use crate::render::{FrameBuffers, PrimaryVisibility, RenderOptions, RenderStats, render, render_into};
 use crate::scene::Scene;
 use crate::sensor::mc_noise::McNoiseStats;
@@ -179,6 +179,20 @@ impl FramePipeline {
         request: &FrameRequest,
         channels: TruthChannels,
     ) -> Result<TruthImage, SensorError> {
+        let mut planes = TruthPlanes::default();
+        self.truth_into(pose, request, channels, &mut planes)?;
+        Ok(planes.take().expect("the truth was just computed"))
+    }
+
+    /// [`FramePipeline::truth`] into `planes` kept from frame to frame (the same bytes,
+    /// without allocating or filling the planes again: [`TruthPlanes`]).
+    pub fn truth_into<'p>(
+        &self,
+        pose: &Pose,
+        request: &FrameRequest,
+        channels: TruthChannels,
+        planes: &'p mut TruthPlanes,
+    ) -> Result<&'p TruthImage, SensorError> {
         let mut view = self.scene.view(&self.camera, pose).with_distortion(self.sensor.config().optics.distortion);
         if let Some(w) = request.roi.filter(|w| !w.is_full(&self.camera)) {
             let w = w
@@ -187,7 +201,7 @@ impl FramePipeline {
             view = view.window(&w);
         }
         // After a frame through this very view (no motion, no ROI), its coverage.
-        Ok(render_truth_with(&self.scene, &view, channels, self.buffers.coverage_for(&view)))
+        Ok(render_truth_into(&self.scene, &view, channels, self.buffers.coverage_for(&view), planes))
     }
 
     /// The render options of frame `index` at `pose`: the planet is the one set by

@@ -378,6 +378,8 @@ pub fn replay_jobs_until(
     let mut log = LineLog::open(&log_path).map_err(io(&log_path))?;
     progress(&stats);
     let mut last = None;
+    // Kept from frame to frame: only the rows the last truth hit are cleared.
+    let mut planes = crate::render::truth::TruthPlanes::default();
     for job in todo {
         let k = job.index;
         if let Some(signal) = stop() {
@@ -416,13 +418,13 @@ pub fn replay_jobs_until(
         if !cfg.truth.is_empty() {
             let t0 = std::time::Instant::now();
             let truth = pipeline
-                .truth(&job.pose, &job.request, cfg.truth)
+                .truth_into(&job.pose, &job.request, cfg.truth, &mut planes)
                 .map_err(|source| ReplayError::Sensor { frame: k, source })?;
             stats.truth_time += t0.elapsed();
             let truth_name = truth_exr::truth_file_name(k);
             let truth_path = dir.join(&truth_name);
             let t0 = std::time::Instant::now();
-            let written = truth_exr::write_truth_exr(&truth_path, &truth);
+            let written = truth_exr::write_truth_exr(&truth_path, truth);
             stats.truth_write_time += t0.elapsed();
             if let Err(e) = written {
                 // The image without its truth is not a complete frame.
@@ -439,7 +441,7 @@ pub fn replay_jobs_until(
                     false => ReplayError::Image { frame: k, path: truth_path, msg: e.to_string() },
                 });
             }
-            record_truth = Some(TruthRecord::new(truth_name, &truth));
+            record_truth = Some(TruthRecord::new(truth_name, truth));
         }
         let mut meta = FrameMeta::rendered(k, &job.pose, &f, job.flags);
         meta.emit_unix_ns = unix_ns_now();

@@ -13,7 +13,7 @@ use super::median;
 use super::trade_sensor::settle;
 use hilcam_core::pipeline::FramePipeline;
 use hilcam_core::render::integrator::Spp;
-use hilcam_core::render::truth::TruthChannels;
+use hilcam_core::render::truth::{TruthChannels, TruthPlanes};
 use hilcam_core::scene::Scene;
 use std::path::Path;
 use std::sync::Arc;
@@ -61,6 +61,9 @@ pub fn measure(
     let (mut render, mut sensor, mut alone) = (Vec::new(), Vec::new(), Vec::new());
     let mut truth_t: Vec<Vec<f64>> = vec![Vec::new(); truth.len()];
     let (mut lit, mut traced) = (0, 0.0);
+    // One set of planes per channel set, kept from round to round as a frame loop keeps
+    // them (`replay --truth`).
+    let mut planes: Vec<TruthPlanes> = truth.iter().map(|_| TruthPlanes::default()).collect();
     for round in 0..=rounds {
         let index = 1000 + round as u64;
         let f = pipeline.frame(&pose, &settings, index)?;
@@ -74,9 +77,9 @@ pub fn measure(
             alone_s.push(t0.elapsed().as_secs_f64());
         }
         let mut truths = Vec::new();
-        for ch in truth {
+        for (ch, planes) in truth.iter().zip(&mut planes) {
             let t0 = Instant::now();
-            std::hint::black_box(pipeline.truth(&pose, &Default::default(), *ch)?);
+            std::hint::black_box(pipeline.truth_into(&pose, &Default::default(), *ch, planes)?);
             truths.push(t0.elapsed().as_secs_f64());
         }
         // Round 0 warms the truth pass's and the sensor's first use.

@@ -17,7 +17,8 @@
 mod pass;
 mod planes;
 
-pub use pass::{render_truth, render_truth_reference, render_truth_with};
+pub use pass::{render_truth, render_truth_into, render_truth_reference, render_truth_with};
+pub use planes::TruthPlanes;
 
 use crate::render::target::Material;
 

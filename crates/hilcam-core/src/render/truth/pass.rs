@@ -10,7 +10,7 @@
 //!
 //! [`Accel::closest_prims`]: crate::render::geometry::Accel::closest_prims
 
-use super::planes::{self, Band, TruthPixel};
+use super::planes::{self, Band, TruthPixel, TruthPlanes};
 use super::{TruthChannels, TruthImage};
 use crate::render::camera::{PixelRect, View};
 use crate::render::cull::coverage::Coverage;
@@ -41,6 +41,21 @@ pub fn render_truth_with(
     channels: TruthChannels,
     coverage: Option<&Coverage>,
 ) -> TruthImage {
+    let mut planes = TruthPlanes::default();
+    render_truth_into(target, view, channels, coverage, &mut planes);
+    planes.take().expect("the truth was just computed")
+}
+
+/// [`render_truth_with`] into `planes` kept from earlier truths (of any view, size or
+/// channels): the same bytes as a new truth's, without allocating or filling the planes
+/// again ([`TruthPlanes`]).
+pub fn render_truth_into<'p>(
+    target: &Target,
+    view: &View,
+    channels: TruthChannels,
+    coverage: Option<&Coverage>,
+    planes: &'p mut TruthPlanes,
+) -> &'p TruthImage {
     let (width, height) = view.size();
     let rect = if target.accel.is_empty() { None } else { view.pixel_rect() };
     let mut own = Coverage::default();
@@ -48,7 +63,7 @@ pub fn render_truth_with(
         Some(rect) => coverage.or_else(|| own.from_leaf_boxes(target, view, rect).then_some(&own)),
         None => None,
     };
-    let mut out = planes::fill(width, height, channels, PACKET_ROWS, |band| {
+    let out = planes::fill(planes, width, height, channels, PACKET_ROWS, |band| {
         if let Some(rect) = rect {
             trace_band(target, view, rect, coverage, band);
         }

@@ -1,13 +1,16 @@
-//! The truth planes, each pixel written once.
+//! The truth planes, kept from frame to frame.
 //!
-//! At 1024² a plane is 4 MiB and the all-channel truth has eight of them. Filled with
-//! their miss values first (one thread) and then overwritten where a ray hits, they
-//! cost more than a third of the pass; here each band of rows is filled by the thread
-//! that traces it, just before it does, into memory that was never initialised.
+//! At 1024² a plane is 4 MiB and the all-channel truth has eight of them. Allocated and
+//! filled with their miss values for every frame, they cost a sixth of the pass; kept in
+//! a [`TruthPlanes`], only the rows the last truth wrote hits into are set back to misses
+//! (by the thread that then traces them), as the frame's image is cleared. Every pixel
+//! outside those rows already holds its miss, so the bytes do not depend on what was
+//! computed before.
 
 use super::{TruthChannel, TruthChannels, TruthImage};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
+use std::ops::Range;
 
 /// What one pixel-centre ray hits.
 pub(super) struct TruthPixel {
@@ -17,7 +20,31 @@ pub(super) struct TruthPixel {
     pub body: [f32; 3],
 }
 
-/// Rows `row0..row0 + rows` of every plane asked for, holding their misses until written.
+/// A truth's planes, kept by whoever asks for truth frame after frame
+/// (`render_truth_into`, `FramePipeline::truth_into`): after the first frame of a size
+/// and channel set nothing is allocated and only the rows hit last time are cleared.
+#[derive(Default)]
+pub struct TruthPlanes {
+    image: Option<TruthImage>,
+    /// Rows of `image` that may hold hits; every other pixel of each plane of full length
+    /// holds its miss.
+    hit_rows: Range<u32>,
+}
+
+impl TruthPlanes {
+    /// The last truth computed into these planes.
+    pub fn image(&self) -> Option<&TruthImage> {
+        self.image.as_ref()
+    }
+
+    /// The last truth, leaving no planes (the next truth allocates them again).
+    pub fn take(&mut self) -> Option<TruthImage> {
+        self.hit_rows = 0..0;
+        self.image.take()
+    }
+}
+
+/// Rows `row0..row0 + rows` of every plane asked for, holding misses until written.
 pub(super) struct Band<'a> {
     pub row0: u32,
     pub rows: u32,
@@ -26,6 +53,8 @@ pub(super) struct Band<'a> {
     depth: Option<&'a mut [f32]>,
     normal: Option<[&'a mut [f32]; 3]>,
     body: Option<[&'a mut [f32]; 3]>,
+    /// Rows (image rows) `put` wrote a hit into.
+    hit: Range<u32>,
 }
 
 impl Band<'_> {
@@ -43,101 +72,182 @@ impl Band<'_> {
                 }
             }
         }
+        self.hit = match self.hit.is_empty() {
+            true => row..row + 1,
+            false => self.hit.start.min(row)..self.hit.end.max(row + 1),
+        };
     }
 }
 
-/// A `width` × `height` truth of `channels`: `trace` runs on bands of `band_rows` rows in
-/// parallel, each band's pixels set to misses first by its own thread (mask 0, depth +∞,
-/// NaN vectors).
-pub(super) fn fill(
+/// A `width` × `height` truth of `channels` in `planes`: `trace` runs on bands of
+/// `band_rows` rows in parallel, each band's pixels that may hold an earlier truth's hits
+/// set to misses first by its own thread (mask 0, depth +∞, NaN vectors): the rows hit
+/// last time in a plane kept, every row in a plane new to these planes.
+pub(super) fn fill<'p>(
+    planes: &'p mut TruthPlanes,
     width: u32,
     height: u32,
     channels: TruthChannels,
     band_rows: u32,
     trace: impl Fn(&mut Band) + Sync,
-) -> TruthImage {
+) -> &'p mut TruthImage {
     let n = width as usize * height as usize;
-    let room = |c| if channels.contains(c) { n } else { 0 };
-    let mut mask: Vec<u32> = Vec::with_capacity(n);
-    let mut depth: Vec<f32> = Vec::with_capacity(room(TruthChannel::Depth));
-    let mut normal: [Vec<f32>; 3] = std::array::from_fn(|_| Vec::with_capacity(room(TruthChannel::Normal)));
-    let mut body: [Vec<f32>; 3] = std::array::from_fn(|_| Vec::with_capacity(room(TruthChannel::BodyXyz)));
+    let kept = planes.image.take().filter(|t| (t.width, t.height) == (width, height));
+    let stale = if kept.is_some() { planes.hit_rows.clone() } else { 0..0 };
+    let mut t = kept.unwrap_or_else(|| TruthImage {
+        width,
+        height,
+        channels,
+        mask: Vec::new(),
+        materials: None,
+        depth: Vec::new(),
+        normal: Default::default(),
+        body_xyz: Default::default(),
+    });
+    t.channels = channels;
     let w = width as usize;
-    let chunk = w * band_rows.max(1) as usize;
-    if n > 0 {
-        let mut depth_bands = bands(&mut depth, n, chunk);
-        let mut normal_bands = normal.each_mut().map(|p| bands(p, n, chunk));
-        let mut body_bands = body.each_mut().map(|p| bands(p, n, chunk));
-        let raw: Vec<_> = bands(&mut mask, n, chunk)
+    let rows = band_rows.max(1);
+    let chunk = w * rows as usize;
+    let ask = |c| channels.contains(c).then_some(n);
+    let mut hit = 0..0;
+    {
+        let mut depth = parts(&mut t.depth, ask(TruthChannel::Depth), chunk);
+        let mut normal = t.normal.each_mut().map(|p| parts(p, ask(TruthChannel::Normal), chunk));
+        let mut body = t.body_xyz.each_mut().map(|p| parts(p, ask(TruthChannel::BodyXyz), chunk));
+        let raw: Vec<_> = parts(&mut t.mask, Some(n), chunk)
             .enumerate()
-            .map(|(k, m)| RawBand {
-                row0: k as u32 * band_rows.max(1),
-                mask: m,
-                depth: depth_bands.next(),
-                normal: three(&mut normal_bands),
-                body: three(&mut body_bands),
+            .map(|(k, mask)| RawBand {
+                row0: k as u32 * rows,
+                mask,
+                depth: depth.next(),
+                normal: three(&mut normal),
+                body: three(&mut body),
             })
             .collect();
-        raw.into_par_iter().for_each(|b| trace(&mut b.init(w)));
+        if n > 0 {
+            hit = raw
+                .into_par_iter()
+                .map(|b| {
+                    let mut b = b.init(w, &stale);
+                    trace(&mut b);
+                    b.hit
+                })
+                .reduce(|| 0..0, union);
+        }
     }
-    // SAFETY: `RawBand::init` wrote every element of the first `n` of each plane asked
-    // for (`n` > 0: `bands` cut them all into bands); the others have no capacity and stay
-    // empty.
+    // SAFETY: a plane asked for is either `n` long already or has room for `n` elements
+    // that `RawBand::init` has all written (`n` > 0: `parts` cut them into the bands).
     unsafe {
-        for p in std::iter::once(&mut depth).chain(&mut normal).chain(&mut body) {
-            if p.capacity() >= n && n > 0 {
+        for (p, c) in [(&mut t.depth, TruthChannel::Depth)]
+            .into_iter()
+            .chain(t.normal.iter_mut().map(|p| (p, TruthChannel::Normal)))
+            .chain(t.body_xyz.iter_mut().map(|p| (p, TruthChannel::BodyXyz)))
+        {
+            if channels.contains(c) && n > 0 {
                 p.set_len(n);
             }
         }
-        mask.set_len(n);
+        if n > 0 {
+            t.mask.set_len(n);
+        }
     }
-    TruthImage { width, height, channels, mask, materials: None, depth, normal, body_xyz: body }
+    planes.hit_rows = hit;
+    planes.image.insert(t)
 }
 
-type Uninit<'a, T> = &'a mut [MaybeUninit<T>];
+/// The smallest range holding both.
+fn union(a: Range<u32>, b: Range<u32>) -> Range<u32> {
+    match (a.is_empty(), b.is_empty()) {
+        (true, _) => b,
+        (_, true) => a,
+        _ => a.start.min(b.start)..a.end.max(b.end),
+    }
+}
 
-/// A band's parts of the planes before its thread writes them.
+/// A band's part of one plane before its thread clears it.
+enum Part<'a, T> {
+    /// Kept from the last truth: misses outside the rows it hit.
+    Kept(&'a mut [T]),
+    /// Never initialised.
+    Fresh(&'a mut [MaybeUninit<T>]),
+}
+
+impl<'a, T: Copy> Part<'a, T> {
+    /// The part with every pixel a miss, given that a kept one may hold hits only in
+    /// `stale` (element ranges of the part).
+    fn init(self, stale: Range<usize>, miss: T) -> &'a mut [T] {
+        match self {
+            Part::Kept(p) => {
+                let (a, b) = (stale.start.min(p.len()), stale.end.min(p.len()));
+                if a < b {
+                    p[a..b].fill(miss);
+                }
+                p
+            }
+            Part::Fresh(c) => {
+                c.fill(MaybeUninit::new(miss));
+                // SAFETY: every element was just written; `MaybeUninit<T>` has `T`'s layout.
+                unsafe { &mut *(c as *mut [MaybeUninit<T>] as *mut [T]) }
+            }
+        }
+    }
+}
+
+/// A plane's bands of `chunk` elements: none when the plane is not asked for (`n` None;
+/// it is emptied, keeping its memory), its kept elements when it is `n` long, else room for
+/// `n` elements never initialised.
+fn parts<T>(v: &mut Vec<T>, n: Option<usize>, chunk: usize) -> std::vec::IntoIter<Part<'_, T>> {
+    let chunk = chunk.max(1);
+    let parts: Vec<_> = match n {
+        None => {
+            v.clear();
+            Vec::new()
+        }
+        Some(n) if v.len() == n => v.chunks_mut(chunk).map(Part::Kept).collect(),
+        Some(n) => {
+            v.clear();
+            v.reserve_exact(n);
+            v.spare_capacity_mut()[..n].chunks_mut(chunk).map(Part::Fresh).collect()
+        }
+    };
+    parts.into_iter()
+}
+
+/// The next band of three planes.
+fn three<'a>(p: &mut [std::vec::IntoIter<Part<'a, f32>>; 3]) -> Option<[Part<'a, f32>; 3]> {
+    let [x, y, z] = p.each_mut().map(|it| it.next());
+    Some([x?, y?, z?])
+}
+
+/// A band's parts of the planes before its thread clears them.
 struct RawBand<'a> {
     row0: u32,
-    mask: Uninit<'a, u32>,
-    depth: Option<Uninit<'a, f32>>,
-    normal: Option<[Uninit<'a, f32>; 3]>,
-    body: Option<[Uninit<'a, f32>; 3]>,
+    mask: Part<'a, u32>,
+    depth: Option<Part<'a, f32>>,
+    normal: Option<[Part<'a, f32>; 3]>,
+    body: Option<[Part<'a, f32>; 3]>,
 }
 
 impl<'a> RawBand<'a> {
-    /// The band with every pixel a miss.
-    fn init(self, width: usize) -> Band<'a> {
-        let rows = (self.mask.len() / width.max(1)) as u32;
+    /// The band with every pixel a miss, given that kept planes hold hits only in the
+    /// image rows `stale`.
+    fn init(self, width: usize, stale: &Range<u32>) -> Band<'a> {
+        let len = match &self.mask {
+            Part::Kept(p) => p.len(),
+            Part::Fresh(p) => p.len(),
+        };
+        let rows = (len / width.max(1)) as u32;
+        let (a, b) = (stale.start.max(self.row0), stale.end.min(self.row0 + rows));
+        let span = if a < b { (a - self.row0) as usize * width..(b - self.row0) as usize * width } else { 0..0 };
         Band {
             row0: self.row0,
             rows,
             width,
-            mask: init(self.mask, 0),
-            depth: self.depth.map(|d| init(d, f32::INFINITY)),
-            normal: self.normal.map(|p| p.map(|c| init(c, f32::NAN))),
-            body: self.body.map(|p| p.map(|c| init(c, f32::NAN))),
+            mask: self.mask.init(span.clone(), 0),
+            depth: self.depth.map(|d| d.init(span.clone(), f32::INFINITY)),
+            normal: self.normal.map(|p| p.map(|c| c.init(span.clone(), f32::NAN))),
+            body: self.body.map(|p| p.map(|c| c.init(span.clone(), f32::NAN))),
+            hit: 0..0,
         }
     }
-}
-
-/// The first `n` elements of `v`'s spare capacity in chunks of `chunk`; none when `v`
-/// has no room for `n` (a channel not asked for).
-fn bands<T>(v: &mut Vec<T>, n: usize, chunk: usize) -> std::vec::IntoIter<Uninit<'_, T>> {
-    let spare = v.spare_capacity_mut();
-    let parts: Vec<_> = if spare.len() < n { Vec::new() } else { spare[..n].chunks_mut(chunk).collect() };
-    parts.into_iter()
-}
-
-/// `c` filled with `miss`, as initialised values.
-fn init<T: Copy>(c: Uninit<'_, T>, miss: T) -> &mut [T] {
-    c.fill(MaybeUninit::new(miss));
-    // SAFETY: every element was just written; `MaybeUninit<T>` has `T`'s layout.
-    unsafe { &mut *(c as *mut [MaybeUninit<T>] as *mut [T]) }
-}
-
-/// The next band of three planes.
-fn three<'a>(p: &mut [std::vec::IntoIter<Uninit<'a, f32>>; 3]) -> Option<[Uninit<'a, f32>; 3]> {
-    let [x, y, z] = p.each_mut().map(|it| it.next());
-    Some([x?, y?, z?])
 }
