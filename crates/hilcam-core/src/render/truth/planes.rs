@@ -83,14 +83,14 @@ impl Band<'_> {
 /// `band_rows` rows in parallel, each band's pixels that may hold an earlier truth's hits
 /// set to misses first by its own thread (mask 0, depth +∞, NaN vectors): the rows hit
 /// last time in a plane kept, every row in a plane new to these planes.
-pub(super) fn fill<'p>(
-    planes: &'p mut TruthPlanes,
+pub(super) fn fill(
+    planes: &mut TruthPlanes,
     width: u32,
     height: u32,
     channels: TruthChannels,
     band_rows: u32,
     trace: impl Fn(&mut Band) + Sync,
-) -> &'p mut TruthImage {
+) -> &mut TruthImage {
     let n = width as usize * height as usize;
     let kept = planes.image.take().filter(|t| (t.width, t.height) == (width, height));
     let stale = if kept.is_some() { planes.hit_rows.clone() } else { 0..0 };
