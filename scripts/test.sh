@@ -138,14 +138,15 @@ lap "SocketCAN tests ($vcan_mode)"
 
 # The bench build: the binary without the lab (--no-default-features) builds, and its
 # command line has no lab subcommand. Without the lab hilcam-core's features differ, so it
-# is compiled again: unoptimised here (the checks below render nothing), which takes a
-# third of the time; dependencies keep their opt-level 3 artifacts and are reused.
+# is compiled again: unoptimised here, the binary too (the checks below render nothing),
+# which takes a third of the time; dependencies keep their artifacts and are reused.
 # `cargo test` built target/debug/hilcam (the lab build, its dependencies' features
 # unified with the tests'); it is kept aside ($lab_bin) and put back after, rather than
 # rebuilt: a plain `cargo build` unifies features without the dev-dependencies and
 # recompiled half the tree (~150 s).
 bench_build() {
-  CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam
+  CARGO_PROFILE_DEV_OPT_LEVEL=0 cargo build --quiet --no-default-features --bin hilcam \
+    --config 'profile.dev.package.hilcam.opt-level=0'
   local dir
   dir=$(mktemp -d)
   cp -p target/debug/hilcam "$dir/hilcam"
