@@ -386,23 +386,13 @@ impl Frame<'_> {
     ) {
         let empty = if dark_max < noise::POISSON_EXACT_BELOW { 1.0 - dark_max } else { -1.0 };
         let mut s = *st;
-        let tally = dark_run::run(
-            self.key,
-            first,
-            out,
-            well,
-            dark_run::empty_threshold(empty),
-            |i, o| {
-                // Rare (a probability of about `dark_max`): the pixel's own path, its sums
-                // but the expected charge (counted below with the others').
-                let e = s.expected;
-                *o = self.dark_pixel(d, dark(i), first + i as u64, &mut s);
-                s.expected = e;
-            },
-            |i| {
-                std::hint::black_box(dark(i));
-            },
-        );
+        let tally = dark_run::run(self.key, first, out, well, dark_run::empty_threshold(empty), |i, o| {
+            // Rare (a probability of about `dark_max`): the pixel's own path, its sums
+            // but the expected charge (counted below with the others').
+            let e = s.expected;
+            *o = self.dark_pixel(d, dark(i), first + i as u64, &mut s);
+            s.expected = e;
+        });
         s.dn += tally.dn;
         s.low += tally.low;
         s.high += tally.high;

@@ -14,9 +14,6 @@ use super::stream::PixelStream;
 const CHUNK: usize = 64;
 const _: () = assert!(CHUNK <= TALLY_RUN);
 
-/// Chunks whose rare pixels are taken together (at most this many chunks' worth).
-const RARE: usize = 4;
-
 /// The largest 32-bit value `x` with `(x + ½)·2⁻³² ≤ empty`: the integer form of the
 /// test on a first draw's low bits that an empty well passes (None when none does).
 pub fn empty_threshold(empty: f64) -> Option<u32> {
@@ -39,12 +36,6 @@ pub fn empty_threshold(empty: f64) -> Option<u32> {
 /// Codes of the pixels `first..first + out.len()` under frame key `key`: an empty well
 /// read from `well` when the low bits of the pixel's first shot draw are at most
 /// `threshold`, else `rare(i, out_i)`. Returns what the table's codes add to the row's sums.
-///
-/// The rare pixels are taken in order after those of up to [`RARE`] chunks, each first
-/// `warm(i)`: what a rare pixel reads beyond its draws (its DSNU value, far from
-/// anything else the run reads) is then fetched for all of them at once, not one
-/// cache miss after another. (The table's codes are summed apart, so the sums do not
-/// change.)
 #[inline(always)]
 pub fn run(
     key: u64,
@@ -53,7 +44,6 @@ pub fn run(
     well: &EmptyWell,
     threshold: Option<u32>,
     mut rare: impl FnMut(usize, &mut u16),
-    warm: impl Fn(usize),
 ) -> Tally {
     let mut tally = Tally::default();
     let Some(t) = threshold else {
@@ -63,10 +53,7 @@ pub fn run(
         return tally;
     };
     let mut h = [0u64; CHUNK];
-    let (mut pending, mut n) = ([0u32; RARE * CHUNK], 0);
-    let (len, chunks) = (out.len(), out.len().div_ceil(CHUNK));
-    for k in 0..chunks {
-        let chunk = &mut out[k * CHUNK..((k + 1) * CHUNK).min(len)];
+    for (k, chunk) in out.chunks_mut(CHUNK).enumerate() {
         let p0 = first + (k * CHUNK) as u64;
         let h = &mut h[..chunk.len()];
         PixelStream::first_draws(key, p0, 0, h);
@@ -77,18 +64,10 @@ pub fn run(
                 packed += v;
                 *o = v as u16;
             } else {
-                pending[n] = (k * CHUNK + i) as u32;
-                n += 1;
+                rare(k * CHUNK + i, o);
             }
         }
         tally.add(packed);
-        if n > (RARE - 1) * CHUNK || k + 1 == chunks {
-            pending[..n].iter().for_each(|&i| warm(i as usize));
-            for &i in &pending[..n] {
-                rare(i as usize, &mut out[i as usize]);
-            }
-            n = 0;
-        }
     }
     tally
 }

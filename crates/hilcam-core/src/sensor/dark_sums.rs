@@ -1,15 +1,14 @@
 //! The mean dark charge summed over a run of pixels without reading each pixel's DSNU
-//! value: per 16-pixel chunk of the array, what the sum needs, computed once per sensor.
+//! value: per 64-pixel chunk of the array, what the sum needs, computed once per sensor.
 //!
 //! A pixel's mean dark charge is `max(0, I_d·t + DSNU·t·z₂)`. Whether the clamp acts
 //! does not depend on `t`, so over a chunk the sum is `n₊·I_d·t + DSNU·t·Σ₊z₂` (the
 //! pixels with `I_d + DSNU·z₂ > 0`), to rounding; its largest value is that of the
 //! chunk's largest `z₂`, exactly (the charge grows with `z₂`). A frame's dark runs, 84 %
-//! of the satellite frame's pixels, then read 20 bytes per 16 pixels instead of 64, and
-//! only a run's ends pixel by pixel.
+//! of the satellite frame's pixels, then read 16 bytes per 64 pixels instead of 256.
 
-/// Pixels per chunk (chunk `k` holds pixels `16k..16k + 16` of the array).
-const CHUNK: usize = 16;
+/// Pixels per chunk (chunk `k` holds pixels `64k..64k + 64` of the array).
+const CHUNK: usize = 64;
 
 /// Per chunk of the array: how many pixels have a positive mean dark charge, the sum of
 /// their DSNU values, and the largest DSNU value.

@@ -142,7 +142,6 @@ fn histogram_above<T: Copy + Ord + Into<usize> + Sync>(data: &[T], low: T) -> (u
                 mixed(sixteens.remainder(), &mut below);
                 for c in sixteens {
                     // A loop the compiler vectorises; black sky ends here.
-                    let c: &[T; 16] = c.try_into().expect("16 values");
                     if c.iter().fold(low, |m, &v| m.max(v)) == low {
                         below += 16;
                     } else {
