@@ -206,9 +206,9 @@ mod tests {
     fn the_histogram_above_a_level_gives_the_same_percentiles() {
         // Mostly a low floor (in runs, and single values among bright ones), some bright.
         let mut r = crate::render::sampling::Rng::from_state(11);
-        let data: Vec<u16> = (0..300_000)
+        let data: Vec<u16> = (0..300_000u32)
             .map(|i| {
-                let bright = (i / 1000) % 9 == 0 || r.next_u32() % 500 == 0;
+                let bright = (i / 1000).is_multiple_of(9) || r.next_u32().is_multiple_of(500);
                 if bright { 40 + (r.next_u32() % 900) as u16 } else { 30 + (r.next_u32() % 5) as u16 }
             })
             .collect();

@@ -143,7 +143,7 @@ impl<'a> LitPath<'a> {
             s.mc.above_shot += t.above_shot;
             // The sums that depend on the order, in column order.
             let out = &mut out[c0..c0 + n];
-            for j in 0..n {
+            for (j, o) in out.iter_mut().enumerate() {
                 if b.fast[j] {
                     s.expected += b.lam[j];
                     s.max_expected = s.max_expected.max(b.lam[j]);
@@ -153,9 +153,9 @@ impl<'a> LitPath<'a> {
                         s.mc.ratio2 += b.r2[j];
                         s.mc.var_e2 += b.ve[j];
                     }
-                    out[j] = b.code[j];
+                    *o = b.code[j];
                 } else {
-                    out[j] = rare(c0 + j, b.l[j], b.v[j], &mut s);
+                    *o = rare(c0 + j, b.l[j], b.v[j], &mut s);
                 }
             }
             c0 += n;
@@ -219,8 +219,9 @@ impl<'a> LitPath<'a> {
             c.high += (fast & high) as u64;
             c.dn += if fast { code as u64 } else { 0 };
             if MC {
-                // `McRow::add`: a pixel is lit from 1 e⁻ of photo-charge; shot noise is on.
-                let lit = fast & !(photo < 1.0);
+                // `McRow::add`: a pixel is lit from 1 e⁻ of photo-charge (`photo` is not NaN
+                // on the path: λ ≥ 30); shot noise is on.
+                let lit = fast & (photo >= 1.0);
                 let cam = lam + read_e2;
                 let r2 = if cam > 0.0 { ve / cam } else { 0.0 };
                 c.lit += lit as u64;
