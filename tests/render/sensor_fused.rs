@@ -159,3 +159,29 @@ fn the_fused_pass_is_the_chain_stage_by_stage() {
     let airy = scaled("nav2048.toml", w, h);
     check("Airy PSF", &Sensor::new(&airy.camera, &airy.sensor).unwrap(), &img, Some(&var));
 }
+
+/// Lit pixels from a few electrons to twice the full well, through an ADC that clips at
+/// both ends: every branch of the lit pixels' block path and of the pixels it hands back.
+#[test]
+fn the_lit_pixels_block_path_is_the_chain_at_every_level() {
+    let (w, h) = (150, 100);
+    let (mut img, mut var) = frame(w, h);
+    for (i, (l, v)) in img.data.iter_mut().zip(&mut var).enumerate() {
+        // From about 1 e⁻ to 2 full wells (at 50 µs, 11 000 e⁻ ≈ 47 W·sr⁻¹·m⁻²).
+        let f = 10f32.powf(((i * 7919) % 1000) as f32 / 1000.0 * 5.0 - 2.0);
+        (*l, *v) = (*l * f, *v * f * f);
+    }
+    let mut p = scaled("nav1024.toml", w, h);
+    let adc = p.sensor.adc.as_mut().unwrap();
+    (adc.gain_e_per_dn, adc.offset_dn) = (8.0, 0.5);
+    let nav = Sensor::new(&p.camera, &p.sensor).unwrap();
+    let (got, _) = fused(&nav, &img, Some(&var), 9, 1);
+    let (zero, max) = (got.iter().filter(|&&d| d == 0).count(), got.iter().filter(|&&d| d == 1023).count());
+    assert!(zero > 100 && max > 100, "{zero} pixels at 0, {max} at 1023");
+    check("bright, clipping", &nav, &img, Some(&var));
+    check("bright, clipping, no variance", &nav, &img, None);
+    p.sensor.detector.as_mut().unwrap().noise = NoiseMode::Substitute;
+    check("bright, clipping, substitute", &Sensor::new(&p.camera, &p.sensor).unwrap(), &img, Some(&var));
+    p.sensor.detector.as_mut().unwrap().full_well_e = None;
+    check("bright, no full well", &Sensor::new(&p.camera, &p.sensor).unwrap(), &img, Some(&var));
+}

@@ -62,19 +62,28 @@ impl Adc {
     /// nearest code (halves up), so an input of exactly k·gain reads k + offset.
     #[inline]
     pub fn convert(&self, electrons: f64) -> Conversion {
-        // `electrons · (1/gain)` differs from the quotient by a few ulp, and the sum by at
-        // most 8·2⁻⁵³·(|q| + offset + 1); only when it lies that close to an integer can
-        // the floors differ, and then the quotient decides (tolerance 2⁻⁴⁰·(…)). The same
-        // code as the division, bit for bit, without its latency on nearly every call.
+        let (v, sure) = self.round_fast(electrons);
+        let v = if sure { v } else { floor(self.offset_dn + electrons / self.gain_e_per_dn + 0.5) };
+        self.clip(v)
+    }
+
+    /// `⌊offset + e·(1/gain) + ½⌋`, and whether it is surely the quotient's code.
+    /// `electrons · (1/gain)` differs from the quotient by a few ulp, and the sum by at
+    /// most 8·2⁻⁵³·(|q| + offset + 1); only when it lies that close to an integer can
+    /// the floors differ, and then the quotient decides (tolerance 2⁻⁴⁰·(…)). The same
+    /// code as the division, bit for bit, without its latency on nearly every call.
+    #[inline(always)]
+    pub fn round_fast(&self, electrons: f64) -> (f64, bool) {
         let q = electrons * self.inv_gain;
         let x = self.offset_dn + q + 0.5;
         let v = floor(x);
         let tol = (q.abs() + self.offset_dn.abs() + 1.0) * (1.0 / 1_099_511_627_776.0);
-        let v = if x - v < tol || v + 1.0 - x < tol {
-            floor(self.offset_dn + electrons / self.gain_e_per_dn + 0.5)
-        } else {
-            v
-        };
+        (v, !(x - v < tol || v + 1.0 - x < tol))
+    }
+
+    /// The code of an integer `v` (before clipping).
+    #[inline(always)]
+    pub fn clip(&self, v: f64) -> Conversion {
         if v < 0.0 {
             Conversion::ClippedLow
         } else if v >= self.max_dn as f64 {

@@ -13,8 +13,10 @@
 
 use super::adc::{Adc, Conversion};
 use super::dark_run;
+use super::dark_sums::DarkSums;
 use super::detector::{Detector, FixedPattern, PixelCharge};
 use super::empty_well::EmptyWell;
+use super::lit_run::{Block, LitPath};
 use super::mc_noise::McRow;
 use super::noise;
 use super::optics_plan::PsfPlan;
@@ -57,6 +59,10 @@ struct Frame<'a> {
     substitute: bool,
     /// How a pixel without charge reads (with a detector whose shot noise is on).
     well: Option<&'a EmptyWell>,
+    /// The lit pixels' block path, where the detector allows it.
+    lit: Option<LitPath<'a>>,
+    /// The dark charge's sums per chunk of the array (with a cached fixed pattern).
+    dark_sums: Option<&'a DarkSums>,
 }
 
 /// What every band of a frame reads.
@@ -104,6 +110,8 @@ struct Scratch {
     acc: Vec<f64>,
     rad: Vec<f32>,
     var: Vec<f32>,
+    /// The lit pixels' block.
+    block: Box<Block>,
 }
 
 impl Sensor {
@@ -136,7 +144,10 @@ impl Sensor {
             k: variance.map(|_| k),
             substitute: self.cfg.detector.as_ref().is_some_and(|d| d.noise == super::NoiseMode::Substitute),
             well: self.empty_well.as_deref().filter(|_| det.is_some_and(|d| d.shot_noise)),
+            lit: None,
+            dark_sums: self.dark_sums.as_deref(),
         };
+        let f = Frame { lit: det.and_then(|d| LitPath::new(d, adc, f.k, f.substitute)), ..f };
         let mut dn = vec![0u16; w * h];
         let mut rows = vec![RowStats::default(); h];
         let band = Band { f: &f, whole: whole.as_ref(), img, variance };
@@ -177,7 +188,8 @@ impl Sensor {
                     let rad = &rad[r * w..(r + 1) * w];
                     let var = var.as_ref().map(|v| &v[r * w..(r + 1) * w]);
                     let vrow = var.map(|v| (v, nonzero_span(v)));
-                    f.row(r, (rad, nonzero_span(rad)), vrow, &mut out[(r - r0) * w..], &mut stats[r - r0]);
+                    let (o, st) = (&mut out[(r - r0) * w..], &mut stats[r - r0]);
+                    f.row(r, (rad, nonzero_span(rad)), vrow, &mut s.block, o, st);
                 }
             }
             (None, PsfPlan::Separable(psf)) => self.band_separable(f, psf, img, variance, r0, r1, s, out, stats),
@@ -185,7 +197,7 @@ impl Sensor {
                 for r in r0..r1 {
                     let rad = self.optics_row(&img.data[r * w..(r + 1) * w], r, false, &mut s.rad);
                     let var = variance.map(|v| self.optics_row(&v[r * w..(r + 1) * w], r, true, &mut s.var));
-                    f.row(r, rad, var, &mut out[(r - r0) * w..], &mut stats[r - r0]);
+                    f.row(r, rad, var, &mut s.block, &mut out[(r - r0) * w..], &mut stats[r - r0]);
                 }
             }
         }
@@ -251,7 +263,8 @@ impl Sensor {
                 let input = |iy: usize| (&hvar[(iy - i0) * w..(iy - i0 + 1) * w], vspan[iy - i0]);
                 psf.vertical_var(r, input, &mut s.acc, &mut s.var)
             });
-            f.row(r, (&s.rad, rs), vs.map(|vs| (&s.var[..], vs)), &mut out[(r - r0) * w..], &mut stats[r - r0]);
+            let (o, st) = (&mut out[(r - r0) * w..], &mut stats[r - r0]);
+            f.row(r, (&s.rad, rs), vs.map(|vs| (&s.var[..], vs)), &mut s.block, o, st);
         }
     }
 
@@ -297,13 +310,25 @@ impl Frame<'_> {
     /// Convert row `r`: radiance `rad` (zero outside its span), Monte Carlo variance `var`
     /// (likewise; None without a report), into `out`.
     #[inline(always)]
-    fn row(&self, r: usize, rad: (&[f32], Span), var: Option<(&[f32], Span)>, out: &mut [u16], st: &mut RowStats) {
+    fn row(
+        &self,
+        r: usize,
+        rad: (&[f32], Span),
+        var: Option<(&[f32], Span)>,
+        block: &mut Block,
+        out: &mut [u16],
+        st: &mut RowStats,
+    ) {
         let w = rad.0.len();
         let lit = union(rad.1, var.map_or((0, 0), |v| v.1));
         let (a, b) = if lit.0 >= lit.1 { (w, w) } else { lit };
         let key0 = self.keys.key(r as u32, 0);
         self.dark(key0, &mut out[..a], st);
         self.dark(key0 + b as u64, &mut out[b..w], st);
+        if let Some(path) = &self.lit {
+            let rare = |c: usize, l, v, st: &mut RowStats| self.pixel(l, v, key0 + c as u64, st);
+            return path.run(self.key, key0, (a, b), rad, var, block, out, st, rare);
+        }
         let at = |(v, (s0, s1)): (&[f32], Span), c: usize| if c >= s0 && c < s1 { v[c] as f64 } else { 0.0 };
         for (c, o) in out.iter_mut().enumerate().take(b).skip(a) {
             let v = var.map_or(0.0, |v| at(v, c));
@@ -323,9 +348,9 @@ impl Frame<'_> {
         };
         let z = self.fixed_pattern.map(|fp| (fp, fp.dsnu_run(first, out.len())));
         match (self.well, z, d.dark_max()) {
-            (Some(well), None, Some(max)) => self.dark_table_run(d, well, first, out, |_| d.dark_e, max, st),
+            (Some(well), None, Some(max)) => self.dark_table_run(d, well, first, out, |_| d.dark_e, None, max, st),
             (Some(well), Some((_, Some(z))), Some(max)) => {
-                self.dark_table_run(d, well, first, out, |i| d.dark_z(z[i]), max, st)
+                self.dark_table_run(d, well, first, out, |i| d.dark_z(z[i]), Some(z), max, st)
             }
             _ => {
                 let dark = |i: usize| match z {
@@ -343,7 +368,8 @@ impl Frame<'_> {
     /// (the same draws and codes), with what most of them share taken out of the loop.
     /// Every mean dark charge is at most `dark_max`, so a first draw at or below
     /// `1 − dark_max` is an empty well without computing the pixel's own mean
-    /// ([`dark_run::run`]); the run's expected charge is summed apart, in four lanes
+    /// ([`dark_run::run`]); the run's expected charge is summed apart: from the DSNU
+    /// values `z` through the chunks' sums where the sensor has them, else in four lanes
     /// (column mod 4).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -354,6 +380,7 @@ impl Frame<'_> {
         first: u64,
         out: &mut [u16],
         dark: impl Fn(usize) -> f64,
+        z: Option<&[f32]>,
         dark_max: f64,
         st: &mut RowStats,
     ) {
@@ -369,6 +396,13 @@ impl Frame<'_> {
         s.dn += tally.dn;
         s.low += tally.low;
         s.high += tally.high;
+        if let (Some(z), Some(sums)) = (z, self.dark_sums) {
+            let (sum, max) = sums.sum(first, z, |z| d.dark_z(z), d.dark_e, d.dsnu_e);
+            s.expected += sum;
+            s.max_expected = s.max_expected.max(max);
+            *st = s;
+            return;
+        }
         let (mut lanes, mut max) = ([0.0f64; 4], [s.max_expected; 4]);
         let n4 = out.len() / 4 * 4;
         for c in (0..n4).step_by(4) {

@@ -71,6 +71,13 @@ impl FixedPattern {
         self.map.as_ref().map(|m| &m.dsnu[first as usize..first as usize + n])
     }
 
+    /// The (PRNU, DSNU) values of pixels `first..first + n`, when the pattern is cached.
+    #[inline]
+    pub fn runs(&self, first: u64, n: usize) -> Option<(&[f32], &[f32])> {
+        let r = first as usize..first as usize + n;
+        self.map.as_ref().map(|m| (&m.prnu[r.clone()], &m.dsnu[r]))
+    }
+
     /// The largest DSNU value of any pixel, when the pattern is cached.
     pub fn dsnu_max(&self) -> Option<f32> {
         self.map.as_ref().map(|m| m.dsnu_max)

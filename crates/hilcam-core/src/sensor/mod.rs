@@ -13,7 +13,9 @@
 //! - [`ziggurat`]: exact standard normal variates, fast.
 //! - [`noise`]: Poisson variates; the fixed pattern's normals.
 //! - [`empty_well`]: the DN of a pixel without charge, drawn from its exact distribution;
-//!   `dark_run`: a run of such pixels, their draws hashed a chunk at a time.
+//!   `dark_run`: a run of such pixels, their draws hashed a chunk at a time;
+//!   `dark_sums`: their mean dark charge summed per chunk of the array.
+//! - `lit_run`: a row's lit pixels, a block at a time on one branch-free path.
 //! - [`adc`]: gain, offset, bit depth, clipping.
 //! - [`exposure`]: auto-exposure state across frames.
 //! - [`ptc`]: photon-transfer measurement (gain and read noise from flat fields).
@@ -37,9 +39,11 @@ pub mod adc;
 pub mod config;
 mod convert;
 mod dark_run;
+mod dark_sums;
 pub mod detector;
 pub mod empty_well;
 pub mod exposure;
+mod lit_run;
 pub mod mc_noise;
 pub mod noise;
 pub mod optics;
@@ -103,6 +107,8 @@ pub struct Sensor {
     /// The DN distribution of an empty well (with a detector whose shot noise is on and DN
     /// output): how the dark pixels are read.
     empty_well: Option<Arc<empty_well::EmptyWell>>,
+    /// The mean dark charge's sums per chunk of the array (with a cached fixed pattern).
+    dark_sums: Option<Arc<dark_sums::DarkSums>>,
 }
 
 /// One converted frame.
@@ -186,6 +192,17 @@ impl Sensor {
             }
             _ => None,
         };
+        let fixed_pattern = cfg.detector.as_ref().and_then(|d| {
+            (d.prnu.unwrap_or(0.0) > 0.0 || d.dsnu_e_per_s.unwrap_or(0.0) > 0.0)
+                .then(|| detector::FixedPattern::new(d.fpn_seed, camera.width as usize * camera.height as usize))
+        });
+        let dark_sums = match (&cfg.detector, &fixed_pattern) {
+            (Some(d), Some(fp)) => fp.dsnu_run(0, camera.width as usize * camera.height as usize).map(|z| {
+                let (i_d, dsnu) = (d.dark_current_e_per_s.unwrap_or(0.0), d.dsnu_e_per_s.unwrap_or(0.0));
+                Arc::new(dark_sums::DarkSums::new(z, i_d, dsnu))
+            }),
+            _ => None,
+        };
         Ok(Sensor {
             camera: camera.clone(),
             cfg: cfg.clone(),
@@ -197,10 +214,8 @@ impl Sensor {
             e_per_radiance_s: optics::electrons_per_radiance_second(cfg, camera),
             adc,
             empty_well,
-            fixed_pattern: cfg.detector.as_ref().and_then(|d| {
-                (d.prnu.unwrap_or(0.0) > 0.0 || d.dsnu_e_per_s.unwrap_or(0.0) > 0.0)
-                    .then(|| detector::FixedPattern::new(d.fpn_seed, camera.width as usize * camera.height as usize))
-            }),
+            fixed_pattern,
+            dark_sums,
             window,
         })
     }

@@ -65,12 +65,20 @@ impl Ziggurat {
         if x.abs() < self.x[i + 1] { x } else { self.edge(s, i, x) }
     }
 
-    /// Layer `i` from the low 8 bits; x = u·x_i with u uniform on [−1, 1) from the top 52.
+    /// Layer `i` from the low 8 bits; x = u·x_i with u from [`unit`].
     #[inline(always)]
     fn point(&self, bits: u64) -> (usize, f64) {
         let i = (bits & 0xff) as usize;
-        let u = 2.0 * ((bits >> 12) as i64 as f64 * (1.0 / 4_503_599_627_370_496.0)) - 1.0;
-        (i, u * self.x[i])
+        (i, unit(bits) * self.x[i])
+    }
+
+    /// The width of the layer `bits` picks and the next one's, `(x_i, x_{i+1})`: a draw
+    /// `x = unit(bits)·x_i` with `|x| < x_{i+1}` is returned as it is by
+    /// [`Ziggurat::normal`] (for a caller that does the rest of that test itself).
+    #[inline(always)]
+    pub fn layer(&self, bits: u64) -> (f64, f64) {
+        let i = (bits & 0xff) as usize;
+        (self.x[i], self.x[i + 1])
     }
 
     /// A point outside layer `i`'s inner rectangle: the tail (layer 0) or the wedge test,
@@ -92,6 +100,16 @@ impl Ziggurat {
             }
         }
     }
+}
+
+/// u uniform on [−1, 1) from the top 52 bits of `bits`: `2·(bits >> 12)·2⁻⁵² − 1`, the
+/// integer converted by placing it in a double's mantissa (exact below 2⁵², and a few
+/// vector instructions, where `as f64` of a 64-bit integer is not one before AVX-512).
+#[inline(always)]
+pub fn unit(bits: u64) -> f64 {
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+    let m = f64::from_bits((bits >> 12) | TWO52.to_bits()) - TWO52;
+    2.0 * (m * (1.0 / TWO52)) - 1.0
 }
 
 /// A variate beyond `R` (or below −`R`), by Marsaglia's exponential rejection.
@@ -116,5 +134,15 @@ mod tests {
         let y = t.f[255] + V / t.x[255];
         assert!((y - 1.0).abs() < 1e-12, "{y}");
         assert!(t.x.windows(2).all(|w| w[0] > w[1]));
+    }
+
+    #[test]
+    fn unit_is_the_top_52_bits_converted() {
+        let mut s = PixelStream::new(5, 1, 0);
+        for bits in [0, u64::MAX, 1 << 63, 0xfff, 0x1000].into_iter().chain((0..10_000).map(|_| s.next_u64())) {
+            let want = 2.0 * ((bits >> 12) as i64 as f64 * (1.0 / 4_503_599_627_370_496.0)) - 1.0;
+            assert_eq!(unit(bits).to_bits(), want.to_bits(), "{bits:#x}");
+        }
+        assert_eq!((unit(0), unit(u64::MAX)), (-1.0, 1.0 - 2.0f64.powi(-51)));
     }
 }
