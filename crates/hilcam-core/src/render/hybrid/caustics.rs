@@ -25,19 +25,21 @@ use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Photons along a cache cell's edge, on the plane facing the sun: ~2 M for the
-/// satellite at 8, ~8 M at 16 (where its noise count stops falling; docs/render.md).
-const PER_CELL_EDGE: f32 = 16.0;
+/// Photons along a cache cell's edge, on the plane facing the sun: ~8 M for the satellite
+/// at 16, ~32 M at 32. On the gold satellite at 256², the photons alone (every other part's
+/// seed held) left 13.2 % of lit pixels above half the camera's noise at 16 and 5.3 % at 32;
+/// 48 gains 2 points more for 2.25 × the photons (docs/render.md).
+const PER_CELL_EDGE: f32 = 32.0;
 
 /// A caustic cell's edge, in cache cells: the photons' flux is gathered over cells this
 /// much coarser (a mirrored sun at 8 photons per cache-cell edge left a cache cell of a
-/// large triangle ~11 photons, 28 % rms; with these cells and 16 per edge, 5.6 % rms in
-/// `tests/render/hybrid_caustics.rs`).
+/// large triangle ~11 photons, 28 % rms; `tests/render/hybrid_caustics.rs`). Coarser still
+/// (8) took the gold satellite's photon share from 13.2 % to 10.6 % only, and blurs more.
 const COARSER: f32 = 4.0;
 
 /// Most photons along the disc's diameter (bounds a frame's cost where the target's
 /// bounding sphere is much larger than its detail, e.g. parts far apart).
-const MAX_GRID: u32 = 4096;
+const MAX_GRID: u32 = 8192;
 
 /// Lobe strata along each side of a block of photons.
 const STRATA: u32 = 8;
@@ -115,7 +117,7 @@ impl Caustics {
                     let n = if hit.normal.dot(ctx.sun) < 0.0 { -hit.normal } else { hit.normal };
                     let at = ShadingBasis::from_normal(n);
                     // The lobe's square stratified over each block of STRATA × STRATA
-                    // neighbouring photons (half a cache cell's edge), shifted at random
+                    // neighbouring photons (a quarter of a cache cell's edge), shifted at random
                     // per block: what lands in a cell comes from many blocks' evenly
                     // spread fans rather than independent draws.
                     let u = (glam::Vec2::new((i % STRATA) as f32, (j % STRATA) as f32) + rng.next_2d()) / STRATA as f32;
