@@ -59,9 +59,9 @@ fn a_face_whose_fan_folds_is_reported_by_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("l.obj"), obj).unwrap();
     std::fs::write(dir.path().join("ok.obj"), ok).unwrap();
-    let folded = hilcam_core::scene::model::load_model(&dir.path().join("l.obj")).unwrap();
+    let folded = hilcam_core::scene::load_model(&dir.path().join("l.obj")).unwrap();
     assert_eq!(folded.notes.len(), 1, "{:?}", folded.notes);
     assert!(folded.notes[0].contains("folds over itself") && folded.notes[0].ends_with("l.obj:7"));
-    let fine = hilcam_core::scene::model::load_model(&dir.path().join("ok.obj")).unwrap();
+    let fine = hilcam_core::scene::load_model(&dir.path().join("ok.obj")).unwrap();
     assert!(fine.notes.is_empty(), "{:?}", fine.notes);
 }

@@ -30,6 +30,14 @@ pub fn keep_frame_pages() -> bool {
     }
 }
 
+/// Grow `v`'s capacity to at least `cap` (never shrinks): a frame's scratch buffers take
+/// the largest size any earlier frame needed, so a steady stream allocates nothing.
+pub fn reserve_to<T>(v: &mut Vec<T>, cap: usize) {
+    if v.capacity() < cap {
+        v.reserve_exact(cap - v.len());
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

@@ -12,6 +12,7 @@ use super::cull::SilhouetteBuffers;
 use super::cull::coverage::Coverage;
 use super::cull::visibility::PrimaryRaster;
 use super::integrator::waves::{CameraSample, Scratch};
+use crate::heap::reserve_to;
 use crate::render::camera::View;
 use crate::render::film::RadianceImage;
 use crate::render::sampling::{Rng, SobolStream};
@@ -217,12 +218,5 @@ impl<S> Workers<S> {
         // cleared before use anyway.
         let mut scratch = self.0[i].lock().unwrap_or_else(|e| e.into_inner());
         f(&mut scratch)
-    }
-}
-
-/// Grow `v`'s capacity to at least `cap` (never shrinks).
-pub(super) fn reserve_to<T>(v: &mut Vec<T>, cap: usize) {
-    if v.capacity() < cap {
-        v.reserve_exact(cap - v.len());
     }
 }

@@ -48,43 +48,28 @@
 //! texture_filter = "mip"       # the default; "bilinear": full resolution (docs/brdf.md)
 //! ```
 
-use super::limits;
+use super::limits::{self, validate_camera};
 use super::material_entry::MaterialEntry;
-use super::model::load_model;
-use super::texture_file::TextureRef;
-use super::textures::Slot;
+use super::mesh_entries::{MeshEntry, WrapEntry, apply_wraps, load_meshes};
+use super::scene_error::At;
 use super::{Material, Scene, SceneParts};
 use crate::pose::Pose;
 use crate::render::camera::CameraModel;
-use crate::render::geometry::{BvhLayout, TriMesh};
+use crate::render::geometry::BvhLayout;
 use crate::render::integrator::{Method, QualityGoal, QualityMode, RenderSettings, SamplerKind, Spp};
 use crate::render::sampling::Sequence;
 use crate::render::stars::catalogue::Selection;
 use crate::render::stars::{StarField, band_zero_point_w_m2};
 use crate::render::texture::TextureFilter;
-use crate::scene::fold::{
-    FoldLevel, FoldTarget, MAX_WRAP_TRIANGLES, fit_for_edge, fit_panel_triangle_estimate, wrap_faces_report,
-    wrap_triangle_estimate,
-};
-use crate::sensor::{CameraPreset, SensorConfig};
-use glam::{DQuat, DVec3, EulerRot};
+use crate::sensor::SensorConfig;
+use glam::{DQuat, DVec3};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use toml::Spanned;
 
-#[derive(Debug, thiserror::Error)]
-pub enum SceneError {
-    #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
-    /// toml's message already says "at line L, column C".
-    #[error("{path}: {message}")]
-    Parse { path: PathBuf, message: String },
-    #[error("{path}:{line}: {field}: {message}")]
-    Field { path: PathBuf, line: usize, field: String, message: String },
-    #[error("{path}: {field}: {message}")]
-    Missing { path: PathBuf, field: String, message: String },
-}
+pub use super::camera_file::{CAMERA_PRESETS, camera_by_name_or_file, camera_preset, load_camera_file};
+pub use super::scene_error::SceneError;
+use toml::Spanned;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -158,47 +143,6 @@ fn brightest() -> f64 {
 }
 fn faintest() -> f64 {
     30.0
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct WrapEntry {
-    material: String,
-    /// slight | medium | severe (the paper's levels), or give e_plane and var.
-    level: Option<String>,
-    e_plane: Option<f64>,
-    var: Option<f64>,
-    /// Target edge length of the subdivided faces, metres.
-    #[serde(default = "default_edge")]
-    edge_m: Spanned<f32>,
-    #[serde(default)]
-    seed: u64,
-}
-
-fn default_edge() -> Spanned<f32> {
-    Spanned::new(0..0, 0.02)
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct MeshEntry {
-    obj: Spanned<PathBuf>,
-    #[serde(default = "zero3")]
-    translate: Spanned<[f64; 3]>,
-    #[serde(default = "zero3")]
-    rotate_deg: Spanned<[f64; 3]>,
-    #[serde(default = "one")]
-    scale: Spanned<f64>,
-    /// Use this scene material for every face, whatever the MTL says.
-    material: Option<Spanned<String>>,
-}
-
-fn zero3() -> Spanned<[f64; 3]> {
-    Spanned::new(0..0, [0.0; 3])
-}
-
-fn one() -> Spanned<f64> {
-    Spanned::new(0..0, 1.0)
 }
 
 #[derive(Deserialize)]
@@ -356,11 +300,6 @@ impl Default for RenderSection {
     }
 }
 
-/// 1-based line of a byte offset.
-fn line_of(src: &str, offset: usize) -> usize {
-    src[..offset.min(src.len())].bytes().filter(|b| *b == b'\n').count() + 1
-}
-
 /// Load and build a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     load_with_layout(path, None)
@@ -383,167 +322,25 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     let file: SceneFile =
         toml::from_str(src).map_err(|e| SceneError::Parse { path: path.to_path_buf(), message: e.to_string() })?;
     let dir = path.parent().unwrap_or(Path::new("."));
-    let field = |span: std::ops::Range<usize>, field: &str, message: String| SceneError::Field {
-        path: path.to_path_buf(),
-        line: line_of(src, span.start),
-        field: field.to_string(),
-        message,
-    };
+    let at = At { path, src };
 
     let l = &file.limits;
     let scene_limits =
         limits::SceneLimits::checked(*l.max_range_m.get_ref(), *l.max_scale.get_ref()).map_err(|(key, m)| {
             let span = if key == "max_range_m" { l.max_range_m.span() } else { l.max_scale.span() };
-            field(span, &format!("limits.{key}"), m)
+            at.field(span, &format!("limits.{key}"), m)
         })?;
-
     let irradiance = *file.sun.irradiance.get_ref();
     limits::in_range(irradiance, limits::IRRADIANCE_W_M2, " W/m²")
-        .map_err(|m| field(file.sun.irradiance.span(), "sun.irradiance", m))?;
+        .map_err(|m| at.field(file.sun.irradiance.span(), "sun.irradiance", m))?;
     // A model file's emission is relative to sunlit white: E/π × its value.
     let sunlit_white = irradiance / std::f64::consts::PI;
 
-    // Materials, in name order (BTreeMap) so indices are stable.
-    let mut materials = Vec::new();
-    for (name, spec) in &file.materials {
-        let entry = spec.get_ref();
-        let bsdf = entry.bsdf.build().map_err(|e| field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
-        materials.push(Material { name: name.clone(), bsdf, emission: entry.emission as f32 });
-    }
-    let index_of = |materials: &[Material], name: &str| materials.iter().position(|m| m.name == name).map(|i| i as u32);
-
-    // Meshes, transformed into the body frame.
-    if file.mesh.is_empty() {
-        return Err(SceneError::Missing {
-            path: path.to_path_buf(),
-            field: "mesh".into(),
-            message: "a scene needs at least one [[mesh]]".into(),
-        });
-    }
-    let mut mesh = TriMesh::default();
-    // Materials built from a model file, and which file: a later file's different
-    // definition of the same name is reported.
-    let mut authored_from: Vec<(u32, PathBuf)> = Vec::new();
-    // Textured materials (scene index, what the texture gives, texture) and the UVs of every triangle so far
-    // (empty until a textured model comes: textureless scenes store none).
-    let mut textures_named: Vec<(u32, Slot, TextureRef)> = Vec::new();
-    let mut uv: Vec<[glam::Vec2; 3]> = Vec::new();
-    for (k, entry) in file.mesh.iter().enumerate() {
-        let fname = format!("mesh[{k}].obj");
-        let obj_path = dir.join(entry.obj.get_ref());
-        let loaded = load_model(&obj_path).map_err(|m| field(entry.obj.span(), &fname, m))?;
-        for note in &loaded.notes {
-            tracing::warn!(mesh = %obj_path.display(), "{note}");
-        }
-        let scale = *entry.scale.get_ref();
-        limits::in_range(scale, (limits::SCALE.0, scene_limits.max_scale), "").map_err(|m| {
-            let hint = if scale > scene_limits.max_scale { LIMITS_HINT } else { "" };
-            field(entry.scale.span(), &format!("mesh[{k}].scale"), m + hint)
-        })?;
-        let translate = *entry.translate.get_ref();
-        for v in translate {
-            limits::in_range(v, (-limits::TRANSLATE_M, limits::TRANSLATE_M), " m")
-                .map_err(|m| field(entry.translate.span(), &format!("mesh[{k}].translate"), m))?;
-        }
-        let rotate_deg = *entry.rotate_deg.get_ref();
-        for v in rotate_deg {
-            limits::in_range(v, (-limits::ROTATE_DEG, limits::ROTATE_DEG), "°")
-                .map_err(|m| field(entry.rotate_deg.span(), &format!("mesh[{k}].rotate_deg"), m))?;
-        }
-        // Map each MTL name to a scene material: its [materials.NAME] table, or else the
-        // MTL's own definition (built once, its unused keys reported once).
-        let mut map = Vec::new();
-        for name in &loaded.material_names {
-            let target = entry.material.as_ref().map(|m| m.get_ref().as_str()).unwrap_or(name);
-            if let Some(i) = index_of(&materials, target) {
-                // A name two model files define differently: the first definition is used, and said.
-                if let Some((_, first)) = authored_from.iter().find(|(j, f)| *j == i && *f != obj_path)
-                    && entry.material.is_none()
-                    && let Some(Ok(mine)) = loaded.authored(name)
-                    && mine.bsdf != materials[i as usize].bsdf
-                {
-                    tracing::warn!(
-                        material = %name,
-                        "material `{name}` of {} differs from the one {} defines: the first is used (rename one, or give [materials.{name}])",
-                        obj_path.display(),
-                        first.display()
-                    );
-                }
-                map.push(i);
-                continue;
-            }
-            let authored = entry.material.is_none().then(|| loaded.authored(name)).flatten();
-            if let Some(built) = authored {
-                let built = built.map_err(|m| field(entry.obj.span(), &fname, m))?;
-                for note in &built.notes {
-                    tracing::warn!(material = %name, "{note}");
-                }
-                tracing::info!(material = %name, file = %obj_path.display(), bsdf = %super::authored::describe(&built.bsdf), "material from the model file");
-                let emission = built.emission.as_ref().map_or(0.0, |e| (f64::from(e.relative) * sunlit_white) as f32);
-                if emission > 0.0 {
-                    tracing::info!(material = %name, radiance = emission, "emitting surface (W·sr⁻¹·m⁻²)");
-                }
-                materials.push(Material { name: name.clone(), bsdf: built.bsdf, emission });
-                let mat = (materials.len() - 1) as u32;
-                let textures = [
-                    (Slot::Base, built.base_texture),
-                    (Slot::Emission, built.emission.and_then(|e| e.texture)),
-                    (Slot::Roughness, built.roughness_texture),
-                    (Slot::Metallic, built.metallic_texture),
-                ];
-                let normal = built.normal_texture.into_iter().flat_map(|(t, scale)| {
-                    (0..3).map(move |axis| {
-                        (Slot::Normal { axis, scale }, Some(TextureRef { channel: Some(axis), ..t.clone() }))
-                    })
-                });
-                for (slot, t) in textures.into_iter().chain(normal) {
-                    let Some(t) = t else { continue };
-                    if loaded.uv.is_empty() {
-                        tracing::warn!(material = %name, "texture `{}` ignored: {} has no texture coordinates (`vt`, TEXCOORD_0) for it; its factor is used: {}", t.name(), obj_path.display(), t.at);
-                    } else {
-                        textures_named.push((mat, slot, t));
-                    }
-                }
-                map.push((materials.len() - 1) as u32);
-                authored_from.push(((materials.len() - 1) as u32, obj_path.clone()));
-                continue;
-            }
-            let (span, what) = match &entry.material {
-                Some(m) => (m.span(), format!("mesh[{k}].material")),
-                None => (entry.obj.span(), fname.clone()),
-            };
-            let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
-            return Err(field(
-                span,
-                &what,
-                format!(
-                    "material `{target}` used by {} has no [materials.{target}] entry and no definition in the model file (scene has: {})",
-                    obj_path.display(),
-                    known.join(", ")
-                ),
-            ));
-        }
-        let [rx, ry, rz] = rotate_deg.map(f64::to_radians);
-        let rot = DQuat::from_euler(EulerRot::ZYX, rz, ry, rx);
-        let t = DVec3::from_array(translate);
-        let mut m = loaded.mesh;
-        for p in &mut m.positions {
-            *p = (rot * (p.as_dvec3() * scale) + t).as_vec3();
-        }
-        for mat in &mut m.material {
-            *mat = map[*mat as usize];
-        }
-        if !loaded.uv.is_empty() {
-            uv.resize(mesh.indices.len(), [glam::Vec2::ZERO; 3]);
-            uv.extend_from_slice(&loaded.uv);
-        }
-        mesh.append(&m);
-    }
-    if !uv.is_empty() {
-        uv.resize(mesh.indices.len(), [glam::Vec2::ZERO; 3]);
-    }
-    if !file.wrap.is_empty() && !textures_named.is_empty() {
-        for (_, _, t) in textures_named.drain(..) {
+    let mut materials = materials_from(&file.materials, at)?;
+    let meshes = load_meshes(&file.mesh, dir, &scene_limits, sunlit_white, &mut materials, at)?;
+    let mut textures = meshes.textures;
+    if !file.wrap.is_empty() {
+        for (_, _, t) in textures.drain(..) {
             tracing::warn!(
                 "texture `{}` ignored: [[wrap]] re-triangulates the mesh and does not carry texture coordinates yet; its factor is used: {}",
                 t.name(),
@@ -551,111 +348,25 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
             );
         }
     }
+    let mesh = apply_wraps(&file.wrap, meshes.mesh, &materials, at)?;
 
-    for (k, w) in file.wrap.iter().enumerate() {
-        let e = w.get_ref();
-        let fail = |m: String| field(w.span(), "wrap", m);
-        let edge_m = *e.edge_m.get_ref();
-        let edge_span = if e.edge_m.span().is_empty() { w.span() } else { e.edge_m.span() };
-        let Some(mat) = index_of(&materials, &e.material) else {
-            return Err(fail(format!("material `{}` is not in [materials]", e.material)));
-        };
-        let target = match (&e.level, e.e_plane, e.var) {
-            (Some(l), None, None) => l.parse::<FoldLevel>().map_err(|x| fail(x.to_string()))?.target(),
-            (None, Some(e_plane), Some(var)) => FoldTarget { e_plane, var },
-            _ => return Err(fail("give either level or both e_plane and var".into())),
-        };
-        // Bound the subdivision before doing it (the fit subdivides a test panel too).
-        let would_make = wrap_triangle_estimate(&mesh, &[mat], edge_m) + fit_panel_triangle_estimate(edge_m);
-        if !(edge_m.is_finite() && edge_m > 0.0 && would_make <= MAX_WRAP_TRIANGLES as f64) {
-            return Err(field(
-                edge_span,
-                &format!("wrap[{k}].edge_m"),
-                format!(
-                    "{edge_m} m would subdivide into {would_make:.3e} triangles (limit {MAX_WRAP_TRIANGLES}); \
-                     use a larger edge_m"
-                ),
-            ));
-        }
-        let fit = fit_for_edge(target, e.seed, edge_m).map_err(|x| fail(x.to_string()))?;
-        let (wrapped, report) = wrap_faces_report(&mesh, &[mat], &fit.params, e.seed, edge_m);
-        tracing::info!(material = %e.material, e_plane = fit.e_plane, var = fit.var, triangles = wrapped.indices.len(), ?report, "folded");
-        mesh = wrapped;
-    }
-
-    // Camera: inline table or a camera file's [camera] (and [sensor]) tables.
-    let (camera, file_sensor) = match (&file.camera, &file.camera_file) {
-        (Some(c), None) => (c.get_ref().clone(), SensorConfig::default()),
-        (None, Some(f)) => {
-            let preset = load_camera_file(&dir.join(f.get_ref())).map_err(|m| field(f.span(), "camera_file", m))?;
-            (preset.camera, preset.sensor)
-        }
-        (Some(c), Some(_)) => {
-            return Err(field(c.span(), "camera", "give either [camera] or camera_file, not both".into()));
-        }
-        (None, None) => {
-            return Err(SceneError::Missing {
-                path: path.to_path_buf(),
-                field: "camera".into(),
-                message: "give a [camera] table or camera_file".into(),
-            });
-        }
-    };
-    let sensor = match &file.sensor {
-        Some(s) => s.get_ref().clone(),
-        None => file_sensor,
-    };
-    if let Err(e) = sensor.validate(&camera) {
-        let span =
-            file.sensor.as_ref().map(|s| s.span()).or(file.camera_file.as_ref().map(|f| f.span())).unwrap_or(0..0);
-        return Err(field(span, "sensor", e.to_string()));
-    }
-    validate_camera(&camera).map_err(|(f, m)| match &file.camera {
-        Some(c) => field(c.span(), &format!("camera.{f}"), m),
-        None => SceneError::Missing { path: path.to_path_buf(), field: format!("camera.{f}"), message: m },
-    })?;
-
+    let (camera, sensor) = camera_and_sensor(&file, dir, at)?;
     let planet = match &file.planet {
         None => None,
-        Some(p) => Some(p.get_ref().build(p.span()).map_err(|(span, f, m)| field(span, &f, m))?),
+        Some(p) => Some(p.get_ref().build(p.span()).map_err(|(span, f, m)| at.field(span, &f, m))?),
     };
     let pose_limits = scene_limits.pose_limits(planet.map(|p| p.radius_m));
-    let pose = pose_from(&file.pose, &pose_limits).map_err(|(span, f, m)| field(span, &f, m))?;
+    let pose = pose_from(&file.pose, &pose_limits).map_err(|(span, f, m)| at.field(span, &f, m))?;
     let background = *file.background.radiance.get_ref();
     limits::in_range(background, limits::BACKGROUND_W_SR_M2, " W·sr⁻¹·m⁻²")
-        .map_err(|m| field(file.background.radiance.span(), "background.radiance", m))?;
-    let r = &file.render;
-    let render = RenderSettings {
-        spp: Spp::try_from(*r.spp.get_ref()).map_err(|e| field(r.spp.span(), "render.spp", e.to_string()))?,
-        depth: *r.depth.get_ref(),
-        sampler: r.sampler,
-        sequence: r.sequence,
-        roulette: r.roulette,
-        adaptive: r.adaptive,
-        quality: QualityGoal {
-            mode: *r.quality.get_ref(),
-            k: QualityGoal::checked_k(*r.sensor_k.get_ref())
-                .map_err(|m| field(r.sensor_k.span(), "render.sensor_k", m))?,
-        },
-        method: r.method,
-        seed: r.seed,
-    };
-    if let Err(m) = crate::sensor::check_quality(&render, &sensor) {
-        return Err(field(r.quality.span(), "render.quality", m));
-    }
-    if !(1..=limits::MAX_DEPTH).contains(&render.depth) {
-        return Err(field(
-            r.depth.span(),
-            "render.depth",
-            format!("must be in 1..={} (1 = direct sunlight only), got {}", limits::MAX_DEPTH, render.depth),
-        ));
-    }
-    let layout = r.bvh.get_ref().check().map_err(|m| field(r.bvh.span(), "render.bvh", m))?;
+        .map_err(|m| at.field(file.background.radiance.span(), "background.radiance", m))?;
+    let render = render_settings(&file.render, &sensor, at)?;
+    let layout = file.render.bvh.get_ref().check().map_err(|m| at.field(file.render.bvh.span(), "render.bvh", m))?;
     let stars = match &file.stars {
         None => None,
-        Some(s) => Some(stars_from(path, src, dir, s, &pose, &sensor, camera.focal_px())?),
+        Some(s) => Some(stars_from(at, dir, s, &pose, &sensor, camera.focal_px())?),
     };
-    let texturing = super::textures::build(&materials, textures_named, uv, file.render.texture_filter);
+    let texturing = super::textures::build(&materials, textures, meshes.uv, file.render.texture_filter);
     Ok(SceneParts {
         texturing,
         mesh,
@@ -673,90 +384,95 @@ pub fn parse(path: &Path, src: &str) -> Result<SceneParts, SceneError> {
     })
 }
 
-/// Added to a range or scale refusal: where the limit is set.
-const LIMITS_HINT: &str = " (raise it with [limits] max_scale, docs/scene.md)";
-
-/// Read a camera file: its `[camera]` table and optional `[sensor]` table.
-pub fn load_camera_file(path: &Path) -> Result<CameraPreset, String> {
-    let preset = CameraPreset::load(path).map_err(|e| e.to_string())?;
-    validate_camera(&preset.camera).map_err(|(f, m)| format!("{}: camera.{f}: {m}", path.display()))?;
-    Ok(preset)
+/// The `[materials.NAME]` tables, in name order (a BTreeMap) so that indices are stable.
+fn materials_from(tables: &BTreeMap<String, Spanned<MaterialEntry>>, at: At) -> Result<Vec<Material>, SceneError> {
+    let mut materials = Vec::new();
+    for (name, spec) in tables {
+        let entry = spec.get_ref();
+        let bsdf =
+            entry.bsdf.build().map_err(|e| at.field(spec.span(), &format!("materials.{name}"), e.to_string()))?;
+        materials.push(Material { name: name.clone(), bsdf, emission: entry.emission as f32 });
+    }
+    Ok(materials)
 }
 
-/// The shipped camera files (`config/cameras/`), by name: what `hilcam render --camera NAME`
-/// and Python's `Camera.preset(NAME)` load, built in so that no file is needed.
-pub const CAMERA_PRESETS: &[(&str, &str)] = &[
-    ("nav1024", include_str!("../../../../config/cameras/nav1024.toml")),
-    ("nav2048", include_str!("../../../../config/cameras/nav2048.toml")),
-    ("paper", include_str!("../../../../config/cameras/paper.toml")),
-];
-
-/// The built-in camera `name` ([`CAMERA_PRESETS`]), checked as a camera file is (camera
-/// and sensor); an unknown name is refused with the known ones.
-pub fn camera_preset(name: &str) -> Result<CameraPreset, String> {
-    let Some((_, text)) = CAMERA_PRESETS.iter().find(|(n, _)| *n == name) else {
-        let known: Vec<_> = CAMERA_PRESETS.iter().map(|(n, _)| *n).collect();
-        return Err(format!("unknown camera preset `{name}` (known: {})", known.join(", ")));
+/// The camera (an inline `[camera]` or a camera file's) and the sensor (`[sensor]`, else
+/// the camera file's, else none), each checked.
+fn camera_and_sensor(file: &SceneFile, dir: &Path, at: At) -> Result<(CameraModel, SensorConfig), SceneError> {
+    let (camera, file_sensor) = match (&file.camera, &file.camera_file) {
+        (Some(c), None) => (c.get_ref().clone(), SensorConfig::default()),
+        (None, Some(f)) => {
+            let preset = load_camera_file(&dir.join(f.get_ref())).map_err(|m| at.field(f.span(), "camera_file", m))?;
+            (preset.camera, preset.sensor)
+        }
+        (Some(c), Some(_)) => {
+            return Err(at.field(c.span(), "camera", "give either [camera] or camera_file, not both".into()));
+        }
+        (None, None) => return Err(at.missing("camera", "give a [camera] table or camera_file".into())),
     };
-    let preset: CameraPreset = toml::from_str(text).map_err(|e| format!("camera preset {name}: {e}"))?;
-    checked_camera_preset(preset, name)
-}
-
-/// A camera preset's name or a camera file's path (anything with a `/` or ending in
-/// `.toml`), loaded and checked (camera and sensor).
-pub fn camera_by_name_or_file(s: &str) -> Result<CameraPreset, String> {
-    if s.contains('/') || s.ends_with(".toml") {
-        let preset = load_camera_file(Path::new(s))?;
-        checked_camera_preset(preset, s)
-    } else {
-        camera_preset(s)
+    let sensor = match &file.sensor {
+        Some(s) => s.get_ref().clone(),
+        None => file_sensor,
+    };
+    if let Err(e) = sensor.validate(&camera) {
+        let span =
+            file.sensor.as_ref().map(|s| s.span()).or(file.camera_file.as_ref().map(|f| f.span())).unwrap_or(0..0);
+        return Err(at.field(span, "sensor", e.to_string()));
     }
+    validate_camera(&camera).map_err(|(f, m)| match &file.camera {
+        Some(c) => at.field(c.span(), &format!("camera.{f}"), m),
+        None => at.missing(&format!("camera.{f}"), m),
+    })?;
+    Ok((camera, sensor))
 }
 
-fn checked_camera_preset(preset: CameraPreset, name: &str) -> Result<CameraPreset, String> {
-    validate_camera(&preset.camera).map_err(|(f, m)| format!("{name}: camera.{f}: {m}"))?;
-    preset.sensor.validate(&preset.camera).map_err(|e| format!("{name}: sensor: {e}"))?;
-    Ok(preset)
-}
-
-/// Size within [`crate::render::camera::MAX_SIDE_PX`] per side, pitch and focal length finite and
-/// in their ranges, the principal point finite and within one image size of the centre.
-pub fn validate_camera(c: &CameraModel) -> Result<(), (&'static str, String)> {
-    c.check_size()?;
-    limits::in_range(c.pitch_um, limits::PITCH_UM, " µm").map_err(|m| ("pitch_um", m))?;
-    limits::in_range(c.focal_mm, limits::FOCAL_MM, " mm").map_err(|m| ("focal_mm", m))?;
-    let bound = f64::from(c.width.max(c.height));
-    for v in c.principal_point_px {
-        limits::in_range(v, (-bound, bound), " px (one image size)").map_err(|m| ("principal_point_px", m))?;
+/// `[render]`: samples, depth, sampler, quality goal (checked against the sensor), method, seed.
+fn render_settings(r: &RenderSection, sensor: &SensorConfig, at: At) -> Result<RenderSettings, SceneError> {
+    let render = RenderSettings {
+        spp: Spp::try_from(*r.spp.get_ref()).map_err(|e| at.field(r.spp.span(), "render.spp", e.to_string()))?,
+        depth: *r.depth.get_ref(),
+        sampler: r.sampler,
+        sequence: r.sequence,
+        roulette: r.roulette,
+        adaptive: r.adaptive,
+        quality: QualityGoal {
+            mode: *r.quality.get_ref(),
+            k: QualityGoal::checked_k(*r.sensor_k.get_ref())
+                .map_err(|m| at.field(r.sensor_k.span(), "render.sensor_k", m))?,
+        },
+        method: r.method,
+        seed: r.seed,
+    };
+    if let Err(m) = crate::sensor::check_quality(&render, sensor) {
+        return Err(at.field(r.quality.span(), "render.quality", m));
     }
-    Ok(())
+    if !(1..=limits::MAX_DEPTH).contains(&render.depth) {
+        return Err(at.field(
+            r.depth.span(),
+            "render.depth",
+            format!("must be in 1..={} (1 = direct sunlight only), got {}", limits::MAX_DEPTH, render.depth),
+        ));
+    }
+    Ok(render)
 }
 
 /// The `[stars]` section's star field: the catalogue read, the zero point from the sensor's
 /// band (or the scene's solar band, 0.45–0.75 µm, without one), placed by the pose's
 /// camera → inertial rotation, which the scene's `[pose]` must give.
 fn stars_from(
-    path: &Path,
-    src: &str,
+    at: At,
     dir: &Path,
     s: &Spanned<StarsSection>,
     pose: &Pose,
     sensor: &SensorConfig,
     focal_px: f64,
 ) -> Result<StarField, SceneError> {
-    let field = |span: std::ops::Range<usize>, f: &str, message: String| SceneError::Field {
-        path: path.to_path_buf(),
-        line: line_of(src, span.start),
-        field: f.to_string(),
-        message,
-    };
+    let field = |span, f: &str, message| at.field(span, f, message);
     let Some(q) = pose.camera_to_inertial else {
-        return Err(SceneError::Missing {
-            path: path.to_path_buf(),
-            field: "pose.camera_to_inertial".into(),
-            message: "[stars] needs the camera's inertial attitude: give [pose] camera_to_inertial = [w, x, y, z]"
-                .into(),
-        });
+        return Err(at.missing(
+            "pose.camera_to_inertial",
+            "[stars] needs the camera's inertial attitude: give [pose] camera_to_inertial = [w, x, y, z]".into(),
+        ));
     };
     let st = s.get_ref();
     if st.min_vmag.is_nan() || st.max_vmag.is_nan() || st.min_vmag > st.max_vmag {

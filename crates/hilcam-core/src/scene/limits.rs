@@ -186,8 +186,21 @@ pub fn checked_scaled_camera(
     let scaled = c.scaled(width, height);
     let named = |(field, m): (&str, String)| format!("--width/--height: the scaled camera's {field} {m}");
     scaled.check_size().map_err(named)?;
-    crate::scene::file::validate_camera(&scaled).map_err(named)?;
+    validate_camera(&scaled).map_err(named)?;
     Ok(scaled)
+}
+
+/// Size within [`crate::render::camera::MAX_SIDE_PX`] per side, pitch and focal length finite and
+/// in their ranges, the principal point finite and within one image size of the centre.
+pub fn validate_camera(c: &crate::render::camera::CameraModel) -> Result<(), (&'static str, String)> {
+    c.check_size()?;
+    in_range(c.pitch_um, PITCH_UM, " µm").map_err(|m| ("pitch_um", m))?;
+    in_range(c.focal_mm, FOCAL_MM, " mm").map_err(|m| ("focal_mm", m))?;
+    let bound = f64::from(c.width.max(c.height));
+    for v in c.principal_point_px {
+        in_range(v, (-bound, bound), " px (one image size)").map_err(|m| ("principal_point_px", m))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

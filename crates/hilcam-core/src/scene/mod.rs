@@ -3,17 +3,20 @@
 
 pub mod authored;
 mod base64;
+pub mod camera_file;
 pub mod file;
 pub mod fold;
 pub mod gltf;
 pub mod limits;
 pub mod material_entry;
+mod mesh_entries;
 pub mod model;
 pub mod mtl;
 pub mod mtl_bsdf;
 pub mod obj;
 pub mod obj_faces;
 pub mod planet;
+mod scene_error;
 pub mod texture_file;
 mod textures;
 
@@ -27,6 +30,7 @@ use crate::sensor::SensorConfig;
 
 pub use crate::render::target::Material;
 pub use file::{SceneError, load};
+pub use mesh_entries::load_model;
 
 /// Default band irradiance of the sun, W/m² over 0.45–0.75 µm (the paper's value).
 pub const SOLAR_BAND_IRRADIANCE: f64 = 593.1;

@@ -1,11 +1,10 @@
 //! A `[[mesh]]` file of either kind — OBJ + MTL or glTF 2.0 (`.gltf`, `.glb`) — as the
-//! scene builder needs it: triangles, a material name per triangle, and the materials
+//! scene builder needs it (`obj` and `gltf` load one): triangles, a material name per triangle, and the materials
 //! as the file's author defined them.
 
 use super::authored::AuthoredBsdf;
 use super::mtl::MtlMaterial;
 use crate::render::geometry::TriMesh;
-use std::path::Path;
 
 /// The materials a model file defines itself.
 pub enum AuthoredMaterials {
@@ -35,17 +34,5 @@ impl ModelMesh {
             AuthoredMaterials::Mtl(defs) => defs.iter().find(|m| m.name == name).map(super::mtl_bsdf::bsdf_from_mtl),
             AuthoredMaterials::Gltf(defs) => defs.iter().find(|(n, _)| n == name).map(|(_, b)| b.clone()),
         }
-    }
-}
-
-/// Load an OBJ, or a glTF file by its extension (`.gltf`, `.glb`, any case).
-///
-/// # Errors
-/// A message naming the file (and line or place where there is one).
-pub fn load_model(path: &Path) -> Result<ModelMesh, String> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
-    match ext.as_deref() {
-        Some("gltf" | "glb") => super::gltf::load_gltf(path),
-        _ => super::obj::load_obj(path),
     }
 }

@@ -17,10 +17,10 @@ use super::dark_sums::DarkSums;
 use super::detector::{Detector, FixedPattern, PixelCharge};
 use super::empty_well::EmptyWell;
 use super::lit_run::{Block, LitPath};
-use super::mc_noise::McRow;
 use super::noise;
 use super::optics_plan::PsfPlan;
 use super::psf_band::{Span, nonzero_span, union};
+use super::row_stats::RowStats;
 use super::stream::{PixelNoise, PixelStream, frame_key};
 use super::{Sensor, SensorError};
 use crate::render::camera::PixelKeys;
@@ -30,20 +30,6 @@ use rayon::prelude::*;
 /// Output rows per band: 32 keeps a band's working rows (40 rows of radiance and of
 /// variance at 1024 columns, 330 KB) in L2 and gives two threads 32 bands to share.
 const BAND_ROWS: usize = 32;
-
-/// Per-row partial sums; reduced in row order so the totals are thread-count independent.
-#[derive(Clone, Copy, Default)]
-pub(super) struct RowStats {
-    pub expected: f64,
-    pub max_expected: f64,
-    pub collected: f64,
-    pub full: u64,
-    pub low: u64,
-    pub high: u64,
-    /// Sum of the codes (exact in an integer, whatever the order).
-    pub dn: u64,
-    pub mc: McRow,
-}
 
 /// What converting one pixel needs, resolved once per frame.
 struct Frame<'a> {

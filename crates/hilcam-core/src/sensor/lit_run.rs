@@ -10,10 +10,10 @@
 //! operations on the same values in the same order: the same bits as the scalar path.
 
 use super::adc::Adc;
-use super::convert::RowStats;
 use super::detector::{Detector, FixedPattern};
 use super::noise::{self, POISSON_EXACT_BELOW};
 use super::psf_band::Span;
+use super::row_stats::RowStats;
 use super::stream::PixelStream;
 use super::ziggurat::{self, Ziggurat};
 

@@ -25,9 +25,9 @@
 //!   `optics_plan`: the optics it runs, planned per sensor and window.
 //!
 //! ```
-//! use crate::render::camera::CameraModel;
-//! use crate::render::film::{Pixels, RadianceImage};
-//! use crate::sensor::{Sensor, SensorConfig};
+//! use hilcam_core::render::camera::CameraModel;
+//! use hilcam_core::render::film::{Pixels, RadianceImage};
+//! use hilcam_core::sensor::{Sensor, SensorConfig};
 //! let cam = CameraModel { width: 4, height: 2, pitch_um: 5.5, focal_mm: 16.0,
 //!                         principal_point_px: [0.0, 0.0] };
 //! let sensor = Sensor::new(&cam, &SensorConfig::default()).unwrap();
@@ -51,6 +51,7 @@ mod optics_plan;
 pub mod psf;
 pub mod psf_band;
 pub mod ptc;
+mod row_stats;
 pub mod shutter;
 pub mod stream;
 pub mod ziggurat;

@@ -11,8 +11,8 @@
 //!   but ~40 k boxes instead of ~150 k triangles and no bucketing, so it is cheap enough
 //!   for frames whose hits come from the tree.
 
+use super::ideal_plane::{floor_i32, ideal_region, slab_x_extent};
 use super::lens_coverage::{self, IdealCells};
-use super::visibility::{floor_i32, ideal_region, slab_x_extent};
 use crate::render::camera::{PixelRect, View};
 use crate::render::target::Target;
 use glam::{DMat3, DVec3};

@@ -15,6 +15,7 @@
 //!   the sample positions used); it marks `coverage` as it bins.
 
 pub mod coverage;
+mod ideal_plane;
 mod lens_coverage;
 mod lens_spans;
 pub mod silhouette;

@@ -4,8 +4,8 @@
 //! layouts on the same rays.
 
 use super::BvhLayout;
-use super::bvh::{Leaf, bvh2_leaves};
 use super::bvh4::Bvh4;
+use super::leaves::{Leaf, bvh2_leaves};
 use obvhs::{
     BvhBuildParams,
     bvh2::{Bvh2, builder::build_bvh2_from_tris},

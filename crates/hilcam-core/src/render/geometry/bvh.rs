@@ -14,10 +14,12 @@ use super::TriMesh;
 #[cfg(feature = "alt-bvh")]
 use super::alt::AltTree;
 use super::bvh8::Bvh8;
+pub use super::leaves::Leaf;
+use super::leaves::bvh2_leaves;
 use glam::{Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
-    bvh2::{Bvh2, builder::build_bvh2_from_tris},
+    bvh2::builder::build_bvh2_from_tris,
     ray::{Ray as ObRay, RayHit},
     rt_triangle::RtTriangle,
     triangle::Triangle,
@@ -91,16 +93,6 @@ pub struct Hit {
     pub material: u32,
 }
 
-/// A leaf of the tree: its bounding box and its primitives `first..first + count` (BVH
-/// order, as [`Accel::vertex_indices`]).
-#[derive(Clone, Copy, Debug)]
-pub struct Leaf {
-    pub min: Vec3,
-    pub max: Vec3,
-    pub first: u32,
-    pub count: u32,
-}
-
 enum Tree {
     Bvh8(Bvh8),
     #[cfg(feature = "alt-bvh")]
@@ -116,17 +108,6 @@ impl TestRay {
     pub fn new(r: &Ray) -> Self {
         TestRay(Accel::ob_ray(r))
     }
-}
-
-/// The leaves of a `Bvh2` (which the wide trees keep).
-pub(super) fn bvh2_leaves(b: &Bvh2) -> Vec<Leaf> {
-    let leaf = |n: &obvhs::bvh2::node::Bvh2Node| Leaf {
-        min: n.aabb().min.into(),
-        max: n.aabb().max.into(),
-        first: n.first_index,
-        count: n.prim_count,
-    };
-    b.nodes.iter().filter(|n| n.is_leaf()).map(leaf).collect()
 }
 
 /// BVH plus the triangles laid out in the BVH's primitive order (no indirection while

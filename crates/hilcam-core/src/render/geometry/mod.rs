@@ -9,6 +9,7 @@ pub mod bvh4;
 pub mod bvh8;
 pub mod closest_packet;
 mod lane_triangle;
+mod leaves;
 pub mod mesh;
 pub mod parts;
 pub mod shadow_packet;

@@ -92,7 +92,7 @@ impl<S> Scratch<S> {
     /// Grow each buffer to at least the capacity of `other`'s (see
     /// `buffers::Workers::equalise`).
     pub(in crate::render) fn grow_like(&mut self, other: &Self) {
-        use crate::render::buffers::reserve_to;
+        use crate::heap::reserve_to;
         reserve_to(&mut self.paths, other.paths.capacity());
         reserve_to(&mut self.rays, other.rays.capacity());
         reserve_to(&mut self.ideal, other.ideal.capacity());

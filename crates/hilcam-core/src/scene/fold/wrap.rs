@@ -111,26 +111,56 @@ pub fn wrap_faces_report(
     let selected: Vec<bool> = mesh.material.iter().map(|m| materials.contains(m)).collect();
     report.selected_triangles = selected.iter().filter(|&&s| s).count();
 
-    // 1. Weld by exact position.
-    let mut by_pos: HashMap<[u32; 3], u32> = HashMap::new();
-    let canon: Vec<u32> = mesh
-        .positions
-        .iter()
-        .enumerate()
-        .map(|(i, p)| *by_pos.entry(p.to_array().map(f32::to_bits)).or_insert(i as u32))
-        .collect();
-    let tri = |t: usize| mesh.indices[t].map(|v| canon[v as usize]);
-    let pos = |v: u32| mesh.positions[v as usize].as_dvec3();
+    let welded = Welded::new(mesh);
+    let (plane_of, mut planes) = group_planes(&welded, &selected, params, seed);
+    report.planes = planes.len();
+    let topo = Topology::new(welded, plane_of, &selected, &mut planes, &mut report);
+    let out = subdivide(&topo, &planes, params, edge_m, &mut report);
+    let out = compact(out);
+    report.output_triangles = out.indices.len();
+    tracing::debug!(?report, "wrap done");
+    (out, report)
+}
 
-    // 2. Planes of selected triangles.
-    let mut plane_of: Vec<Option<usize>> = vec![None; mesh.indices.len()];
+/// Step 1: the mesh with its vertices welded by exact position.
+struct Welded<'m> {
+    mesh: &'m TriMesh,
+    /// Each vertex's first vertex at the same position.
+    canon: Vec<u32>,
+}
+
+impl<'m> Welded<'m> {
+    fn new(mesh: &'m TriMesh) -> Self {
+        let mut by_pos: HashMap<[u32; 3], u32> = HashMap::new();
+        let canon = mesh
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *by_pos.entry(p.to_array().map(f32::to_bits)).or_insert(i as u32))
+            .collect();
+        Welded { mesh, canon }
+    }
+
+    fn tri(&self, t: usize) -> [u32; 3] {
+        self.mesh.indices[t].map(|v| self.canon[v as usize])
+    }
+
+    fn pos(&self, v: u32) -> DVec3 {
+        self.mesh.positions[v as usize].as_dvec3()
+    }
+}
+
+/// Step 2: the planes of the selected triangles (each triangle's, `None` for unselected
+/// or degenerate ones), each with its chart and fold field.
+fn group_planes(w: &Welded, selected: &[bool], params: &FoldParams, seed: u64) -> (Vec<Option<usize>>, Vec<Plane>) {
+    let mut plane_of: Vec<Option<usize>> = vec![None; w.mesh.indices.len()];
     let mut planes: Vec<Plane> = Vec::new();
     let mut plane_key: HashMap<[i64; 4], usize> = HashMap::new();
-    for t in 0..mesh.indices.len() {
+    for t in 0..w.mesh.indices.len() {
         if !selected[t] {
             continue;
         }
-        let [a, b, c] = tri(t).map(pos);
+        let [a, b, c] = w.tri(t).map(|v| w.pos(v));
         let n = (b - a).cross(c - a);
         if n.length() <= 0.0 || !n.is_finite() {
             continue; // degenerate: copied through below
@@ -158,70 +188,100 @@ pub fn wrap_faces_report(
         });
         plane_of[t] = Some(id);
     }
-    report.planes = planes.len();
+    (plane_of, planes)
+}
 
-    // Edge use: which triangles touch each (welded) edge.
-    let mut edge_tris: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
-    for t in 0..mesh.indices.len() {
-        let v = tri(t);
-        for e in 0..3 {
-            let (p, q) = (v[e], v[(e + 1) % 3]);
-            edge_tris.entry((p.min(q), p.max(q))).or_default().push(t);
-        }
-    }
-    // An edge of a selected triangle is free when every triangle on it is selected and
-    // in the same plane (an open boundary edge, used once, is free too).
-    let edge_free = |e: &(u32, u32)| {
-        let ts = &edge_tris[e];
-        let p0 = plane_of[ts[0]];
-        p0.is_some() && ts.iter().all(|&t| plane_of[t] == p0)
-    };
-    let mut pinned_vertex: HashMap<u32, bool> = HashMap::new();
-    let mut pinned_edges: Vec<(u32, u32)> = edge_tris.keys().copied().filter(|e| !edge_free(e)).collect();
-    pinned_edges.sort_unstable(); // deterministic order for the taper lists
-    for &(p, q) in &pinned_edges {
-        pinned_vertex.insert(p, true);
-        pinned_vertex.insert(q, true);
-        let mut ps: Vec<usize> = edge_tris[&(p, q)].iter().filter_map(|&t| plane_of[t]).collect();
-        ps.dedup();
-        for id in ps {
-            planes[id].pinned.push((pos(p), pos(q)));
-        }
-    }
-    // Vertices touched by an unselected triangle, or by two planes, stay put as well.
-    let mut vertex_plane: HashMap<u32, Option<usize>> = HashMap::new();
-    for (t, &pl) in plane_of.iter().enumerate() {
-        for v in tri(t) {
-            let prev = *vertex_plane.entry(v).or_insert(pl);
-            if pl.is_none() || prev != pl {
-                pinned_vertex.insert(v, true);
+/// Which (welded) edges and vertices stay put.
+struct Topology<'m> {
+    welded: Welded<'m>,
+    plane_of: Vec<Option<usize>>,
+    /// Which triangles touch each (welded) edge, (low, high).
+    edge_tris: HashMap<(u32, u32), Vec<usize>>,
+    pinned_vertex: HashMap<u32, bool>,
+}
+
+impl<'m> Topology<'m> {
+    /// Pins the edges that are not free (filling each plane's pinned list for its taper)
+    /// and the vertices an unselected triangle or a second plane touches.
+    fn new(
+        welded: Welded<'m>,
+        plane_of: Vec<Option<usize>>,
+        selected: &[bool],
+        planes: &mut [Plane],
+        report: &mut WrapReport,
+    ) -> Self {
+        let mut edge_tris: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+        for t in 0..welded.mesh.indices.len() {
+            let v = welded.tri(t);
+            for e in 0..3 {
+                let (p, q) = (v[e], v[(e + 1) % 3]);
+                edge_tris.entry((p.min(q), p.max(q))).or_default().push(t);
             }
         }
-    }
-    report.pinned_edges = pinned_edges.iter().filter(|e| edge_tris[e].iter().any(|&t| selected[t])).count();
-    for p in &mut planes {
-        p.pinned.dedup();
-        if p.pinned.len() > MAX_TAPER_EDGES {
-            report.untapered_planes += 1;
+        let mut topo = Topology { welded, plane_of, edge_tris, pinned_vertex: HashMap::new() };
+        let mut pinned_edges: Vec<(u32, u32)> = topo.edge_tris.keys().copied().filter(|e| !topo.edge_free(e)).collect();
+        pinned_edges.sort_unstable(); // deterministic order for the taper lists
+        for &(p, q) in &pinned_edges {
+            topo.pinned_vertex.insert(p, true);
+            topo.pinned_vertex.insert(q, true);
+            let mut ps: Vec<usize> = topo.edge_tris[&(p, q)].iter().filter_map(|&t| topo.plane_of[t]).collect();
+            ps.dedup();
+            for id in ps {
+                planes[id].pinned.push((topo.welded.pos(p), topo.welded.pos(q)));
+            }
         }
-    }
-    if report.untapered_planes > 0 {
-        tracing::warn!(planes = report.untapered_planes, "wrap: planes with too many pinned edges fold without taper");
+        // Vertices touched by an unselected triangle, or by two planes, stay put as well.
+        let mut vertex_plane: HashMap<u32, Option<usize>> = HashMap::new();
+        for (t, &pl) in topo.plane_of.iter().enumerate() {
+            for v in topo.welded.tri(t) {
+                let prev = *vertex_plane.entry(v).or_insert(pl);
+                if pl.is_none() || prev != pl {
+                    topo.pinned_vertex.insert(v, true);
+                }
+            }
+        }
+        report.pinned_edges = pinned_edges.iter().filter(|e| topo.edge_tris[e].iter().any(|&t| selected[t])).count();
+        for p in planes.iter_mut() {
+            p.pinned.dedup();
+            if p.pinned.len() > MAX_TAPER_EDGES {
+                report.untapered_planes += 1;
+            }
+        }
+        if report.untapered_planes > 0 {
+            tracing::warn!(
+                planes = report.untapered_planes,
+                "wrap: planes with too many pinned edges fold without taper"
+            );
+        }
+        topo
     }
 
-    // 3–4. Subdivide and displace.
+    /// An edge of a selected triangle is free when every triangle on it is selected and
+    /// in the same plane (an open boundary edge, used once, is free too).
+    fn edge_free(&self, e: &(u32, u32)) -> bool {
+        let ts = &self.edge_tris[e];
+        let p0 = self.plane_of[ts[0]];
+        p0.is_some() && ts.iter().all(|&t| self.plane_of[t] == p0)
+    }
+}
+
+/// Steps 3–4: cut each selected triangle into its grid and move the new vertices along their
+/// plane's normal; unselected triangles are copied.
+fn subdivide(topo: &Topology, planes: &[Plane], params: &FoldParams, edge_m: f32, report: &mut WrapReport) -> TriMesh {
+    let (mesh, w) = (topo.welded.mesh, &topo.welded);
+    let pos = |v: u32| w.pos(v);
     let mut out = TriMesh { positions: mesh.positions.clone(), indices: Vec::new(), material: Vec::new() };
     let mut vkey: HashMap<VKey, u32> = HashMap::new();
     let taper_len = TAPER_WIDTHS * params.width_m;
     let seg = |p: u32, q: u32| ((pos(p).distance(pos(q)) / f64::from(edge_m)).ceil() as u32).max(1);
-    for (t, &pl) in plane_of.iter().enumerate() {
+    for (t, &pl) in topo.plane_of.iter().enumerate() {
         let Some(pid) = pl else {
             out.indices.push(mesh.indices[t]);
             out.material.push(mesh.material[t]);
             continue;
         };
         let plane = &planes[pid];
-        let v = tri(t);
+        let v = w.tri(t);
         let counts = [seg(v[0], v[1]), seg(v[1], v[2]), seg(v[2], v[0])];
         let n_grid = counts.iter().copied().max().unwrap_or(1);
         let corners = v.map(pos);
@@ -232,10 +292,10 @@ pub fn wrap_faces_report(
                 return id;
             }
             let (p, pinned) = match key {
-                VKey::Corner(c) => (pos(c), *pinned_vertex.get(&c).unwrap_or(&false)),
+                VKey::Corner(c) => (pos(c), *topo.pinned_vertex.get(&c).unwrap_or(&false)),
                 VKey::Edge(a, b, k, n) => {
                     let s = f64::from(k) / f64::from(n);
-                    (pos(a) * (1.0 - s) + pos(b) * s, !edge_free(&(a, b)))
+                    (pos(a) * (1.0 - s) + pos(b) * s, !topo.edge_free(&(a, b)))
                 }
                 VKey::Inner(..) => {
                     let (u, w) = (f64::from(i) / f64::from(n_grid), f64::from(j) / f64::from(n_grid));
@@ -258,18 +318,15 @@ pub fn wrap_faces_report(
                 let a = grid_vertex(i, j, &mut out);
                 let b = grid_vertex(i + 1, j, &mut out);
                 let c = grid_vertex(i, j + 1, &mut out);
-                push_tri(&mut out, [a, b, c], mesh.material[t], &mut report);
+                push_tri(&mut out, [a, b, c], mesh.material[t], report);
                 if i + j + 1 < n_grid {
                     let d = grid_vertex(i + 1, j + 1, &mut out);
-                    push_tri(&mut out, [b, d, c], mesh.material[t], &mut report);
+                    push_tri(&mut out, [b, d, c], mesh.material[t], report);
                 }
             }
         }
     }
-    let out = compact(out);
-    report.output_triangles = out.indices.len();
-    tracing::debug!(?report, "wrap done");
-    (out, report)
+    out
 }
 
 fn push_tri(out: &mut TriMesh, t: [u32; 3], material: u32, report: &mut WrapReport) {
