@@ -22,14 +22,13 @@ pub mod render_times;
 pub mod scheduler;
 mod session_file;
 
-/// The server's one stop signal (defined with the links, the earliest layer that waits on it).
-pub use crate::link::Shutdown;
 use crate::link::{InputCounters, InputEvent};
 use crate::metrics::{Histogram, Registry};
 use crate::pipeline::FramePipeline;
 use crate::render::camera::CameraModel;
 use crate::render::integrator::RenderSettings;
 use crate::session::writer::{SessionStats, SessionWriter};
+use crate::shutdown::Shutdown;
 use anyhow::Context;
 use config::ServeConfig;
 use helpers::Helpers;

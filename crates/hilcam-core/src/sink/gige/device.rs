@@ -23,6 +23,7 @@ use super::registers::{AcquisitionMode, CameraDescription, CameraSettings, Devic
 use super::stream::{FrameJob, ResendJob, Sender, StreamJobs};
 use crate::frame::EncodedFrame;
 use crate::metrics::Registry;
+use crate::shutdown::Shutdown;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -33,7 +34,7 @@ use tokio::sync::watch;
 /// acknowledged as soon as it is stored (`hilcam_gige_pending_overflow_total`).
 pub const PENDING_MAX: usize = 16;
 /// How long [`GigeDevice::shutdown`] waits for the stream thread (it looks at the stop
-/// flag every 50 ms, so only a wedged socket makes it wait this long).
+/// signal every 50 ms, so only a wedged socket makes it wait this long).
 const STREAM_JOIN_TIMEOUT: Duration = Duration::from_millis(500);
 
 #[derive(Debug, thiserror::Error)]
@@ -68,7 +69,9 @@ struct Shared {
     /// What the newest frame published shows (integration time, ROI).
     published: watch::Sender<Option<Shown>>,
     metrics: Metrics,
-    stop: Arc<AtomicBool>,
+    /// The device's own stop: it closes after the last frame is published, not at the
+    /// server's signal.
+    stop: Shutdown,
 }
 
 impl Shared {
@@ -173,7 +176,7 @@ impl GigeDevice {
         let settings = regs.settings;
         let (settings_tx, _) = watch::channel(settings);
         let jobs = Arc::new(StreamJobs::default());
-        let stop = Arc::new(AtomicBool::new(false));
+        let stop = Shutdown::new();
         let shared = Arc::new(Shared {
             control: Mutex::new(Control::new(regs)),
             settings_tx,
@@ -330,7 +333,7 @@ impl GigeDevice {
     }
 
     fn stop_now(&self) {
-        self.shared.stop.store(true, Ordering::Release);
+        self.shared.stop.trigger();
         self.shared.jobs.stop();
         if let Some(t) = &self.control_task {
             t.abort();
@@ -415,7 +418,7 @@ async fn control_loop(
                 }
             }
         }
-        if shared.stop.load(Ordering::Acquire) {
+        if shared.stop.is_triggered() {
             break;
         }
     }
