@@ -24,6 +24,7 @@ use super::stream::{FrameJob, ResendJob, Sender, StreamJobs};
 use crate::frame::EncodedFrame;
 use crate::metrics::Registry;
 use crate::shutdown::Shutdown;
+use crate::sink::camera_control::SoftwareTriggers;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -58,7 +59,7 @@ struct Shared {
     log: Mutex<LogLimit>,
     /// (pose time of the newest frame, when it was published): the device clock.
     clock: Mutex<(u64, Instant)>,
-    trigger_hook: Mutex<Option<Box<dyn Fn() + Send + Sync>>>,
+    triggers: SoftwareTriggers,
     /// The settings the device started with (the exposure override and the ROI are
     /// relative to them).
     initial_settings: CameraSettings,
@@ -186,7 +187,7 @@ impl GigeDevice {
             gate: Mutex::new(RateGate::default()),
             log: Mutex::new(LogLimit::default()),
             clock: Mutex::new((0, Instant::now())),
-            trigger_hook: Mutex::new(None),
+            triggers: SoftwareTriggers::default(),
             initial_settings: settings,
             requests_followed: AtomicBool::new(false),
             published: watch::channel(None).0,
@@ -251,7 +252,12 @@ impl GigeDevice {
     /// Called on every TriggerSoftware execution (the serve loop turns it into a
     /// trigger input: a frame rendered from the latest pose).
     pub fn on_software_trigger(&self, hook: Box<dyn Fn() + Send + Sync>) {
-        *self.shared.trigger_hook.lock().expect("trigger hook lock") = Some(hook);
+        self.shared.triggers.connect(hook);
+    }
+
+    /// The device's TriggerSoftware executions, for its [`crate::sink::camera_control::CameraControl`].
+    pub fn software_triggers(&self) -> SoftwareTriggers {
+        self.shared.triggers.clone()
     }
 
     /// A renderer applies the client's exposure and ROI to the frames it starts from now
@@ -585,9 +591,7 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply 
             }
             Effect::SoftwareTrigger => {
                 shared.pending_triggers.fetch_add(1, Ordering::AcqRel);
-                if let Some(hook) = shared.trigger_hook.lock().expect("trigger hook lock").as_ref() {
-                    hook();
-                }
+                shared.triggers.fire();
             }
             Effect::AcquisitionStart => tracing::info!(%peer, "GigE Vision acquisition started"),
             Effect::AcquisitionStop => tracing::info!(%peer, "GigE Vision acquisition stopped"),
