@@ -9,9 +9,11 @@ use std::path::{Path, PathBuf};
 
 /// hilcam-core's top-level modules, earliest layer first: a module may import (via
 /// `crate::`) only modules listed before it. `lib.rs` documents the same order.
+/// `shutdown` comes first: the links, the sinks (GigE's threads, the stream's clients),
+/// replay and serve all hold the one stop signal, so it must sit below all of them.
 const LAYERS: &[&str] = &[
-    "heap", "metrics", "pose", "link", "render", "sensor", "scene", "pipeline", "frame", "session", "sink", "rig",
-    "replay", "serve",
+    "shutdown", "heap", "metrics", "pose", "link", "render", "sensor", "scene", "pipeline", "frame", "session", "sink",
+    "rig", "replay", "serve",
 ];
 
 /// Crates the product core must not depend on: the command line and the lab's.

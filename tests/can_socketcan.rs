@@ -8,7 +8,7 @@
 
 mod pose_common;
 
-use hilcam_core::link::Shutdown;
+use hilcam_core::Shutdown;
 use hilcam_core::link::send::{MessageWriter, SendOptions, SocketCanWriter, send_trajectory_blocking};
 use hilcam_core::link::socketcan::{SocketCanConfig, run_socketcan, to_socketcan};
 use hilcam_core::link::{InputCounters, InputEvent};

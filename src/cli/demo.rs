@@ -65,7 +65,7 @@ pub fn run_cli(a: DemoArgs) -> anyhow::Result<()> {
 
 async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     // SIGINT/SIGTERM/SIGHUP stop the demo cleanly (server first, then the pty's writer).
-    let signals = super::serve::StopSignals::install()?;
+    let shutdown = super::signal::stop_on_signals(super::signal::Again::Ignore)?;
     let root = assets_root()?;
     std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
     // A pseudo-terminal pair stands in for the bench's serial cable.
@@ -131,7 +131,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
             }
         };
         tokio::select! {
-            name = signals.recv() => println!("demo: {name}, stopping"),
+            _ = shutdown.wait() => println!("demo: {}, stopping", super::signal::cause(&shutdown)),
             _ = until => println!("demo: --duration reached, stopping"),
         }
         let got = if client.is_finished() { Some(Ok(client.await)) } else { None };
@@ -139,7 +139,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     } else {
         tokio::select! {
             r = tokio::time::timeout(Duration::from_secs(50), client) => (Some(r), None),
-            name = signals.recv() => (None, Some(name)),
+            _ = shutdown.wait() => (None, Some(super::signal::cause(&shutdown))),
         }
     };
     client_abort.abort();

@@ -7,6 +7,7 @@ pub mod replay;
 pub mod send;
 pub mod sensor;
 pub mod serve;
+pub mod signal;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -1,32 +1,27 @@
 //! `hilcam replay`: render a trajectory offline to files (resumable, shardable), or
 //! re-render a recorded `serve` session frame for frame (`--session`).
 //!
-//! SIGINT, SIGTERM (Slurm's `scancel`, `docker stop`) and SIGHUP let the frame in hand
-//! finish and be written, then stop with a non-zero exit and a message saying how many
-//! frames are complete; the same command resumes. A second signal exits at once (frames
-//! are written whole or not at all, so even that leaves no partial frame).
+//! The flags become a [`ReplayRequest`] for [`hilcam_core::replay::run`]; this file adds
+//! the progress bar and the summary. SIGINT, SIGTERM (Slurm's `scancel`, `docker stop`)
+//! and SIGHUP ([`signal`]) let the frame in hand finish and be written, then stop with a
+//! non-zero exit and a message saying how many frames are complete; the same command
+//! resumes. A second signal exits at once (frames are written whole or not at all, so
+//! even that leaves no partial frame).
 
 use super::parse_sensor_k;
+use super::signal::{self, Again};
 use anyhow::{Context, bail};
-use hilcam_core::frame::FrameFlags;
-use hilcam_core::pipeline::FramePipeline;
-use hilcam_core::pose::trajectory::Trajectory;
-use hilcam_core::pose::validate::{check_pose, describe};
 use hilcam_core::render::integrator::{QualityMode, SamplerKind};
 use hilcam_core::render::truth::TruthChannels;
-use hilcam_core::replay::session_jobs;
 use hilcam_core::replay::{
-    FrameJob, ReplayConfig, ReplayStats, Shard, merge, pin_integration_time, replay_jobs_until, trajectory_jobs,
+    ReplayEvent, ReplayOutcome, ReplayRequest, ReplaySource, ReplayStats, Shard, TrajectoryOverrides, merge,
 };
 use hilcam_core::scene::file::parse_name;
-use hilcam_core::scene::limits::checked_scaled_camera;
 use hilcam_core::serve::config::ServeConfig;
-use hilcam_core::session::Session;
 use hilcam_core::sink::recorder::ImageFormat;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args, Debug)]
@@ -115,145 +110,56 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         Some(s) => Shard::parse(s)?,
         None => Shard::from_env(|v| std::env::var(v).ok())?.unwrap_or(Shard::ALL),
     };
-    if let Some(session) = &a.session {
-        return run_session(&a, session, out, shard);
-    }
-    let (Some(traj), Some(scene_path)) = (&a.trajectory, &a.scene) else {
-        bail!("--trajectory and --scene are required")
-    };
-    // The scene first: its [limits] and planet set the gate every row passes.
-    let mut scene = hilcam_core::scene::load(scene_path)?;
-    let mut samples = Trajectory::load_gated(traj, &scene.pose_limits())?;
-    if let Some(t) = a.integration_s {
-        pin_integration_time(&mut scene, t)?;
-    }
-    let settings = scene.render.overridden(a.spp, a.depth, a.sampler, a.seed).with_quality(a.quality, a.sensor_k);
-    let camera = checked_scaled_camera(&scene.camera, a.width, None).map_err(anyhow::Error::msg)?;
-    let mut pipeline = FramePipeline::new(Arc::new(scene), camera.clone())?;
-    if pipeline.exposure_timing(None).integrates_motion() {
-        // The camera integrates over its exposure: rows without rates move as their
-        // neighbours say.
-        hilcam_core::pose::rates::fill_missing_rates(&mut samples);
-    }
-    let cfg = ReplayConfig {
-        out_dir: out.clone(),
-        format: a.format,
-        settings,
-        every: a.every,
-        shard,
-        source: identity(traj, false)?,
-        scene: identity(scene_path, true)?,
-        truth: a.truth.unwrap_or_default(),
-    };
-    println!(
-        "{}: {} poses → {} ({}x{}, spp {} depth {} {:?}, seed {}), shard {}/{}, every {}",
-        traj.display(),
-        samples.len(),
-        out.display(),
-        camera.width,
-        camera.height,
-        settings.spp,
-        settings.depth,
-        settings.sampler,
-        settings.seed,
-        shard.index,
-        shard.count,
-        a.every
-    );
-    render(&mut pipeline, &trajectory_jobs(&samples, &settings), &cfg).map(|_| ())
-}
-
-/// `--session`: the session's streamed frames, each checked against the streamed CRC.
-fn run_session(a: &ReplayArgs, path: &Path, out: PathBuf, shard: Shard) -> anyhow::Result<()> {
-    let session = Session::load(path)?;
-    let h = &session.header;
-    let jobs = session_jobs(&session, !a.no_verify);
-    match &session.end {
-        None => tracing::warn!("{}: no end line (the server did not stop cleanly)", path.display()),
-        Some(e) if e.records_dropped > 0 => tracing::warn!(
-            "{}: the server dropped {} session lines; frames missing from the file are not re-rendered",
-            path.display(),
-            e.records_dropped
-        ),
-        Some(_) => {}
-    }
-    let gaps = session.frame_gaps();
-    if !gaps.is_empty() {
-        tracing::warn!("{}: {} frame indices missing (first {})", path.display(), gaps.len(), gaps[0]);
-    }
-    // The scene: a serve config's, a scene file, or the one the session names.
-    let given = a.config.as_ref().or(a.scene.as_ref());
-    let scene_path = match given {
-        Some(p) if is_serve_config(p)? => ServeConfig::load(p)?.scene,
-        Some(p) => p.clone(),
-        None => PathBuf::from(&h.scene),
-    };
-    let scene = hilcam_core::scene::load(&scene_path)?;
-    // The recorded poses passed the gate when they arrived; a file edited since must pass
-    // it again (rendered as recorded, so the streamed CRCs still check).
-    let limits = scene.pose_limits();
-    for j in &jobs {
-        if let Err(r) = check_pose(&j.pose, &limits) {
-            bail!(
-                "{}: frame {} (pose seq {}): pose refused: {r} ({})",
-                path.display(),
-                j.index,
-                j.pose.seq,
-                describe(&j.pose, r, &limits)
-            );
+    let source = source(&a)?;
+    let request =
+        ReplayRequest { source, out, format: a.format, every: a.every, shard, truth: a.truth.unwrap_or_default() };
+    let shutdown = signal::stop_on_signals(Again::ExitNow)?;
+    let mut bar = None;
+    let outcome = hilcam_core::replay::run(&request, &shutdown, |event| match event {
+        ReplayEvent::Started(line) => {
+            println!("{line}");
+            bar = Some(Progress::new());
         }
+        ReplayEvent::Progress(s) => bar.as_ref().expect("started").update(s),
+    });
+    if let Some(b) = &bar {
+        b.finish();
     }
-    let camera = scene.camera.scaled(h.width_setting, None);
-    if (camera.width, camera.height) != (h.width, h.height) {
-        bail!(
-            "{}: the session streamed {}x{} frames, {} gives {}x{} (width setting {:?})",
-            path.display(),
-            h.width,
-            h.height,
-            scene_path.display(),
-            camera.width,
-            camera.height,
-            h.width_setting
+    let outcome = outcome?;
+    print_summary(&outcome, &request);
+    if outcome.verified && outcome.stats.rendered > 0 {
+        println!(
+            "{} frames re-rendered, each bit-identical to the stream (payload CRC-32 checked)",
+            outcome.stats.rendered
         );
     }
-    let mut pipeline = FramePipeline::new(Arc::new(scene), camera)?;
-    let settings = h.settings.to_settings();
-    let cfg = ReplayConfig {
-        out_dir: out.clone(),
-        format: a.format,
-        settings,
-        every: a.every,
-        shard,
-        source: identity(path, false)?,
-        scene: identity(&scene_path, true)?,
-        truth: a.truth.unwrap_or_default(),
-    };
-    let flagged = |bit| jobs.iter().filter(|j| j.flags.contains(bit)).count();
-    println!(
-        "{}: {} frames ({} degraded, {} extrapolated, {} late) of {} poses → {} ({}x{}, best spp {} depth {} {:?}, \
-         seed {}), shard {}/{}, every {}",
-        path.display(),
-        jobs.len(),
-        flagged(FrameFlags::DEGRADED),
-        flagged(FrameFlags::EXTRAPOLATED),
-        flagged(FrameFlags::LATE),
-        session.poses.len(),
-        out.display(),
-        h.width,
-        h.height,
-        settings.spp,
-        settings.depth,
-        settings.sampler,
-        settings.seed,
-        shard.index,
-        shard.count,
-        a.every
-    );
-    let stats = render(&mut pipeline, &jobs, &cfg)?;
-    if !a.no_verify && stats.rendered > 0 {
-        println!("{} frames re-rendered, each bit-identical to the stream (payload CRC-32 checked)", stats.rendered);
-    }
     Ok(())
+}
+
+/// The frames' source from the flags: a session (with the scene a serve config names,
+/// or a scene file) or a trajectory and its scene.
+fn source(a: &ReplayArgs) -> anyhow::Result<ReplaySource> {
+    if let Some(session) = &a.session {
+        let scene = match a.config.as_ref().or(a.scene.as_ref()) {
+            Some(p) if is_serve_config(p)? => Some(ServeConfig::load(p)?.scene),
+            given => given.cloned(),
+        };
+        return Ok(ReplaySource::Session { session: session.clone(), scene, verify: !a.no_verify });
+    }
+    let (Some(trajectory), Some(scene)) = (&a.trajectory, &a.scene) else {
+        bail!("--trajectory and --scene are required")
+    };
+    let overrides = TrajectoryOverrides {
+        width: a.width,
+        spp: a.spp,
+        depth: a.depth,
+        sampler: a.sampler,
+        seed: a.seed,
+        quality: a.quality,
+        sensor_k: a.sensor_k,
+        integration_s: a.integration_s,
+    };
+    Ok(ReplaySource::Trajectory { trajectory: trajectory.clone(), scene: scene.clone(), overrides })
 }
 
 /// A serve config names its scene with a top-level `scene = "…"`; a scene file does not.
@@ -263,25 +169,10 @@ fn is_serve_config(p: &Path) -> anyhow::Result<bool> {
     Ok(v.get("scene").is_some_and(toml::Value::is_str))
 }
 
-/// A file's identity for the manifest: its absolute path, plus a content checksum.
-fn identity(p: &Path, content: bool) -> anyhow::Result<String> {
-    let abs = std::fs::canonicalize(p).with_context(|| p.display().to_string())?;
-    if !content {
-        return Ok(abs.display().to_string());
-    }
-    let bytes = std::fs::read(&abs).with_context(|| abs.display().to_string())?;
-    Ok(format!("{} (crc32 {:08x})", abs.display(), hilcam_core::frame::CRC32.checksum(&bytes)))
-}
-
-/// Render `jobs` with the progress bar and print the summary.
-fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -> anyhow::Result<ReplayStats> {
-    let bar = Progress::new();
-    let t0 = Instant::now();
-    stop_signal::install();
-    let stats = replay_jobs_until(pipeline, jobs, cfg, |s| bar.update(s), stop_signal::received);
-    bar.finish();
-    let stats = stats.context("replay")?;
-    let secs = t0.elapsed().as_secs_f64();
+/// The run's totals: frames, time, the Monte Carlo noise and the truth's cost.
+fn print_summary(o: &ReplayOutcome, r: &ReplayRequest) {
+    let stats = &o.stats;
+    let secs = o.elapsed.as_secs_f64();
     println!(
         "{} frames: {} rendered in {:.1} s ({:.2} s/frame), {} already done{}; log {}",
         stats.selected,
@@ -294,26 +185,25 @@ fn render(pipeline: &mut FramePipeline, jobs: &[FrameJob], cfg: &ReplayConfig) -
         } else {
             String::new()
         },
-        cfg.out_dir.join(cfg.shard.log_name()).display()
+        o.log.display()
     );
     if stats.mc_lit_pixels > 0 {
         let total = super::mc_noise_total(stats.mc_above_bound, stats.mc_lit_pixels, stats.mc_k);
         println!("{total} (each frame's `mc_noise` in the log)");
     }
-    if !cfg.truth.is_empty() && stats.rendered > 0 {
+    if !r.truth.is_empty() && stats.rendered > 0 {
         let per_frame = |d: Duration| d.as_secs_f64() / stats.rendered as f64;
         let (frame, truth, write) =
             (per_frame(stats.frame_time), per_frame(stats.truth_time), per_frame(stats.truth_write_time));
         println!(
             "truth ({}): {:.4} s/frame computing ({:.1} % of the {:.3} s/frame rendering), {:.4} s/frame writing the EXR",
-            cfg.truth,
+            r.truth,
             truth,
             100.0 * truth / frame.max(1e-12),
             frame,
             write
         );
     }
-    Ok(stats)
 }
 
 /// A progress bar on a terminal; otherwise (batch jobs) a log line every 30 s.
@@ -366,45 +256,5 @@ impl Progress {
 
     fn finish(&self) {
         self.bar.finish_and_clear();
-    }
-}
-
-/// A stop request by signal, noted by the handler and acted on between frames.
-mod stop_signal {
-    use std::sync::atomic::{AtomicI32, Ordering};
-
-    static RECEIVED: AtomicI32 = AtomicI32::new(0);
-
-    extern "C" fn on_signal(sig: libc::c_int) {
-        // Only async-signal-safe work here: an atomic swap, and _exit on the second signal.
-        if RECEIVED.swap(sig, Ordering::SeqCst) != 0 {
-            // SAFETY: _exit is async-signal-safe.
-            unsafe { libc::_exit(128 + sig) }
-        }
-    }
-
-    /// Route SIGINT, SIGTERM and SIGHUP to the flag (instead of immediate death).
-    pub fn install() {
-        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
-            // SAFETY: the handler only touches an atomic and calls _exit.
-            unsafe {
-                let mut action: libc::sigaction = std::mem::zeroed();
-                action.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-                action.sa_flags = libc::SA_RESTART;
-                libc::sigemptyset(&mut action.sa_mask);
-                libc::sigaction(sig, &action, std::ptr::null_mut());
-            }
-        }
-    }
-
-    /// The signal received so far, by name.
-    pub fn received() -> Option<String> {
-        match RECEIVED.load(Ordering::SeqCst) {
-            0 => None,
-            libc::SIGINT => Some("SIGINT".into()),
-            libc::SIGTERM => Some("SIGTERM".into()),
-            libc::SIGHUP => Some("SIGHUP".into()),
-            n => Some(format!("signal {n}")),
-        }
     }
 }

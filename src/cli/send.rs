@@ -83,10 +83,10 @@ pub fn run(args: SendArgs) -> anyhow::Result<()> {
     }
     let writer = open_target(&target, ids, args.can_fd)?;
     let opts = SendOptions { rate_hz: args.rate, speed: args.speed };
+    // SIGINT, SIGTERM or SIGHUP: stop after the message in hand, report what was sent.
+    let shutdown = super::signal::stop_on_signals(super::signal::Again::Ignore)?;
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("tokio runtime")?;
-    let stats = rt.block_on(send_trajectory(samples.into(), opts, writer, async {
-        let _ = tokio::signal::ctrl_c().await;
-    }))?;
+    let stats = rt.block_on(send_trajectory(samples.into(), opts, writer, shutdown.wait_owned()))?;
     tracing::info!(poses = stats.poses, elapsed_s = stats.elapsed.as_secs_f64(), "send finished");
     println!("sent {} poses in {:.3} s", stats.poses, stats.elapsed.as_secs_f64());
     Ok(())

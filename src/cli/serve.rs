@@ -1,6 +1,6 @@
 //! `hilcam serve`: run the real-time server from a config file until Ctrl-C, SIGTERM or
-//! SIGHUP (all three stop it cleanly: current frame finished, clients closed on a frame
-//! boundary, session file ended, summary printed, exit 0).
+//! SIGHUP ([`super::signal`]; all three stop it cleanly: current frame finished, clients
+//! closed on a frame boundary, session file ended, summary printed, exit 0).
 
 use hilcam_core::serve::config::{RecordSection, ServeConfig};
 use hilcam_core::serve::{Embed, ServeReport, run};
@@ -24,12 +24,12 @@ pub fn run_cli(a: ServeArgs) -> anyhow::Result<()> {
         let r = cfg.record.get_or_insert(RecordSection { dir: None, session: None, format: ImageFormat::Png });
         r.session = Some(path);
     }
+    let shutdown = super::signal::stop_on_signals(super::signal::Again::Ignore)?;
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     let report = rt.block_on(async {
-        let signals = StopSignals::install()?;
         let stop = async move {
-            let name = signals.recv().await;
-            tracing::info!("{name}: finishing the current frame, closing clients");
+            shutdown.wait().await;
+            tracing::info!("{}: finishing the current frame, closing clients", super::signal::cause(&shutdown));
         };
         run(cfg, Embed::default(), stop).await
     })?;
@@ -52,35 +52,5 @@ pub fn print_report(r: &ServeReport) {
     }
     if let Some((p50, p95, p99)) = r.latency_ms {
         println!("latency pose arrival → last byte: p50 {p50:.1} ms, p95 {p95:.1} ms, p99 {p99:.1} ms");
-    }
-}
-
-/// SIGINT (Ctrl-C), SIGTERM (systemd, docker stop, Slurm's scancel) and SIGHUP (the
-/// terminal went away): the signals that ask a process to stop. Installed once, they
-/// replace the default action (immediate death) for the rest of the process.
-pub struct StopSignals {
-    int: tokio::signal::unix::Signal,
-    term: tokio::signal::unix::Signal,
-    hup: tokio::signal::unix::Signal,
-}
-
-impl StopSignals {
-    /// Install the handlers (inside a tokio runtime).
-    pub fn install() -> std::io::Result<StopSignals> {
-        use tokio::signal::unix::{SignalKind, signal};
-        Ok(StopSignals {
-            int: signal(SignalKind::interrupt())?,
-            term: signal(SignalKind::terminate())?,
-            hup: signal(SignalKind::hangup())?,
-        })
-    }
-
-    /// Wait for the first of them; its name.
-    pub async fn recv(mut self) -> &'static str {
-        tokio::select! {
-            _ = self.int.recv() => "SIGINT",
-            _ = self.term.recv() => "SIGTERM",
-            _ = self.hup.recv() => "SIGHUP",
-        }
     }
 }

@@ -269,6 +269,50 @@ async fn hilcam_send_serial_replays_at_fixed_rate() {
     }
 }
 
+/// SIGINT, SIGTERM and SIGHUP stop `hilcam send` alike (src/cli/signal.rs): after the
+/// message in hand, with what was sent printed and exit status 0. (Serve's and replay's
+/// signals: tests/serve/hardening.rs.)
+#[test]
+fn hilcam_send_stops_cleanly_on_sigint_sigterm_and_sighup() {
+    use std::io::Read;
+    let traj = root().join("scenes/trajectories/flyaround.csv");
+    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        let (mut master, slave) = TTYPort::pair().unwrap();
+        let port = slave.name().unwrap();
+        // At its own pace: 600 s of poses, so only the signal ends it.
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_hilcam"))
+            .args(["send", "--serial", &port, "--trajectory"])
+            .arg(&traj)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // A first pose on the wire: the handlers are in place (installed before it).
+        master.set_timeout(PATIENCE).unwrap();
+        let mut buf = [0u8; 256];
+        assert!(master.read(&mut buf).unwrap() > 0, "no pose from hilcam send");
+        // SAFETY: kill(2) on our own child's pid.
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, sig) }, 0);
+        let t0 = std::time::Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if t0.elapsed() > PATIENCE {
+                let _ = child.kill();
+                panic!("signal {sig}: hilcam send did not stop");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let (mut stdout, mut stderr) = (String::new(), String::new());
+        child.stdout.take().unwrap().read_to_string(&mut stdout).unwrap();
+        child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
+        assert_eq!(status.code(), Some(0), "signal {sig}: {status}\n{stdout}\n{stderr}");
+        assert!(stdout.starts_with("sent ") && stdout.contains(" poses in "), "signal {sig}: {stdout}");
+        drop(slave);
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn hilcam_send_serial_puts_the_planet_on_the_wire_as_the_python_encoder_does() {
     let dir = tempfile::tempdir().unwrap();

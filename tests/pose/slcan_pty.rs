@@ -3,7 +3,7 @@
 
 use crate::pose_common;
 
-use hilcam_core::link::Shutdown;
+use hilcam_core::Shutdown;
 use hilcam_core::link::send::{SendOptions, SlcanWriter, send_trajectory_blocking};
 use hilcam_core::link::serial::SerialConfig;
 use hilcam_core::link::slcan::{SlcanConfig, run_slcan};

@@ -7,6 +7,7 @@
 //! Modules in data-flow order (each imports only modules above it; `tests/architecture.rs`
 //! checks that):
 //!
+//! - [`shutdown`]: [`Shutdown`], the one stop signal every long-running part holds.
 //! - [`heap`]: the C heap's tuning for frame after frame (keeps big buffers' pages).
 //! - [`metrics`]: counters, latency histograms, Prometheus text and `/metrics` HTTP.
 //! - [`pose`]: the `Pose` type (f64), the pose gate ([`pose::validate`]), wire codecs and
@@ -38,4 +39,7 @@ pub mod scene;
 pub mod sensor;
 pub mod serve;
 pub mod session;
+pub mod shutdown;
 pub mod sink;
+
+pub use shutdown::Shutdown;

@@ -16,14 +16,14 @@ mod counters;
 mod events;
 pub mod send;
 pub mod serial;
-mod shutdown;
 pub mod slcan;
 pub mod socketcan;
 
 pub use counters::InputCounters;
 pub(crate) use events::EventSink;
 pub use events::InputEvent;
-pub use shutdown::Shutdown;
+
+use crate::shutdown::Shutdown;
 
 use std::time::Duration;
 

@@ -3,7 +3,6 @@
 //! can hand any `std::io::Write`, e.g. one end of a pty pair, to
 //! [`SerialWriter`] or [`SlcanWriter`]).
 
-use super::Shutdown;
 use super::serial::{OpenError, open_port};
 use super::slcan::{BitrateError, open_commands};
 use super::socketcan::to_socketcan;
@@ -12,6 +11,7 @@ use crate::pose::can::{CanIds, encode_message};
 use crate::pose::serial::encode_frame_into;
 use crate::pose::slcan::encode_frame;
 use crate::pose::trajectory::{Trajectory, TrajectorySample};
+use crate::shutdown::Shutdown;
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};

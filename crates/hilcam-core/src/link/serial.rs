@@ -6,9 +6,10 @@
 //! unplug, pty closed) the loop counts a device error and reopens the same path
 //! with backoff until it is back, without restarting hilcam.
 
-use super::{Backoff, EventSink, InputCounters, InputEvent, Shutdown, run_blocking_until};
+use super::{Backoff, EventSink, InputCounters, InputEvent, run_blocking_until};
 use crate::pose::serial::{DecodeEvent, SerialDecoder};
 use crate::pose::validate::PoseLimits;
+use crate::shutdown::Shutdown;
 use serialport::{DataBits, Parity, SerialPort, StopBits};
 use std::io::Read;
 use std::sync::Arc;

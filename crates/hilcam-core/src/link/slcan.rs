@@ -65,7 +65,7 @@ pub async fn run_slcan(
     Ok(())
 }
 
-fn slcan_loop(cfg: &SlcanConfig, init: &str, mut sink: EventSink, stop: &super::Shutdown) {
+fn slcan_loop(cfg: &SlcanConfig, init: &str, mut sink: EventSink, stop: &crate::shutdown::Shutdown) {
     let mut opened = 0;
     let mut buf = vec![0u8; 4096];
     let mut asm = CanAssembler::new(cfg.ids);

@@ -9,9 +9,11 @@
 //!   ([`crate::sink::line_log`]); on start the done set is rebuilt from every
 //!   `frames*.jsonl` in the directory (a truncated last line is tolerated, and cut from
 //!   our own log). A full disk stops the run with [`ReplayError::DiskFull`] and leaves
-//!   no partial file; a stop request ([`replay_jobs_until`], the CLI's SIGINT/SIGTERM/
-//!   SIGHUP) ends it after the frame in hand with [`ReplayError::Interrupted`]. Either
-//!   way the same command resumes.
+//!   no partial file; a [`Shutdown`] ([`replay_jobs_until`], [`run`]; the CLI's SIGINT/
+//!   SIGTERM/SIGHUP) ends it after the frame in hand with [`ReplayError::Interrupted`].
+//!   Either way the same command resumes.
+//! - [`run`]: what `hilcam replay` does, from a [`ReplayRequest`] (a trajectory and a
+//!   scene, or a recorded session) to the frames on disk.
 //! - Sharding: shard K/N renders the selected frames whose position j has j mod N = K,
 //!   logging to `frames.shard-K-of-N.jsonl`; [`merge`] combines the logs.
 //! - Auto-exposure carries state from frame to frame, so a shard, a resumed run or
@@ -29,6 +31,7 @@ use crate::render::integrator::RenderSettings;
 use crate::render::truth::TruthChannels;
 use crate::scene::Scene;
 use crate::sensor::SensorError;
+use crate::shutdown::Shutdown;
 use crate::sink::line_log::LineLog;
 use crate::sink::recorder::{FrameRecord, ImageFormat, TruthRecord, frame_file_name, write_frame_image};
 use std::collections::{BTreeMap, HashSet};
@@ -38,9 +41,11 @@ use std::path::{Path, PathBuf};
 pub const LOG_NAME: &str = crate::sink::recorder::LOG_NAME;
 
 pub mod manifest;
+mod run;
 mod shard;
 /// The truth EXR writer, shared with the recorder (`hilcam serve`).
 pub use crate::sink::truth_exr;
+pub use run::{ReplayEvent, ReplayOutcome, ReplayRequest, ReplaySource, TrajectoryOverrides, run};
 pub use shard::{SHARD_COUNT_VAR, Shard};
 
 /// Errors of replay, sharding and merging; each names the file, line or variable.
@@ -323,17 +328,18 @@ pub fn replay_jobs(
     cfg: &ReplayConfig,
     progress: impl FnMut(&ReplayStats),
 ) -> Result<ReplayStats, ReplayError> {
-    replay_jobs_until(pipeline, jobs, cfg, progress, || None)
+    replay_jobs_until(pipeline, jobs, cfg, progress, &Shutdown::new())
 }
 
-/// [`replay_jobs`], asking `stop` before each frame: `Some(why)` ends the run there (the
-/// frames before it are complete and logged) with [`ReplayError::Interrupted`].
+/// [`replay_jobs`], looking at `stop` before each frame: once triggered, the run ends
+/// there (the frames before it are complete and logged) with [`ReplayError::Interrupted`]
+/// naming its cause.
 pub fn replay_jobs_until(
     pipeline: &mut FramePipeline,
     jobs: &[FrameJob],
     cfg: &ReplayConfig,
     mut progress: impl FnMut(&ReplayStats),
-    stop: impl Fn() -> Option<String>,
+    stop: &Shutdown,
 ) -> Result<ReplayStats, ReplayError> {
     if cfg.every == 0 {
         return Err(ReplayError::BadEvery);
@@ -382,7 +388,8 @@ pub fn replay_jobs_until(
     let mut planes = crate::render::truth::TruthPlanes::default();
     for job in todo {
         let k = job.index;
-        if let Some(signal) = stop() {
+        if stop.is_triggered() {
+            let signal = stop.cause().unwrap_or("a stop request").to_string();
             let done = stats.skipped + stats.rendered;
             return Err(ReplayError::Interrupted { signal, dir: dir.clone(), done, selected: stats.selected, last });
         }

@@ -2,8 +2,9 @@
 //! line and the mirror of the transports' counters into the registry.
 
 use super::config::ServeConfig;
-use crate::link::{InputCounters, Shutdown};
+use crate::link::InputCounters;
 use crate::metrics::{Registry, Routes, serve_http, spawn_summary_logger};
+use crate::shutdown::Shutdown;
 use anyhow::Context;
 use std::collections::HashMap;
 use std::net::SocketAddr;

@@ -10,7 +10,10 @@
 //! - `inputs`, `outputs`, `helpers`, `session_file`: what [`run`] starts around the
 //!   scheduler (the pose input; the sinks; `/metrics` and the summary log; the session
 //!   file), each stopped by the one [`Shutdown`].
+//! - `camera`: the camera transports' control (frame and rate requests, software
+//!   triggers) merged for the scheduler, whatever the transport.
 
+mod camera;
 pub mod config;
 pub mod extrapolate;
 pub mod governor;
@@ -22,14 +25,13 @@ pub mod render_times;
 pub mod scheduler;
 mod session_file;
 
-/// The server's one stop signal (defined with the links, the earliest layer that waits on it).
-pub use crate::link::Shutdown;
 use crate::link::{InputCounters, InputEvent};
 use crate::metrics::{Histogram, Registry};
 use crate::pipeline::FramePipeline;
 use crate::render::camera::CameraModel;
 use crate::render::integrator::RenderSettings;
 use crate::session::writer::{SessionStats, SessionWriter};
+use crate::shutdown::Shutdown;
 use anyhow::Context;
 use config::ServeConfig;
 use helpers::Helpers;
@@ -129,8 +131,7 @@ pub async fn run(
     let info = ServeInfo { stream: out.stream_addr, metrics: helpers.metrics_addr };
     announce(&info, &camera, &settings, embed.ready.take());
 
-    let mut sched_cfg =
-        scheduler_config(&cfg, settings, exposure_start, &mut embed, session.as_ref(), out.requests, out.rate_requests);
+    let mut sched_cfg = scheduler_config(&cfg, settings, exposure_start, &mut embed, session.as_ref(), out.camera);
     sched_cfg.live = live.as_ref().map(live::LiveView::tap);
     let sinks = Arc::new(out.sinks);
     let summary = run_scheduler(sched_cfg, pipeline, out.inputs, sinks.clone(), metrics, shutdown.clone()).await;
@@ -180,8 +181,7 @@ fn scheduler_config(
     exposure_start: bool,
     embed: &mut Embed,
     session: Option<&SessionWriter>,
-    requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
-    rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    camera: camera::CameraRequests,
 ) -> SchedulerConfig {
     SchedulerConfig {
         trigger: cfg.trigger.mode,
@@ -194,8 +194,8 @@ fn scheduler_config(
         max_frames: embed.max_frames,
         session: session.map(SessionWriter::tap),
         fault: embed.render_fault.take(),
-        requests,
-        rate_requests,
+        requests: camera.requests,
+        rate_requests: camera.rate_requests,
         live: None,
         truth: cfg.output.truth,
     }

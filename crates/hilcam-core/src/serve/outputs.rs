@@ -1,11 +1,15 @@
-//! Where frames go: the TCP stream (always), the recorder and a GigE Vision camera
-//! (when configured), and the pose-to-last-byte latency the stream measures.
+//! Where frames go: the TCP stream (always), the recorder and the camera transports
+//! (GigE Vision, when configured), and the pose-to-last-byte latency the stream measures.
+//! A camera transport is started here and its [`CameraControl`] handed to
+//! [`super::camera::connect`]; nothing else here knows the transport.
 
+use super::camera::{self, CameraRequests};
 use super::config::ServeConfig;
 use crate::link::InputEvent;
 use crate::metrics::{Histogram, Registry};
 use crate::render::camera::CameraModel;
 use crate::scene::Scene;
+use crate::sink::camera_control::CameraControl;
 use crate::sink::{Recorder, RecorderConfig, Sink, StreamConfig, StreamServer, WriteHook};
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -16,12 +20,10 @@ pub(super) struct Outputs {
     pub stream_addr: SocketAddr,
     /// Pose arrival → last byte written to a stream client.
     pub latency: Arc<Histogram>,
-    /// The inputs, with a GigE client's software triggers merged in.
+    /// The inputs, with the camera clients' software triggers merged in.
     pub inputs: mpsc::Receiver<InputEvent>,
-    /// What a GigE client asks of each frame (see [`super::scheduler::SchedulerConfig::requests`]).
-    pub requests: Option<tokio::sync::watch::Receiver<crate::pipeline::FrameRequest>>,
-    /// The frame rate a GigE client asks for (see [`super::scheduler::SchedulerConfig::rate_requests`]).
-    pub rate_requests: Option<tokio::sync::watch::Receiver<Option<f64>>>,
+    /// What a camera client asks of each frame and of the frame rate.
+    pub camera: CameraRequests,
 }
 
 impl Outputs {
@@ -44,8 +46,7 @@ impl Outputs {
             stream_addr,
             latency,
             inputs,
-            requests: None,
-            rate_requests: None,
+            camera: CameraRequests::default(),
         };
         if let Some(r) = &cfg.record
             && let Some(dir) = &r.dir
@@ -53,35 +54,38 @@ impl Outputs {
             out.sinks.push(Sink::Recorder(Recorder::start(RecorderConfig::new(dir, r.format), registry)?));
         }
         if let Some(g) = &cfg.output.gige {
-            out.start_gige(g, cfg, scene, camera, registry).await?;
+            let (sink, control) = start_gige(g, cfg, scene, camera, registry).await?;
+            out.add_camera(sink, control, registry)?;
         }
         Ok(out)
     }
 
-    async fn start_gige(
-        &mut self,
-        g: &crate::sink::gige::GigeConfig,
-        cfg: &ServeConfig,
-        scene: &Scene,
-        camera: &CameraModel,
-        registry: &Arc<Registry>,
-    ) -> anyhow::Result<()> {
-        use crate::sink::gige::{CameraDescription, GigeDevice, request, triggers};
-        let rate_sets_schedule = cfg.trigger.mode == super::scheduler::TriggerMode::Rate;
-        let desc = CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz, rate_sets_schedule)
-            .map_err(anyhow::Error::msg)?;
-        let table = crate::render::truth::materials_table(&scene.materials);
-        let desc = CameraDescription { truth: cfg.output.truth, truth_materials_len: table.len() as u32, ..desc };
-        let device = GigeDevice::start(g, desc, registry.clone()).await?;
-        let dropped =
-            registry.counter("hilcam_gige_triggers_dropped_total", "Software triggers the input queue refused", &[]);
+    /// A started camera transport: its sink, and its clients' control merged.
+    fn add_camera(&mut self, sink: Sink, control: CameraControl, registry: &Registry) -> anyhow::Result<()> {
         let inputs = std::mem::replace(&mut self.inputs, mpsc::channel(1).1);
-        self.inputs = triggers::merge_software_triggers(inputs, &device, dropped);
-        self.requests = Some(request::follow_requests(&device));
-        self.rate_requests = Some(request::follow_frame_rate(&device));
-        self.sinks.push(Sink::Gige(device));
+        self.inputs = camera::connect(control, inputs, registry, &mut self.camera)?;
+        self.sinks.push(sink);
         Ok(())
     }
+}
+
+/// The GigE Vision camera (`[output.gige]`): its sink and its clients' control.
+async fn start_gige(
+    g: &crate::sink::gige::GigeConfig,
+    cfg: &ServeConfig,
+    scene: &Scene,
+    camera: &CameraModel,
+    registry: &Arc<Registry>,
+) -> anyhow::Result<(Sink, CameraControl)> {
+    use crate::sink::gige::{CameraDescription, GigeDevice, request};
+    let rate_sets_schedule = cfg.trigger.mode == super::scheduler::TriggerMode::Rate;
+    let desc = CameraDescription::from_scene(camera, &scene.sensor, cfg.trigger.rate_hz, rate_sets_schedule)
+        .map_err(anyhow::Error::msg)?;
+    let table = crate::render::truth::materials_table(&scene.materials);
+    let desc = CameraDescription { truth: cfg.output.truth, truth_materials_len: table.len() as u32, ..desc };
+    let device = GigeDevice::start(g, desc, registry.clone()).await?;
+    let control = request::camera_control(&device);
+    Ok((Sink::Gige(device), control))
 }
 
 async fn start_stream(

@@ -9,7 +9,10 @@
 //! - [`line_log`]: append-only JSON lines, each written whole or not at all.
 //! - [`client`]: the reference stream client (`hilcam recv`, and the in-process demo).
 //! - [`truth_exr`]: a frame's ground truth as a multi-channel EXR (recorder and replay).
+//! - [`camera_control`]: what a camera transport's clients ask of the renderer (frame and
+//!   rate requests, software triggers), whatever the transport: the seam serve merges.
 
+pub mod camera_control;
 pub mod client;
 pub mod failure_log;
 pub mod gige;

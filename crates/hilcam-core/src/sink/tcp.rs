@@ -20,8 +20,8 @@
 
 use super::queue::DropOldest;
 use crate::frame::EncodedFrame;
-use crate::link::Shutdown;
 use crate::metrics::{Counter, Gauge, Histogram, Registry};
+use crate::shutdown::Shutdown;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};

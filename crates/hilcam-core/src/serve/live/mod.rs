@@ -18,10 +18,10 @@ pub mod preview;
 pub mod state;
 
 use crate::frame::EncodedFrame;
-use crate::link::Shutdown;
 use crate::metrics::{Counter, Gauge, Histogram, Registry, Routes};
 use crate::pose::Pose;
 use crate::render::camera::CameraModel;
+use crate::shutdown::Shutdown;
 use crate::sink::queue::DropOldest;
 use serde::Deserialize;
 use state::{LiveState, TargetSphere};

@@ -23,6 +23,8 @@ use super::registers::{AcquisitionMode, CameraDescription, CameraSettings, Devic
 use super::stream::{FrameJob, ResendJob, Sender, StreamJobs};
 use crate::frame::EncodedFrame;
 use crate::metrics::Registry;
+use crate::shutdown::Shutdown;
+use crate::sink::camera_control::SoftwareTriggers;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -33,7 +35,7 @@ use tokio::sync::watch;
 /// acknowledged as soon as it is stored (`hilcam_gige_pending_overflow_total`).
 pub const PENDING_MAX: usize = 16;
 /// How long [`GigeDevice::shutdown`] waits for the stream thread (it looks at the stop
-/// flag every 50 ms, so only a wedged socket makes it wait this long).
+/// signal every 50 ms, so only a wedged socket makes it wait this long).
 const STREAM_JOIN_TIMEOUT: Duration = Duration::from_millis(500);
 
 #[derive(Debug, thiserror::Error)]
@@ -57,7 +59,7 @@ struct Shared {
     log: Mutex<LogLimit>,
     /// (pose time of the newest frame, when it was published): the device clock.
     clock: Mutex<(u64, Instant)>,
-    trigger_hook: Mutex<Option<Box<dyn Fn() + Send + Sync>>>,
+    triggers: SoftwareTriggers,
     /// The settings the device started with (the exposure override and the ROI are
     /// relative to them).
     initial_settings: CameraSettings,
@@ -68,7 +70,9 @@ struct Shared {
     /// What the newest frame published shows (integration time, ROI).
     published: watch::Sender<Option<Shown>>,
     metrics: Metrics,
-    stop: Arc<AtomicBool>,
+    /// The device's own stop: it closes after the last frame is published, not at the
+    /// server's signal.
+    stop: Shutdown,
 }
 
 impl Shared {
@@ -173,7 +177,7 @@ impl GigeDevice {
         let settings = regs.settings;
         let (settings_tx, _) = watch::channel(settings);
         let jobs = Arc::new(StreamJobs::default());
-        let stop = Arc::new(AtomicBool::new(false));
+        let stop = Shutdown::new();
         let shared = Arc::new(Shared {
             control: Mutex::new(Control::new(regs)),
             settings_tx,
@@ -183,7 +187,7 @@ impl GigeDevice {
             gate: Mutex::new(RateGate::default()),
             log: Mutex::new(LogLimit::default()),
             clock: Mutex::new((0, Instant::now())),
-            trigger_hook: Mutex::new(None),
+            triggers: SoftwareTriggers::default(),
             initial_settings: settings,
             requests_followed: AtomicBool::new(false),
             published: watch::channel(None).0,
@@ -248,7 +252,12 @@ impl GigeDevice {
     /// Called on every TriggerSoftware execution (the serve loop turns it into a
     /// trigger input: a frame rendered from the latest pose).
     pub fn on_software_trigger(&self, hook: Box<dyn Fn() + Send + Sync>) {
-        *self.shared.trigger_hook.lock().expect("trigger hook lock") = Some(hook);
+        self.shared.triggers.connect(hook);
+    }
+
+    /// The device's TriggerSoftware executions, for its [`crate::sink::camera_control::CameraControl`].
+    pub fn software_triggers(&self) -> SoftwareTriggers {
+        self.shared.triggers.clone()
     }
 
     /// A renderer applies the client's exposure and ROI to the frames it starts from now
@@ -330,7 +339,7 @@ impl GigeDevice {
     }
 
     fn stop_now(&self) {
-        self.shared.stop.store(true, Ordering::Release);
+        self.shared.stop.trigger();
         self.shared.jobs.stop();
         if let Some(t) = &self.control_task {
             t.abort();
@@ -415,7 +424,7 @@ async fn control_loop(
                 }
             }
         }
-        if shared.stop.load(Ordering::Acquire) {
+        if shared.stop.is_triggered() {
             break;
         }
     }
@@ -582,9 +591,7 @@ fn handle_datagram(shared: &Shared, datagram: &[u8], peer: SocketAddr) -> Reply 
             }
             Effect::SoftwareTrigger => {
                 shared.pending_triggers.fetch_add(1, Ordering::AcqRel);
-                if let Some(hook) = shared.trigger_hook.lock().expect("trigger hook lock").as_ref() {
-                    hook();
-                }
+                shared.triggers.fire();
             }
             Effect::AcquisitionStart => tracing::info!(%peer, "GigE Vision acquisition started"),
             Effect::AcquisitionStop => tracing::info!(%peer, "GigE Vision acquisition stopped"),

@@ -20,9 +20,9 @@
 //! - [`rate_gate`]: which frames AcquisitionFrameRate lets through.
 //! - [`metrics`]: the `hilcam_gige_*` counters; [`log_limit`]: one warning per reason
 //!   per interval.
-//! - [`triggers`]: software triggers into the serve loop's inputs.
 //! - [`request`]: the client's ExposureTime and ROI as what each frame renders, its
-//!   AcquisitionFrameRate as the rate frames are rendered at.
+//!   AcquisitionFrameRate as the rate frames are rendered at; with TriggerSoftware, the
+//!   device's [`crate::sink::camera_control::CameraControl`].
 //! - [`pending`]: what a slow write waits for a published frame to show.
 //!
 //! Reference: `docs/gige.md`.
@@ -45,7 +45,6 @@ pub mod registers;
 pub mod request;
 pub mod stream;
 pub mod stream_jobs;
-pub mod triggers;
 pub mod zip;
 
 pub use device::{GigeConfig, GigeDevice, GigeError};

@@ -1,9 +1,11 @@
-//! A client's ExposureTime and ROI as the [`FrameRequest`] the serve loop renders, and
-//! its AcquisitionFrameRate as the rate the serve loop renders at (`rate` trigger mode).
+//! A client's ExposureTime and ROI as the [`FrameRequest`] the serve loop renders, its
+//! AcquisitionFrameRate as the rate the serve loop renders at (`rate` trigger mode), and
+//! both with TriggerSoftware as the device's [`CameraControl`].
 
 use super::{CameraSettings, GigeDevice};
 use crate::pipeline::FrameRequest;
 use crate::render::camera::Window;
+use crate::sink::camera_control::CameraControl;
 use tokio::sync::watch;
 
 /// The integration time (s) that `s` asks of the sensor, or `None` for the sensor's own
@@ -29,6 +31,18 @@ pub fn frame_request(initial: &CameraSettings, s: &CameraSettings) -> FrameReque
 /// (the client has not changed AcquisitionFrameRate).
 pub fn rate_override(initial: &CameraSettings, s: &CameraSettings) -> Option<f64> {
     (s.frame_rate_hz != initial.frame_rate_hz).then(|| f64::from(s.frame_rate_hz))
+}
+
+/// What the device's clients ask of the renderer: their exposure and ROI, their frame
+/// rate and their software triggers (serve merges it like any transport's).
+pub fn camera_control(device: &GigeDevice) -> CameraControl {
+    CameraControl {
+        metric: "gige",
+        label: "GigE Vision",
+        requests: Some(follow_requests(device)),
+        rate_requests: Some(follow_frame_rate(device)),
+        triggers: Some(device.software_triggers()),
+    }
 }
 
 /// A channel of [`frame_request`] that follows the device's settings until the device

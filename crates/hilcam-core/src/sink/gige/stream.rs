@@ -3,7 +3,7 @@
 //! speed carries them plus the negotiated delay, keeps a bounded ring of recent blocks
 //! and answers resend requests from it — between the packets of the frame in flight —
 //! within a budget of one block's packets per frame sent (`stream_jobs.rs`). It stops
-//! within [`STOP_POLL`] of the stop flag, even mid-block.
+//! within [`STOP_POLL`] of the device's [`Shutdown`], even mid-block.
 
 use super::chunk::{self, ChunkKind, SfncValues};
 use super::gvsp::{self, Block};
@@ -13,13 +13,13 @@ use super::registers::{CameraSettings, StreamChannel};
 use super::stream_jobs::{Jobs, Next};
 use crate::frame::{EncodedFrame, unix_ns_now};
 use crate::render::camera::Window;
+use crate::shutdown::Shutdown;
 use std::collections::VecDeque;
 use std::net::{SocketAddr, SocketAddrV4, UdpSocket};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// The longest the thread sleeps between two looks at the stop flag.
+/// The longest the thread sleeps between two looks at the stop signal.
 pub const STOP_POLL: Duration = Duration::from_millis(50);
 
 pub(super) struct FrameJob {
@@ -64,8 +64,8 @@ impl Pacer {
         Pacer { next: Instant::now(), link_bps }
     }
 
-    /// Wait for the next packet's slot; false when `stop` was set meanwhile.
-    fn wait(&mut self, stop: &AtomicBool) -> bool {
+    /// Wait for the next packet's slot; false when `stop` was triggered meanwhile.
+    fn wait(&mut self, stop: &Shutdown) -> bool {
         loop {
             let now = Instant::now();
             if self.next <= now + Self::SLACK {
@@ -73,7 +73,7 @@ impl Pacer {
                 self.next = self.next.max(now.checked_sub(Self::SLACK).unwrap_or(now));
                 return true;
             }
-            if stop.load(Ordering::Acquire) {
+            if stop.is_triggered() {
                 return false;
             }
             std::thread::sleep((self.next - now).min(STOP_POLL));
@@ -97,7 +97,7 @@ struct Kept {
 pub(super) struct Sender {
     pub socket: UdpSocket,
     pub jobs: Arc<StreamJobs>,
-    pub stop: Arc<AtomicBool>,
+    pub stop: Shutdown,
     pub ring_len: usize,
     /// The simulated link's speed, bits/s (`[output.gige] link_mbps`).
     pub link_bps: u64,
@@ -124,7 +124,7 @@ impl Sender {
         // Packets resends may still send: one block's worth per frame sent.
         let mut budget: u32 = 0;
         loop {
-            if self.stop.load(Ordering::Acquire) {
+            if self.stop.is_triggered() {
                 return;
             }
             match self.jobs.next(STOP_POLL) {
@@ -264,11 +264,11 @@ mod tests {
 
     #[test]
     fn the_pacer_gives_up_a_long_delay_when_stopped() {
-        let stop = AtomicBool::new(false);
+        let stop = Shutdown::new();
         let mut p = Pacer::new(1_000_000_000);
         assert!(p.wait(&stop), "the first packet leaves at once");
         p.sent(1472, Duration::from_secs(3600));
-        stop.store(true, Ordering::Release);
+        stop.trigger();
         let t = Instant::now();
         assert!(!p.wait(&stop));
         assert!(t.elapsed() < STOP_POLL * 2, "{:?}", t.elapsed());
@@ -284,7 +284,7 @@ mod tests {
 
     #[test]
     fn a_late_pacer_catches_up_by_at_most_its_slack() {
-        let stop = AtomicBool::new(false);
+        let stop = Shutdown::new();
         let mut p = Pacer::new(1_000_000_000);
         p.next = Instant::now() - Duration::from_millis(50);
         assert!(p.wait(&stop));

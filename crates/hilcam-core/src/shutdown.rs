@@ -1,19 +1,28 @@
-//! The one stop signal of a server: the command line's SIGINT/SIGTERM/SIGHUP, the
-//! scheduler's stop (fatal or done) and the input links all use it.
+//! The one way to stop a long-running part: `serve` (its scheduler, inputs, helpers and
+//! sinks), `replay`'s render loop, `send`'s pacing thread, the GigE Vision device's
+//! control loop and stream thread. The command line turns SIGINT/SIGTERM/SIGHUP into
+//! [`Shutdown::trigger_by`] (the binary's `cli/signal.rs`); the scheduler triggers it
+//! when it stops by itself (fatal or done).
 //!
 //! A cloneable handle over a `watch` channel: [`Shutdown::trigger`] from anywhere (async
 //! or not, any number of times); async tasks wait with [`Shutdown::wait`], blocking
-//! device loops poll [`Shutdown::is_triggered`] or sleep with [`Shutdown::sleep`] /
+//! loops poll [`Shutdown::is_triggered`] or sleep with [`Shutdown::sleep`] /
 //! [`Shutdown::sleep_until`]. A component that stops on its own (the frame stream's
 //! accept loop and clients, `hilcam send`'s pacing thread) owns an instance of its own.
+//!
+//! At the crate root, below every module: the links, the sinks, replay and serve all
+//! hold one, and none of them is the others' owner.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
 #[derive(Clone, Debug)]
 pub struct Shutdown {
     tx: Arc<watch::Sender<bool>>,
+    /// Why it was triggered first (a signal's name), for messages such as replay's
+    /// "stopped by SIGTERM".
+    cause: Arc<OnceLock<&'static str>>,
 }
 
 impl Default for Shutdown {
@@ -24,7 +33,7 @@ impl Default for Shutdown {
 
 impl Shutdown {
     pub fn new() -> Self {
-        Shutdown { tx: Arc::new(watch::Sender::new(false)) }
+        Shutdown { tx: Arc::new(watch::Sender::new(false)), cause: Arc::default() }
     }
 
     /// A signal triggered when `stop` resolves (a task on the current tokio runtime
@@ -44,6 +53,18 @@ impl Shutdown {
     /// Ask everything that holds this signal to stop (idempotent).
     pub fn trigger(&self) {
         self.tx.send_replace(true);
+    }
+
+    /// [`Shutdown::trigger`], noting `cause` (kept only if it is the first).
+    pub fn trigger_by(&self, cause: &'static str) {
+        // Set before the trigger, so whoever sees the trigger sees the cause.
+        let _ = self.cause.set(cause);
+        self.trigger();
+    }
+
+    /// The first [`Shutdown::trigger_by`]'s cause (None if none was given).
+    pub fn cause(&self) -> Option<&'static str> {
+        self.cause.get().copied()
     }
 
     pub fn is_triggered(&self) -> bool {
@@ -112,6 +133,16 @@ mod tests {
         assert!(!slept.await.unwrap(), "sleep reports the trigger");
         assert!(t0.elapsed() < Duration::from_secs(5), "the sleep ended early: {:?}", t0.elapsed());
         assert!(s.is_triggered());
+    }
+
+    #[test]
+    fn the_first_cause_is_kept_and_seen_with_the_trigger() {
+        let s = Shutdown::new();
+        let seen = s.clone();
+        assert_eq!((seen.is_triggered(), seen.cause()), (false, None));
+        s.trigger_by("SIGTERM");
+        s.trigger_by("SIGINT");
+        assert_eq!((seen.is_triggered(), seen.cause()), (true, Some("SIGTERM")));
     }
 
     #[test]
