@@ -297,3 +297,115 @@ mod single_ray_reference {
         }
     }
 }
+
+// Cases built to sit on the edges of the pass's decisions (pixel centres on edges,
+// grazing and near-coplanar triangles, far and near targets): every channel of every pixel the
+// single-ray reference's, bit for bit, with and without a lens.
+mod adversarial {
+    use super::{ALL, bits};
+    use crate::common::scenes::*;
+    use glam::DQuat;
+    use hilcam_core::pose::Pose;
+    use hilcam_core::render::camera::CameraModel;
+    use hilcam_core::render::camera::distortion::Distortion;
+    use hilcam_core::render::geometry::TriMesh;
+    use hilcam_core::render::integrator::{RenderSettings, Spp};
+    use hilcam_core::render::truth::{TruthChannels, render_truth, render_truth_reference};
+    use hilcam_core::scene::Scene;
+
+    fn build(mesh: TriMesh, cam: CameraModel, pose: Pose) -> Scene {
+        let settings = RenderSettings { spp: Spp::whole(1), depth: 1, ..Default::default() };
+        scene(mesh, vec![lambert("a", 0.5), lambert("b", 0.3), lambert("c", 0.2)], cam, pose, settings)
+    }
+
+    /// The truth equals the reference's through a pinhole and through a lens; returns the
+    /// number of pixels that see the target (pinhole).
+    fn same(scene: &Scene, what: &str) -> usize {
+        let all = TruthChannels::parse(ALL).unwrap();
+        let lens = Distortion { k1: -0.3, k2: 0.05, k3: 0.0, p1: 1e-4, p2: -2e-4 };
+        let mut seen = 0;
+        for distortion in [None, Some(lens)] {
+            let view = scene.view(&scene.camera, &scene.pose).with_distortion(distortion);
+            let want = render_truth_reference(scene, &view, all);
+            assert_eq!(bits(&render_truth(scene, &view, all)), bits(&want), "{what}, lens {distortion:?}");
+            if distortion.is_none() {
+                seen = want.mask.iter().filter(|m| **m != 0).count();
+            }
+        }
+        seen
+    }
+
+    fn pose(attitude: DQuat, range: f64) -> Pose {
+        Pose { attitude, ..Pose::ahead(range) }
+    }
+
+    #[test]
+    fn pixel_centres_on_shared_and_outer_edges() {
+        // f = 100 px, 2 m away: the square's diagonal (its two triangles' shared edge) runs
+        // through the centres of the pixels with col = row, and its sides (half-size
+        // 10.5 px) through columns and rows of centres.
+        let cam = CameraModel { width: 64, height: 64, pitch_um: 10.0, focal_mm: 1.0, principal_point_px: [0.0, 0.0] };
+        let mut mesh = square(0.0, 0.0, 0.0, 0.42, 0);
+        // A second square sharing the first's plane and one of its sides' lines.
+        mesh.append(&square(0.42, 0.0, 0.0, 0.42, 1));
+        let seen = same(&build(mesh.clone(), cam.clone(), pose(DQuat::IDENTITY, 2.0)), "edges");
+        assert!(seen > 800, "{seen}");
+        // Turned by a quarter turn and by a few hundredths of a degree about the boresight.
+        for turn in [90f64, 0.03, 45.0] {
+            let a = DQuat::from_rotation_z(turn.to_radians());
+            same(&build(mesh.clone(), cam.clone(), pose(a, 2.0)), &format!("edges turned {turn}°"));
+        }
+    }
+
+    #[test]
+    fn grazing_triangles() {
+        let cam = CameraModel { width: 64, height: 48, pitch_um: 10.0, focal_mm: 4.0, principal_point_px: [0.3, -0.2] };
+        for tilt in [60.0, 85.0, 89.0, 89.9, 89.999, 90.0] {
+            let mut mesh = square(0.0, 0.0, 0.0, 0.2, 0);
+            mesh.append(&square(0.01, 0.0, -0.02, 0.1, 1));
+            let a = DQuat::from_rotation_y(f64::to_radians(tilt)) * DQuat::from_rotation_x(0.05);
+            same(&build(mesh, cam.clone(), pose(a, 1.5)), &format!("tilt {tilt}°"));
+        }
+    }
+
+    #[test]
+    fn overlapping_near_coplanar_triangles_at_close_depths() {
+        let cam = CameraModel { width: 64, height: 48, pitch_um: 10.0, focal_mm: 6.0, principal_point_px: [0.0, 0.0] };
+        for gap in [0.0f32, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3] {
+            // Two overlapping squares `gap` apart, the second turned a little in its plane
+            // (their edges cross the first's); a third crossing both at a slant.
+            let mut mesh = square(0.0, 0.0, 0.0, 0.2, 0);
+            let mut b = square(0.013, -0.007, -gap, 0.15, 1);
+            for p in &mut b.positions {
+                let (x, y) = (p.x, p.y);
+                (p.x, p.y) = (x * 0.999 - y * 0.0447, x * 0.0447 + y * 0.999);
+            }
+            mesh.append(&b);
+            let mut c = square(-0.02, 0.01, 0.0, 0.12, 2);
+            for p in &mut c.positions {
+                p.z = 1e-4 * p.x;
+            }
+            mesh.append(&c);
+            let a = DQuat::from_rotation_y(0.4) * DQuat::from_rotation_x(-0.2);
+            let seen = same(&build(mesh, cam.clone(), pose(a, 2.0)), &format!("gap {gap}"));
+            assert!(seen > 1000, "{seen}");
+        }
+    }
+
+    #[test]
+    fn targets_at_one_metre_and_at_a_thousand_kilometres() {
+        let cam =
+            CameraModel { width: 64, height: 48, pitch_um: 10.0, focal_mm: 10.0, principal_point_px: [1.5, -2.25] };
+        let a = DQuat::from_rotation_y(0.5) * DQuat::from_rotation_x(0.2);
+        let mut near = square(0.0, 0.0, 0.0, 0.2, 0);
+        near.append(&square(0.03, 0.02, -0.05, 0.05, 1));
+        let seen = same(&build(near, cam.clone(), pose(a, 1.0)), "1 m");
+        assert!(seen > 1000, "{seen}");
+        // 1000 km through a 1000 mm lens on 1 µm pixels (f = 10⁶ px): a 40 m plate.
+        let tele = CameraModel { pitch_um: 1.0, focal_mm: 1000.0, ..cam };
+        let mut far = square(0.0, 0.0, 0.0, 40.0, 0);
+        far.append(&square(6.0, 4.0, -10.0, 10.0, 1));
+        let seen = same(&build(far, tele, pose(a, 1.0e6)), "1000 km");
+        assert!(seen > 500, "{seen}");
+    }
+}

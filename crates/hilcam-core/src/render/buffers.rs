@@ -7,10 +7,10 @@
 //! `FramePipeline` owns), they grow to the largest frame seen and are then only cleared
 //! and refilled: rendering allocates nothing (`tests/zero_alloc.rs` counts).
 
-use super::Band;
 use super::cull::SilhouetteBuffers;
 use super::cull::coverage::Coverage;
 use super::cull::visibility::PrimaryRaster;
+use super::integrator::RayCounts;
 use super::integrator::waves::{CameraSample, Scratch};
 use crate::heap::reserve_to;
 use crate::render::camera::View;
@@ -218,5 +218,54 @@ impl<S> Workers<S> {
         // cleared before use anyway.
         let mut scratch = self.0[i].lock().unwrap_or_else(|e| e.into_inner());
         f(&mut scratch)
+    }
+}
+
+/// One band of rows during a frame: its pixels and their running sums. Its buffers are
+/// kept from frame to frame ([`FrameBuffers`]).
+pub(crate) struct Band<L> {
+    pub(super) first_row: usize,
+    /// Pixels in tile order: blocks of `tile_cols` columns × all rows.
+    pub(super) pixels: Vec<(u32, u32)>,
+    pub(super) sums: Vec<f32>,
+    /// Pilot sums of squares (adaptive frames only).
+    pub(super) sum_sq: Vec<f32>,
+    /// Samples per pixel.
+    pub(super) counts: Vec<u32>,
+    /// Adaptive stage: each pixel's weight and frame pixel index.
+    pub(super) weight: Vec<f32>,
+    pub(super) index: Vec<u64>,
+    pub(super) rays: RayCounts,
+    pub(super) log: L,
+}
+
+impl<L: Default> Default for Band<L> {
+    fn default() -> Self {
+        Band {
+            first_row: 0,
+            pixels: Vec::new(),
+            sums: Vec::new(),
+            sum_sq: Vec::new(),
+            counts: Vec::new(),
+            weight: Vec::new(),
+            index: Vec::new(),
+            rays: RayCounts::default(),
+            log: L::default(),
+        }
+    }
+}
+
+impl<L> Band<L> {
+    /// Add sample value `v` to pixel `i` (and its square, in the pilot of an adaptive
+    /// frame); a non-finite value is dropped and counted.
+    pub(super) fn add_sample(&mut self, i: usize, v: f32, square: bool) {
+        if !v.is_finite() {
+            self.rays.nonfinite += 1;
+            return;
+        }
+        self.sums[i] += v;
+        if square {
+            self.sum_sq[i] += v * v;
+        }
     }
 }
