@@ -170,13 +170,26 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         xml_escape(&id.model),
         xml_escape(&id.manufacturer)
     );
+    categories(&mut x);
+    device_features(&mut x);
+    image_format_features(&mut x, cam);
+    acquisition_features(&mut x, cam);
+    transport_features(&mut x);
+    chunk_features(&mut x, cam);
+    let _ = writeln!(x, "<Port Name=\"Device\" NameSpace=\"Standard\"/>");
+    let _ = writeln!(x, "</RegisterDescription>");
+    x
+}
+
+/// The categories a client's feature tree shows, Root first.
+fn categories(x: &mut String) {
     category(
-        &mut x,
+        x,
         "Root",
         &["DeviceControl", "ImageFormatControl", "AcquisitionControl", "TransportLayerControl", "ChunkDataControl"],
     );
     category(
-        &mut x,
+        x,
         "DeviceControl",
         &[
             "DeviceVendorName",
@@ -188,7 +201,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         ],
     );
     category(
-        &mut x,
+        x,
         "ImageFormatControl",
         &[
             "SensorWidth",
@@ -203,7 +216,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         ],
     );
     category(
-        &mut x,
+        x,
         "AcquisitionControl",
         &[
             "AcquisitionMode",
@@ -220,7 +233,7 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         ],
     );
     category(
-        &mut x,
+        x,
         "TransportLayerControl",
         &[
             "PayloadSize",
@@ -238,36 +251,36 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
     let mut chunk_features =
         vec!["ChunkModeActive", "ChunkSelector", "ChunkEnable", "ChunkTimestamp", "ChunkExposureTime", "ChunkFrameID"];
     chunk_features.extend(CHUNK_FIELDS.iter().map(|f| f.0));
-    category(&mut x, "ChunkDataControl", &chunk_features);
+    category(x, "ChunkDataControl", &chunk_features);
+}
 
-    string_reg(&mut x, "DeviceVendorName", reg::MANUFACTURER_NAME, 32, Access::Ro);
-    string_reg(&mut x, "DeviceModelName", reg::MODEL_NAME, 32, Access::Ro);
-    string_reg(&mut x, "DeviceVersion", reg::DEVICE_VERSION, 32, Access::Ro);
-    string_reg(&mut x, "DeviceFirmwareVersion", reg::FIRMWARE_VERSION, reg::FIRMWARE_VERSION_LEN, Access::Ro);
-    string_reg(&mut x, "DeviceSerialNumber", reg::SERIAL_NUMBER, 16, Access::Ro);
-    string_reg(&mut x, "DeviceUserID", reg::USER_NAME, reg::USER_NAME_LEN, Access::Rw);
+/// DeviceControl: the identity strings.
+fn device_features(x: &mut String) {
+    string_reg(x, "DeviceVendorName", reg::MANUFACTURER_NAME, 32, Access::Ro);
+    string_reg(x, "DeviceModelName", reg::MODEL_NAME, 32, Access::Ro);
+    string_reg(x, "DeviceVersion", reg::DEVICE_VERSION, 32, Access::Ro);
+    string_reg(x, "DeviceFirmwareVersion", reg::FIRMWARE_VERSION, reg::FIRMWARE_VERSION_LEN, Access::Ro);
+    string_reg(x, "DeviceSerialNumber", reg::SERIAL_NUMBER, 16, Access::Ro);
+    string_reg(x, "DeviceUserID", reg::USER_NAME, reg::USER_NAME_LEN, Access::Rw);
+}
 
+/// ImageFormatControl: the sensor, the region of interest (its ranges follow each other)
+/// and the pixel formats.
+fn image_format_features(x: &mut String, cam: &CameraDescription) {
     let (sw, sh) = (u64::from(cam.sensor_width), u64::from(cam.sensor_height));
-    integer(&mut x, "SensorWidth", reg::SENSOR_WIDTH, Access::Ro, sw, sw, 1);
-    integer(&mut x, "SensorHeight", reg::SENSOR_HEIGHT, Access::Ro, sh, sh, 1);
-    integer(&mut x, "WidthMax", reg::WIDTH_MAX, Access::Ro, 1, sw, 1);
-    integer(&mut x, "HeightMax", reg::HEIGHT_MAX, Access::Ro, 1, sh, 1);
+    integer(x, "SensorWidth", reg::SENSOR_WIDTH, Access::Ro, sw, sw, 1);
+    integer(x, "SensorHeight", reg::SENSOR_HEIGHT, Access::Ro, sh, sh, 1);
+    integer(x, "WidthMax", reg::WIDTH_MAX, Access::Ro, 1, sw, 1);
+    integer(x, "HeightMax", reg::HEIGHT_MAX, Access::Ro, 1, sh, 1);
     // The ranges follow the region: Width ≤ SensorWidth − OffsetX (WidthMax),
     // OffsetX ≤ SensorWidth − Width.
-    integer_with(&mut x, "Width", reg::WIDTH, Access::Rw, LOCKED_BY, "<Min>1</Min><pMax>WidthMax</pMax><Inc>1</Inc>");
-    integer_with(
-        &mut x,
-        "Height",
-        reg::HEIGHT,
-        Access::Rw,
-        LOCKED_BY,
-        "<Min>1</Min><pMax>HeightMax</pMax><Inc>1</Inc>",
-    );
+    integer_with(x, "Width", reg::WIDTH, Access::Rw, LOCKED_BY, "<Min>1</Min><pMax>WidthMax</pMax><Inc>1</Inc>");
+    integer_with(x, "Height", reg::HEIGHT, Access::Rw, LOCKED_BY, "<Min>1</Min><pMax>HeightMax</pMax><Inc>1</Inc>");
     for (offset, address, sensor, size) in
         [("OffsetX", reg::OFFSET_X, "SensorWidth", "Width"), ("OffsetY", reg::OFFSET_Y, "SensorHeight", "Height")]
     {
         let range = format!("<Min>0</Min><pMax>{offset}Max</pMax><Inc>1</Inc>");
-        integer_with(&mut x, offset, address, Access::Rw, LOCKED_BY, &range);
+        integer_with(x, offset, address, Access::Rw, LOCKED_BY, &range);
         let _ = writeln!(
             x,
             "<IntSwissKnife Name=\"{offset}Max\"><pVariable Name=\"S\">{sensor}</pVariable>\
@@ -275,32 +288,38 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         );
     }
     let formats: Vec<(&str, u32)> = cam.pixel_formats().iter().map(|f| (f.name(), f.pfnc())).collect();
-    enumeration_with(&mut x, "PixelFormat", reg::PIXEL_FORMAT, LOCKED_BY, "", &formats);
-    integer(&mut x, "PayloadSize", reg::PAYLOAD_SIZE, Access::Ro, 0, u64::from(u32::MAX), 1);
+    enumeration_with(x, "PixelFormat", reg::PIXEL_FORMAT, LOCKED_BY, "", &formats);
+    integer(x, "PayloadSize", reg::PAYLOAD_SIZE, Access::Ro, 0, u64::from(u32::MAX), 1);
+}
 
-    enumeration(&mut x, "AcquisitionMode", reg::ACQUISITION_MODE, &[("Continuous", 0), ("SingleFrame", 1)]);
-    command(&mut x, "AcquisitionStart", reg::ACQUISITION_START, 1);
-    command(&mut x, "AcquisitionStop", reg::ACQUISITION_STOP, 1);
-    float(&mut x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, cam.frame_rate_max_hz, "Hz");
-    enumeration(&mut x, "TriggerSelector", reg::TRIGGER_SELECTOR, &[("FrameStart", 0)]);
-    enumeration(&mut x, "TriggerMode", reg::TRIGGER_MODE, &[("Off", 0), ("On", 1)]);
-    enumeration(&mut x, "TriggerSource", reg::TRIGGER_SOURCE, &[("Software", 0)]);
-    command(&mut x, "TriggerSoftware", reg::TRIGGER_SOFTWARE, 1);
-    enumeration(&mut x, "ExposureMode", reg::EXPOSURE_MODE, &[("Timed", 1)]);
-    float(&mut x, "ExposureTime", reg::EXPOSURE_TIME, cam.exposure_min_us, cam.exposure_max_us, "us");
-    enumeration(&mut x, "ExposureAuto", reg::EXPOSURE_AUTO, &[("Off", 0), ("Continuous", 2)]);
+/// AcquisitionControl: start and stop, the frame rate, the software trigger, exposure.
+fn acquisition_features(x: &mut String, cam: &CameraDescription) {
+    enumeration(x, "AcquisitionMode", reg::ACQUISITION_MODE, &[("Continuous", 0), ("SingleFrame", 1)]);
+    command(x, "AcquisitionStart", reg::ACQUISITION_START, 1);
+    command(x, "AcquisitionStop", reg::ACQUISITION_STOP, 1);
+    float(x, "AcquisitionFrameRate", reg::FRAME_RATE, reg::FRAME_RATE_MIN, cam.frame_rate_max_hz, "Hz");
+    enumeration(x, "TriggerSelector", reg::TRIGGER_SELECTOR, &[("FrameStart", 0)]);
+    enumeration(x, "TriggerMode", reg::TRIGGER_MODE, &[("Off", 0), ("On", 1)]);
+    enumeration(x, "TriggerSource", reg::TRIGGER_SOURCE, &[("Software", 0)]);
+    command(x, "TriggerSoftware", reg::TRIGGER_SOFTWARE, 1);
+    enumeration(x, "ExposureMode", reg::EXPOSURE_MODE, &[("Timed", 1)]);
+    float(x, "ExposureTime", reg::EXPOSURE_TIME, cam.exposure_min_us, cam.exposure_max_us, "us");
+    enumeration(x, "ExposureAuto", reg::EXPOSURE_AUTO, &[("Off", 0), ("Continuous", 2)]);
+}
 
+/// TransportLayerControl: the GigE Vision bootstrap registers a client tunes.
+fn transport_features(x: &mut String) {
     let _ = writeln!(
         x,
         "<Integer Name=\"GevTimestampTickFrequency\" NameSpace=\"Standard\"><pValue>GevTimestampTickFrequencyReg</pValue></Integer>"
     );
-    int_reg(&mut x, "GevTimestampTickFrequencyReg", reg::TICK_FREQ_HIGH, 8, Access::Ro, "Device");
-    command(&mut x, "GevTimestampControlLatch", reg::TIMESTAMP_CONTROL, reg::TIMESTAMP_LATCH);
+    int_reg(x, "GevTimestampTickFrequencyReg", reg::TICK_FREQ_HIGH, 8, Access::Ro, "Device");
+    command(x, "GevTimestampControlLatch", reg::TIMESTAMP_CONTROL, reg::TIMESTAMP_LATCH);
     let _ = writeln!(
         x,
         "<Integer Name=\"GevTimestampValue\" NameSpace=\"Standard\"><pValue>GevTimestampValueReg</pValue></Integer>"
     );
-    int_reg(&mut x, "GevTimestampValueReg", reg::TIMESTAMP_VALUE_HIGH, 8, Access::Ro, "Device");
+    int_reg(x, "GevTimestampValueReg", reg::TIMESTAMP_VALUE_HIGH, 8, Access::Ro, "Device");
     let _ = writeln!(
         x,
         "<Integer Name=\"GevSCPSPacketSize\" NameSpace=\"Standard\"><pIsLocked>{LOCKED_BY}</pIsLocked>\
@@ -313,10 +332,10 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
         reg::PACKET_SIZE_INC,
         reg::SCPS0
     );
-    integer(&mut x, "GevSCPD", reg::SCPD0, Access::Rw, 0, u64::from(reg::SCPD_MAX_TICKS), 1);
-    integer(&mut x, "TLParamsLocked", reg::TL_PARAMS_LOCKED, Access::Rw, 0, 1, 1);
+    integer(x, "GevSCPD", reg::SCPD0, Access::Rw, 0, u64::from(reg::SCPD_MAX_TICKS), 1);
+    integer(x, "TLParamsLocked", reg::TL_PARAMS_LOCKED, Access::Rw, 0, 1, 1);
     integer(
-        &mut x,
+        x,
         "GevHeartbeatTimeout",
         reg::HEARTBEAT_TIMEOUT,
         Access::Rw,
@@ -335,18 +354,21 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
          <Bit>30</Bit><Endianess>BigEndian</Endianess></MaskedIntReg>",
         reg::GVCP_CONFIG
     );
-    integer(&mut x, "GevGVCPPendingTimeout", reg::PENDING_TIMEOUT, Access::Ro, 0, u64::from(u32::MAX), 1);
+    integer(x, "GevGVCPPendingTimeout", reg::PENDING_TIMEOUT, Access::Ro, 0, u64::from(u32::MAX), 1);
+}
 
-    boolean(&mut x, "ChunkModeActive", reg::CHUNK_MODE_ACTIVE, LOCKED_BY);
+/// ChunkDataControl: which chunks a frame carries, and hilcam's metadata chunk's fields.
+fn chunk_features(x: &mut String, cam: &CameraDescription) {
+    boolean(x, "ChunkModeActive", reg::CHUNK_MODE_ACTIVE, LOCKED_BY);
     // ChunkEnable acts on the chunk ChunkSelector selects (the device keeps the selector).
     let kinds: Vec<ChunkKind> =
         ChunkKind::ALL.into_iter().filter(|k| *k != ChunkKind::HilcamTruth || !cam.truth.is_empty()).collect();
     let entries: Vec<(&str, u32)> = kinds.iter().map(|k| (k.name(), *k as u32)).collect();
-    enumeration_with(&mut x, "ChunkSelector", reg::CHUNK_SELECTOR, "", "ChunkEnable", &entries);
-    boolean(&mut x, "ChunkEnable", reg::CHUNK_ENABLE, LOCKED_BY);
-    chunk_feature(&mut x, "ChunkTimestamp", chunk::TIMESTAMP_CHUNK_ID, false);
-    chunk_feature(&mut x, "ChunkExposureTime", chunk::EXPOSURE_CHUNK_ID, true);
-    chunk_feature(&mut x, "ChunkFrameID", chunk::FRAME_ID_CHUNK_ID, false);
+    enumeration_with(x, "ChunkSelector", reg::CHUNK_SELECTOR, "", "ChunkEnable", &entries);
+    boolean(x, "ChunkEnable", reg::CHUNK_ENABLE, LOCKED_BY);
+    chunk_feature(x, "ChunkTimestamp", chunk::TIMESTAMP_CHUNK_ID, false);
+    chunk_feature(x, "ChunkExposureTime", chunk::EXPOSURE_CHUNK_ID, true);
+    chunk_feature(x, "ChunkFrameID", chunk::FRAME_ID_CHUNK_ID, false);
     let _ = writeln!(x, "<Port Name=\"HilcamChunkPort\"><ChunkID>{META_CHUNK_ID:08X}</ChunkID></Port>");
     for (name, offset, len) in CHUNK_FIELDS {
         let _ = writeln!(
@@ -357,9 +379,6 @@ pub fn xml(id: &DeviceIdentity, cam: &CameraDescription) -> String {
              <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></IntReg>"
         );
     }
-    let _ = writeln!(x, "<Port Name=\"Device\" NameSpace=\"Standard\"/>");
-    let _ = writeln!(x, "</RegisterDescription>");
-    x
 }
 
 fn xml_escape(s: &str) -> String {
