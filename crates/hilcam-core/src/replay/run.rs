@@ -129,19 +129,10 @@ fn prepare_trajectory(
     }
     let cfg = config(r, settings, identity(traj, false)?, identity(scene_path, true)?);
     let line = format!(
-        "{}: {} poses → {} ({}x{}, spp {} depth {} {:?}, seed {}), shard {}/{}, every {}",
+        "{}: {} poses → {}",
         traj.display(),
         samples.len(),
-        r.out.display(),
-        camera.width,
-        camera.height,
-        settings.spp,
-        settings.depth,
-        settings.sampler,
-        settings.seed,
-        r.shard.index,
-        r.shard.count,
-        r.every
+        run_summary(r, (camera.width, camera.height), &settings, "spp")
     );
     let jobs = trajectory_jobs(&samples, &settings);
     Ok((pipeline, jobs, cfg, line))
@@ -199,26 +190,36 @@ fn prepare_session(r: &ReplayRequest, path: &Path, given: Option<&Path>, verify:
     let cfg = config(r, settings, identity(path, false)?, identity(&scene_path, true)?);
     let flagged = |bit| jobs.iter().filter(|j| j.flags.contains(bit)).count();
     let line = format!(
-        "{}: {} frames ({} degraded, {} extrapolated, {} late) of {} poses → {} ({}x{}, best spp {} depth {} {:?}, \
-         seed {}), shard {}/{}, every {}",
+        "{}: {} frames ({} degraded, {} extrapolated, {} late) of {} poses → {}",
         path.display(),
         jobs.len(),
         flagged(FrameFlags::DEGRADED),
         flagged(FrameFlags::EXTRAPOLATED),
         flagged(FrameFlags::LATE),
         session.poses.len(),
+        run_summary(r, (h.width, h.height), &settings, "best spp")
+    );
+    Ok((pipeline, jobs, cfg, line))
+}
+
+/// The start line's tail: where the frames go, their size and settings, and the shard.
+fn run_summary(
+    r: &ReplayRequest,
+    (width, height): (u32, u32),
+    s: &crate::render::integrator::RenderSettings,
+    spp: &str,
+) -> String {
+    format!(
+        "{} ({width}x{height}, {spp} {} depth {} {:?}, seed {}), shard {}/{}, every {}",
         r.out.display(),
-        h.width,
-        h.height,
-        settings.spp,
-        settings.depth,
-        settings.sampler,
-        settings.seed,
+        s.spp,
+        s.depth,
+        s.sampler,
+        s.seed,
         r.shard.index,
         r.shard.count,
         r.every
-    );
-    Ok((pipeline, jobs, cfg, line))
+    )
 }
 
 fn config(

@@ -467,7 +467,6 @@ fn stars_from(
     sensor: &SensorConfig,
     focal_px: f64,
 ) -> Result<StarField, SceneError> {
-    let field = |span, f: &str, message| at.field(span, f, message);
     let Some(q) = pose.camera_to_inertial else {
         return Err(at.missing(
             "pose.camera_to_inertial",
@@ -477,7 +476,7 @@ fn stars_from(
     let st = s.get_ref();
     if st.min_vmag.is_nan() || st.max_vmag.is_nan() || st.min_vmag > st.max_vmag {
         let m = format!("{} must be ≤ max_vmag {}", st.min_vmag, st.max_vmag);
-        return Err(field(s.span(), "stars.min_vmag", m));
+        return Err(at.field(s.span(), "stars.min_vmag", m));
     }
     let (lo, hi) = sensor.band.as_ref().map_or((0.45, 0.75), |b| (b.min_um, b.max_um));
     let zero_point_w_m2 = match &st.zero_point_w_m2 {
@@ -485,7 +484,7 @@ fn stars_from(
         Some(z) => {
             let v = *z.get_ref();
             if !(v.is_finite() && v > 0.0) {
-                return Err(field(z.span(), "stars.zero_point_w_m2", format!("must be > 0 W/m², got {v}")));
+                return Err(at.field(z.span(), "stars.zero_point_w_m2", format!("must be > 0 W/m², got {v}")));
             }
             v
         }
@@ -494,7 +493,7 @@ fn stars_from(
         Selection { min_vmag: st.min_vmag, max_vmag: st.max_vmag, zero_point_w_m2, default_camera_to_inertial: q };
     let file = dir.join(st.catalogue.get_ref());
     let stars =
-        StarField::load(&file, &sel).map_err(|e| field(st.catalogue.span(), "stars.catalogue", e.to_string()))?;
+        StarField::load(&file, &sel).map_err(|e| at.field(st.catalogue.span(), "stars.catalogue", e.to_string()))?;
     // Finite inputs can still make infinite pixels: the brightest star's radiance
     // E / Ω_pixel = E · focal_px² must be an f32 (the radiance image's type).
     if let Some(b) = stars.stars.iter().min_by(|a, b| a.vmag.total_cmp(&b.vmag)) {
@@ -509,7 +508,7 @@ fn stars_from(
                 b.irradiance_w_m2,
                 focal_px * focal_px
             );
-            return Err(field(span, "stars.zero_point_w_m2", m));
+            return Err(at.field(span, "stars.zero_point_w_m2", m));
         }
     }
     Ok(stars)

@@ -95,21 +95,18 @@ pub(super) fn load_meshes(
             tracing::warn!(mesh = %obj_path.display(), "{note}");
         }
         let place = placement(entry, k, scene_limits, at)?;
-        let mut map = Vec::new();
-        for name in &loaded.material_names {
-            let mut ctx = MaterialContext {
-                entry,
-                k,
-                obj_path: &obj_path,
-                loaded: &loaded,
-                sunlit_white,
-                materials: &mut *materials,
-                authored_from: &mut authored_from,
-                textures: &mut out.textures,
-                at,
-            };
-            map.push(ctx.scene_material(name)?);
-        }
+        let mut ctx = MaterialContext {
+            entry,
+            k,
+            obj_path: &obj_path,
+            loaded: &loaded,
+            sunlit_white,
+            materials: &mut *materials,
+            authored_from: &mut authored_from,
+            textures: &mut out.textures,
+            at,
+        };
+        let map = loaded.material_names.iter().map(|name| ctx.scene_material(name)).collect::<Result<Vec<_>, _>>()?;
         let mut m = loaded.mesh;
         for p in &mut m.positions {
             *p = place.apply(p.as_dvec3()).as_vec3();
